@@ -123,7 +123,7 @@ def heliocentric_state_j2000(
     return to_eq(xp, yp), to_eq(vxp, vyp)
 
 
-def R_mf_j2000(t_s: ArrayLike) -> FloatArray:  # noqa: N802 (R_a_b, CONVENTIONS.md)
+def R_mf_j2000(t_s: ArrayLike) -> FloatArray:
     """IAU 2009 Mars rotation, J2000 -> Mars-fixed, (..., 3, 3) (onboard copy).
 
     Built as the Mars-fixed axes in J2000: ``z`` the pole ``(α0, δ0)``, ``x`` the prime
@@ -151,7 +151,7 @@ def _check_site(lat_rad: float, lon_east_rad: float) -> None:
         raise ValueError(f"lon_east_rad: must be finite, got {lon_east_rad!r}")
 
 
-def R_ll_mf(lat_rad: float, lon_east_rad: float) -> FloatArray:  # noqa: N802 (R_a_b name)
+def R_ll_mf(lat_rad: float, lon_east_rad: float) -> FloatArray:
     """Mars-fixed -> Local-Level (N, E, Down), planetographic latitude, East longitude."""
     _check_site(lat_rad, lon_east_rad)
     sp, cp = math.sin(lat_rad), math.cos(lat_rad)

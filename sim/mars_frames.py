@@ -74,7 +74,7 @@ def _frame_rot(axis: int, angle: FloatArray) -> FloatArray:
     return out
 
 
-def R_mf_j2000(t_s: ArrayLike) -> FloatArray:  # noqa: N802 (R_a_b, CONVENTIONS.md)
+def R_mf_j2000(t_s: ArrayLike) -> FloatArray:
     """Rotation taking J2000 (ICRF) coordinates to Mars-fixed at ``t_s``; (..., 3, 3).
 
     ``v_mf = R_mf_j2000(t_s) @ v_j2000``. Rows are the Mars-fixed axes in J2000.
@@ -127,7 +127,7 @@ def site_mf_m(lat_rad: float, lon_east_rad: float) -> FloatArray:
     )
 
 
-def R_ll_mf(lat_rad: float, lon_east_rad: float) -> FloatArray:  # noqa: N802 (R_a_b name)
+def R_ll_mf(lat_rad: float, lon_east_rad: float) -> FloatArray:
     """Rotation taking Mars-fixed coordinates to Local-Level (N, E, Down) at the site.
 
     ``lat_rad`` planetographic (Down = inward ellipsoid normal), ``lon_east_rad`` East.
