@@ -1,0 +1,430 @@
+"""Heightmap terrain: lazily generated, cached square tiles with bilinear height and slope.
+
+The surface is a bilinear interpolation of elevation samples on a regular grid in the Site
+frame (x North, y East, metres; elevations up). The grid is cut into square tiles that are
+generated on first use from a deterministic *ground field* (a pure function of the seed and
+the global grid indices, so tile ``(i, j)`` never depends on which tiles were built before)
+plus every rock that reaches into the tile (``sim.rocks``). Tiles share their edge
+samples: both tiles compute the edge from the same global indices with the same arithmetic,
+so the surface is continuous across tile edges, bit for bit.
+
+Design numbers (approximate, chosen for the MER wheel and the Navcam):
+
+- ``RESOLUTION_M = 0.05``: a MER wheel is 0.26 m across with a contact patch of a few cm, so
+  5 cm resolves the wheel-scale relief and rocks from ~0.1 m up. Finer detail (what the
+  Navcam resolves within a few metres) is carried by the albedo texture, not the geometry:
+  halving the spacing would cost 4x the memory and build time.
+- ``TILE_CELLS = 160`` (8 m tiles, 161 x 161 samples, 207 kB in float64): larger than the
+  rover (1.6 m x 2.3 m) so a rover query touches at most four tiles, larger than the biggest
+  rock so rocks spill only into the eight neighbours, small enough to build in a few ms.
+- ``DEFAULT_CACHE_TILES = 128`` (26 MB, a 90 m x 90 m patch): least recently used tiles are
+  dropped and rebuilt on demand; a single query needing more tiles at once grows the pool
+  for its duration, then the pool shrinks back.
+
+The ground fields use value noise (lattice values hashed from the seed and the integer
+lattice point, interpolated with a cubic B-spline; Ebert et al., *Texturing and Modeling*,
+ch. 2; Perlin 1985) summed over octaves (fractional Brownian motion). On the tile grid the
+interpolation is separable, so an octave costs a few row and column gathers and weighted
+sums instead of per-point hashing.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections import OrderedDict
+from collections.abc import Callable, Sequence
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from sim.errors import InputError
+from sim.terrain import Soil
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+RESOLUTION_M = 0.05  # grid spacing, see the module docstring
+TILE_CELLS = 160  # cells per tile side: 8 m tiles at 5 cm
+DEFAULT_CACHE_TILES = 128  # 128 x 161^2 x 8 B = 26 MB
+MAX_COORD_M = 1.0e6  # queries beyond 1000 km of the Site origin are rejected
+
+_MASK64 = (1 << 64) - 1
+_K1 = np.uint64(0x9E3779B97F4A7C15)  # odd 64-bit constants (golden ratio, murmur3)
+_K2 = np.uint64(0xC2B2AE3D27D4EB4F)
+_M1 = np.uint64(0xFF51AFD7ED558CCD)  # murmur3 fmix64 multipliers
+_M2 = np.uint64(0xC4CEB9FE1A85EC53)
+_S33 = np.uint64(33)
+_S11 = np.uint64(11)
+
+
+def _fmix64_int(h: int) -> int:
+    """Murmur3's 64-bit finaliser on a Python int (for deriving keys)."""
+    h &= _MASK64
+    h ^= h >> 33
+    h = (h * 0xFF51AFD7ED558CCD) & _MASK64
+    h ^= h >> 33
+    h = (h * 0xC4CEB9FE1A85EC53) & _MASK64
+    h ^= h >> 33
+    return h
+
+
+def derive_key(seed: int, *labels: int) -> int:
+    """A 64-bit key for one independent random stream, from a seed and integer labels."""
+    h = _fmix64_int(seed + 0x632BE59BD9B4E019)
+    for label in labels:
+        h = _fmix64_int(h ^ _fmix64_int(label + 0x9E3779B97F4A7C15))
+    return h
+
+
+def lattice_uniform(key: int, ix: IntArray, iy: IntArray) -> FloatArray:
+    """Uniform deviates in [-1, 1) attached to integer lattice points ``(ix, iy)``.
+
+    A pure function of ``(key, ix, iy)`` (murmur3 fmix64 of a mixed key), so any subset of
+    the lattice can be generated in any order with the same values. Broadcasts.
+    """
+    with np.errstate(over="ignore"):
+        h = (ix.astype(np.int64).view(np.uint64) * _K1) ^ (
+            iy.astype(np.int64).view(np.uint64) * _K2
+        )
+        h ^= np.uint64(key)
+        h ^= h >> _S33
+        h *= _M1
+        h ^= h >> _S33
+        h *= _M2
+        h ^= h >> _S33
+    out: FloatArray = (h >> _S11).astype(np.float64) * (2.0 / 2.0**53) - 1.0
+    return out
+
+
+_TAPS = np.arange(-1, 3, dtype=np.int64)  # lattice points i-1 .. i+2 of a cubic B-spline
+
+
+def _bspline_weights(t: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Uniform cubic B-spline weights of lattice points ``i-1 .. i+2`` at fraction ``t``.
+
+    They sum to one and make the field C2 (continuous curvature): unlike the linear or
+    smoothstep interpolation of classic value noise, no slope plateaus at lattice points,
+    so the axis-aligned lattice does not show as a blocky grain in the terrain.
+    """
+    t2 = t * t
+    t3 = t2 * t
+    s = 1.0 - t
+    return (
+        s * s * s / 6.0,
+        (3.0 * t3 - 6.0 * t2 + 4.0) / 6.0,
+        (-3.0 * t3 + 3.0 * t2 + 3.0 * t + 1.0) / 6.0,
+        t3 / 6.0,
+    )
+
+
+def grid_axes(i0: int, j0: int, n: int, spacing_m: float) -> tuple[FloatArray, FloatArray]:
+    """Coordinates (m) of grid nodes ``x = (i0 + a)·s``, ``y = (j0 + b)·s``, ``a, b < n``.
+
+    Shapes ``(n, 1)`` and ``(1, n)``. The integer index is formed first, so every tile
+    computes bit-identical coordinates for a shared node.
+    """
+    idx = np.arange(n, dtype=np.int64)
+    x = ((i0 + idx) * spacing_m).astype(np.float64)[:, None]
+    y = ((j0 + idx) * spacing_m).astype(np.float64)[None, :]
+    return x, y
+
+
+class GroundField(Protocol):
+    """A smooth elevation field (m, up) defined everywhere, before rocks are added."""
+
+    def at(self, x_m: ArrayLike, y_m: ArrayLike) -> FloatArray:
+        """Elevation at arbitrary points (broadcasting arrays of Site x, y in metres)."""
+        ...
+
+    def grid(self, i0: int, j0: int, n: int, spacing_m: float) -> FloatArray:
+        """Elevations on the grid ``x = (i0 + a) * spacing_m``, ``y = (j0 + b) * spacing_m``.
+
+        Shape ``(n, n)`` indexed ``[a, b]``; must equal ``at`` on those points.
+        """
+        ...
+
+
+class FractalNoise:
+    """Sum of value-noise octaves: ``h = Σ_k A_k · v_k(x / c_k + o_k, y / c_k + p_k)``.
+
+    ``v_k`` is the cubic B-spline interpolant of lattice values uniform in [-1, 1]
+    (``lattice_uniform``), so ``|v_k| ≤ 1`` with a standard deviation of about 0.28.
+    ``cells_m`` are the lattice spacings ``c_k`` (the feature size of each octave) and
+    ``amplitudes_m`` the ``A_k``. Each octave draws its lattice and a random sub-cell
+    offset ``(o_k, p_k)`` from ``derive_key(seed, stream, k)``, so octaves are independent
+    and never share lattice lines.
+    """
+
+    def __init__(
+        self, seed: int, stream: int, cells_m: Sequence[float], amplitudes_m: Sequence[float]
+    ) -> None:
+        if len(cells_m) != len(amplitudes_m) or not cells_m:
+            raise ValueError("cells_m and amplitudes_m must be equally long and non-empty")
+        if min(cells_m) <= 0.0:
+            raise ValueError("cells_m must be positive")
+        self.cells_m = tuple(float(c) for c in cells_m)
+        self.amplitudes_m = tuple(float(a) for a in amplitudes_m)
+        self._keys = tuple(derive_key(seed, stream, k) for k in range(len(cells_m)))
+        offsets = [lattice_uniform(key, np.array([1, 2]), np.array([-7, -7])) for key in self._keys]
+        self._offsets = tuple((0.5 * (o[0] + 1.0), 0.5 * (o[1] + 1.0)) for o in offsets)
+
+    def _octaves(self) -> zip[tuple[float, float, int, tuple[float, float]]]:
+        return zip(self.cells_m, self.amplitudes_m, self._keys, self._offsets, strict=True)
+
+    def at(self, x_m: ArrayLike, y_m: ArrayLike) -> FloatArray:
+        """Field value at arbitrary points (m); broadcasts. Equals ``grid`` on its nodes."""
+        x, y = np.broadcast_arrays(np.asarray(x_m, np.float64), np.asarray(y_m, np.float64))
+        out = np.zeros(x.shape)
+        for c, amp, key, (ox, oy) in self._octaves():
+            gx = x / c + ox
+            gy = y / c + oy
+            fx = np.floor(gx)
+            fy = np.floor(gy)
+            ix = fx.astype(np.int64)
+            iy = fy.astype(np.int64)
+            wx = _bspline_weights(gx - fx)
+            wy = _bspline_weights(gy - fy)
+            # All 16 lattice values in one hash call, shape (..., 4, 4) indexed [a, b].
+            lat = lattice_uniform(
+                key, (ix[..., None] + _TAPS)[..., :, None], (iy[..., None] + _TAPS)[..., None, :]
+            )
+            # Same operation order as grid(): along x first, then along y.
+            rows = wx[0][..., None] * lat[..., 0, :]
+            for a in range(1, 4):
+                rows = rows + wx[a][..., None] * lat[..., a, :]
+            acc = np.zeros(x.shape)
+            for b in range(4):
+                acc = acc + wy[b] * rows[..., b]
+            out += amp * acc
+        return out
+
+    def grid(self, i0: int, j0: int, n: int, spacing_m: float) -> FloatArray:
+        """Field on ``x = (i0 + a)·spacing_m``, ``y = (j0 + b)·spacing_m``, shape (n, n).
+
+        Separable: per octave, interpolate the lattice along x (4 gathered rows), then
+        along y (4 gathered columns). Each node's value depends only on its global indices,
+        so neighbouring tiles agree exactly on shared nodes.
+        """
+        xg, yg = grid_axes(i0, j0, n, spacing_m)
+        xs, ys = xg[:, 0], yg[0, :]
+        out = np.zeros((n, n))
+        for c, amp, key, (ox, oy) in self._octaves():
+            gx = xs / c + ox
+            gy = ys / c + oy
+            fx = np.floor(gx)
+            fy = np.floor(gy)
+            ix = fx.astype(np.int64)
+            iy = fy.astype(np.int64)
+            wx = _bspline_weights(gx - fx)
+            wy = _bspline_weights(gy - fy)
+            lx = np.arange(ix[0] - 1, ix[-1] + 3, dtype=np.int64)
+            ly = np.arange(iy[0] - 1, iy[-1] + 3, dtype=np.int64)
+            lat = lattice_uniform(key, lx[:, None], ly[None, :])  # (Lx, Ly)
+            ra = ix - 1 - lx[0]  # row of lattice point ix - 1
+            rows = wx[0][:, None] * lat[ra]
+            for a in range(1, 4):
+                rows = rows + wx[a][:, None] * lat[ra + a]  # (n, Ly)
+            cb = iy - 1 - ly[0]  # column of lattice point iy - 1
+            acc = np.zeros((n, n))
+            for b in range(4):
+                acc = acc + wy[b][None, :] * rows[:, cb + b]
+            out += amp * acc
+        return out
+
+
+class AlbedoField(Protocol):
+    """Reflectance texture (``sim.albedo.AlbedoTexture`` satisfies it)."""
+
+    def __call__(self, x_m: FloatArray, y_m: FloatArray) -> FloatArray: ...
+
+
+TileStamper = Callable[[FloatArray, int, int, float], None]
+"""``stamp(heights, i0, j0, spacing_m)`` adds features (rocks) in place into the samples
+``heights[a, b]`` at ``x = (i0 + a)·spacing_m``, ``y = (j0 + b)·spacing_m``."""
+
+
+def as_coordinates(x_m: ArrayLike, y_m: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """Broadcast query coordinates to float64 arrays; InputError if non-finite or too far."""
+    x, y = np.broadcast_arrays(np.asarray(x_m, np.float64), np.asarray(y_m, np.float64))
+    for name, arr in (("x_m", x), ("y_m", y)):
+        # One reduction: max(|x|) is NaN if any x is NaN, and NaN <= bound is False.
+        if arr.size and not np.abs(arr).max() <= MAX_COORD_M:
+            raise InputError(name, f"coordinates must be finite and within {MAX_COORD_M:g} m")
+    return x, y
+
+
+class HeightmapTerrain:
+    """A ``Terrain`` made of lazily built, cached heightmap tiles (see the module docstring).
+
+    Tile ``(ti, tj)`` covers ``x in [ti·T, (ti+1)·T]``, ``y in [tj·T, (tj+1)·T]`` with
+    ``T = tile_cells · resolution_m``; its samples are ``ground.grid`` on that square plus
+    whatever ``stamp`` adds (rocks). ``height_m`` is the bilinear interpolant of the samples
+    and ``gradient`` its exact derivative, so heights and normals agree everywhere.
+    Thread-safe (one lock around the cache).
+    """
+
+    def __init__(
+        self,
+        name: str,
+        soil: Soil,
+        ground: GroundField,
+        albedo: AlbedoField,
+        stamp: TileStamper | None = None,
+        resolution_m: float = RESOLUTION_M,
+        tile_cells: int = TILE_CELLS,
+        cache_tiles: int = DEFAULT_CACHE_TILES,
+    ) -> None:
+        if resolution_m <= 0.0 or tile_cells < 2 or cache_tiles < 1:
+            raise ValueError("resolution_m > 0, tile_cells >= 2 and cache_tiles >= 1 required")
+        self.name = name
+        self.soil = soil
+        self.ground = ground
+        self._albedo = albedo
+        self._stamp = stamp
+        self.resolution_m = float(resolution_m)
+        self.tile_cells = int(tile_cells)
+        self._m = self.tile_cells + 1  # samples per tile side (edges shared)
+        self._capacity = int(cache_tiles)
+        self._pool = np.empty((cache_tiles, self._m, self._m))
+        self._slot_of: OrderedDict[tuple[int, int], int] = OrderedDict()
+        self._free = list(range(cache_tiles - 1, -1, -1))
+        self._lock = threading.Lock()
+        self.tiles_built = 0  # a counter for diagnostics and tests
+
+    @property
+    def tile_size_m(self) -> float:
+        return self.tile_cells * self.resolution_m
+
+    def tile(self, ti: int, tj: int) -> FloatArray:
+        """A copy of tile ``(ti, tj)``'s samples, shape ``(tile_cells+1,)*2``, ``[a, b]`` at
+        ``x = (ti·tile_cells + a)·resolution_m``, ``y = (tj·tile_cells + b)·resolution_m``."""
+        with self._lock:
+            (slot,) = self._ensure([(int(ti), int(tj))])
+            out: FloatArray = self._pool[slot].copy()
+        return out
+
+    def _build(self, ti: int, tj: int, out: FloatArray) -> None:
+        i0, j0 = ti * self.tile_cells, tj * self.tile_cells
+        out[...] = self.ground.grid(i0, j0, self._m, self.resolution_m)
+        if self._stamp is not None:
+            self._stamp(out, i0, j0, self.resolution_m)
+        self.tiles_built += 1
+
+    def _ensure(self, tiles: list[tuple[int, int]]) -> list[int]:
+        """Make every tile resident (building missing ones) and return their pool slots."""
+        if len(tiles) > self._pool.shape[0]:
+            extra = len(tiles) - self._pool.shape[0]
+            logging.getLogger(__name__).debug("growing tile pool by %d tiles", extra)
+            start = self._pool.shape[0]
+            self._pool = np.concatenate([self._pool, np.empty((extra, self._m, self._m))])
+            self._free.extend(range(start, start + extra))
+        for t in tiles:  # mark the resident ones most recently used so they are not evicted
+            if t in self._slot_of:
+                self._slot_of.move_to_end(t)
+        slots = []
+        for t in tiles:
+            slot = self._slot_of.get(t)
+            if slot is None:
+                slot = self._free.pop() if self._free else self._slot_of.popitem(last=False)[1]
+                try:
+                    self._build(t[0], t[1], self._pool[slot])
+                except BaseException:
+                    self._free.append(slot)  # do not leak the slot of a failed build
+                    raise
+                self._slot_of[t] = slot
+            slots.append(slot)
+        return slots
+
+    def _corners(
+        self, x: FloatArray, y: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+        """Cell corner heights and in-cell fractions for flat query arrays."""
+        gx = x / self.resolution_m
+        gy = y / self.resolution_m
+        fx = np.floor(gx)
+        fy = np.floor(gy)
+        u = gx - fx
+        v = gy - fy
+        gi = fx.astype(np.int64)
+        gj = fy.astype(np.int64)
+        ti = gi // self.tile_cells
+        tj = gj // self.tile_cells
+        local = (gi - ti * self.tile_cells) * self._m + (gj - tj * self.tile_cells)
+        with self._lock:
+            slot = self._slots(ti, tj)
+            flat = self._pool.reshape(-1)
+            idx = slot * (self._m * self._m) + local
+            h00 = flat.take(idx)
+            h10 = flat.take(idx + self._m)
+            h01 = flat.take(idx + 1)
+            h11 = flat.take(idx + self._m + 1)
+            self._shrink()
+        return h00, h10, h01, h11, u, v
+
+    def _shrink(self) -> None:
+        """After a query that grew the pool, keep only the most recently used tiles."""
+        if self._pool.shape[0] <= self._capacity:
+            return
+        keep = list(self._slot_of.items())[-self._capacity :]
+        self._pool = self._pool[[slot for _, slot in keep]]  # fancy indexing copies
+        self._slot_of = OrderedDict((tile, i) for i, (tile, _) in enumerate(keep))
+        self._free = list(range(self._capacity - 1, len(keep) - 1, -1))
+
+    def _slots(self, ti: IntArray, tj: IntArray) -> IntArray:
+        """Pool slot of each query point's tile (building tiles as needed)."""
+        ti0, ti1, tj0, tj1 = int(ti.min()), int(ti.max()), int(tj.min()), int(tj.max())
+        ni, nj = ti1 - ti0 + 1, tj1 - tj0 + 1
+        if ni * nj == 1:
+            (s,) = self._ensure([(ti0, tj0)])
+            return np.full(ti.shape, s, dtype=np.int64)
+        if ni * nj <= 65536:  # dense lookup table over the bounding box of tiles
+            rel = (ti - ti0) * nj + (tj - tj0)
+            present = np.zeros(ni * nj, dtype=bool)
+            present[rel] = True
+            keys = np.flatnonzero(present)
+            tiles = [(ti0 + int(k) // nj, tj0 + int(k) % nj) for k in keys]
+            lut = np.zeros(ni * nj, dtype=np.int64)
+            lut[keys] = self._ensure(tiles)
+            out: IntArray = lut[rel]
+            return out
+        pairs, inverse = np.unique(np.stack([ti, tj], axis=1), axis=0, return_inverse=True)
+        slots = np.asarray(self._ensure([(int(a), int(b)) for a, b in pairs]), dtype=np.int64)
+        out = slots[inverse.reshape(-1)]
+        return out
+
+    def height_and_gradient(
+        self, x_m: ArrayLike, y_m: ArrayLike
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """``(h, dh/dx, dh/dy)`` of the bilinear surface (m, m/m), shapes of the broadcast."""
+        x, y = as_coordinates(x_m, y_m)
+        if x.size == 0:
+            return np.zeros(x.shape), np.zeros(x.shape), np.zeros(x.shape)
+        h00, h10, h01, h11, u, v = self._corners(x.reshape(-1), y.reshape(-1))
+        dx = h10 - h00
+        dy = h01 - h00
+        twist = h11 - h10 - h01 + h00
+        h = h00 + u * dx + v * (dy + u * twist)  # bilinear interpolation
+        hx = (dx + v * twist) / self.resolution_m  # its exact partial derivatives
+        hy = (dy + u * twist) / self.resolution_m
+        return h.reshape(x.shape), hx.reshape(x.shape), hy.reshape(x.shape)
+
+    def height_m(self, x_m: ArrayLike, y_m: ArrayLike) -> FloatArray:
+        """Elevation (m, up) at Site North ``x_m`` and East ``y_m`` (metres); broadcasts."""
+        x, y = as_coordinates(x_m, y_m)
+        if x.size == 0:
+            return np.zeros(x.shape)
+        h00, h10, h01, h11, u, v = self._corners(x.reshape(-1), y.reshape(-1))
+        h = h00 + u * (h10 - h00) + v * ((h01 - h00) + u * (h11 - h10 - h01 + h00))
+        return h.reshape(x.shape)
+
+    def gradient(self, x_m: ArrayLike, y_m: ArrayLike) -> tuple[FloatArray, FloatArray]:
+        """``(dh/dx, dh/dy)`` (m/m) of the bilinear surface: North and East slopes."""
+        _, hx, hy = self.height_and_gradient(x_m, y_m)
+        return hx, hy
+
+    def albedo(self, x_m: ArrayLike, y_m: ArrayLike) -> FloatArray:
+        """Reflectance in [0, 1] from the terrain's texture; broadcasts."""
+        x, y = as_coordinates(x_m, y_m)
+        return self._albedo(x, y)
