@@ -1,0 +1,96 @@
+"""``roverops bench``: speed figures of the simulator, as medians over repeats.
+
+Output contract (DESIGN.md): ``{"bench": NAME, "metrics": {...}, "targets": {...},
+"ok": bool}``, every metric with its unit in its key. A target ``{"le": x}`` holds when
+the metric is at most ``x``. Wall-clock figures depend on the machine; the
+``machine`` entry says which one ran them.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import statistics
+import time
+from collections.abc import Callable
+from datetime import UTC, datetime
+from typing import Any
+
+import numpy as np
+
+from sim.errors import InputError
+from sim.rover_sim import RoverSim
+from sim.settle import settle
+from sim.sites import make_terrain
+
+SOL_S = 88775.244  # one Mars solar day (Allison and McEwen 2000)
+_START_UTC = datetime(2004, 4, 14, 12, 0, 0, tzinfo=UTC)
+
+
+def _median_wall_s(run: Callable[[], object], repeats: int) -> float:
+    walls = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        run()
+        walls.append(time.perf_counter() - start)
+    return statistics.median(walls)
+
+
+def bench_sim(repeats: int = 3) -> dict[str, Any]:
+    """Settling rate, a 100 m Gusev drive and an idle sol (truth and sensors at 8 Hz)."""
+    terrain = make_terrain("gusev", 1)
+    rng = np.random.default_rng(0)
+    n_poses = 4000
+    x = rng.uniform(-40.0, 40.0, n_poses)
+    y = rng.uniform(-40.0, 40.0, n_poses)
+    yaw = rng.uniform(-np.pi, np.pi, n_poses)
+    settle(terrain, x, y, yaw)  # builds the tiles: the rate below is settling alone
+    settle_wall_s = _median_wall_s(lambda: settle(terrain, x, y, yaw), repeats)
+
+    def drive_100m() -> None:
+        RoverSim("gusev", 1, _START_UTC).drive_straight(100.0)
+
+    drive_wall_s = _median_wall_s(drive_100m, repeats)
+
+    sims = [RoverSim("flat", seed, _START_UTC) for seed in range(5)]
+    idle_walls = []
+    for sim in sims:
+        start = time.perf_counter()
+        sim.rest(SOL_S)
+        idle_walls.append(time.perf_counter() - start)
+
+    metrics = {
+        "settle_per_s": n_poses / settle_wall_s,
+        "drive_100m_wall_s": drive_wall_s,
+        "idle_sol_wall_s": statistics.median(idle_walls),
+        "repeats": repeats,
+    }
+    targets = {"drive_100m_wall_s": {"le": 5.0}, "idle_sol_wall_s": {"le": 0.5}}
+    return _result("sim", metrics, targets)
+
+
+def _result(
+    name: str, metrics: dict[str, Any], targets: dict[str, dict[str, float]]
+) -> dict[str, Any]:
+    ok = all(metrics[key] <= target["le"] for key, target in targets.items())
+    return {
+        "bench": name,
+        "metrics": metrics,
+        "targets": targets,
+        "ok": ok,
+        "machine": {
+            "cpus": os.cpu_count(),
+            "python": platform.python_version(),
+            "platform": platform.platform(),
+        },
+    }
+
+
+BENCHES: dict[str, Callable[[], dict[str, Any]]] = {"sim": bench_sim}
+
+
+def run_bench(name: str) -> dict[str, Any]:
+    """Run benchmark ``name``; InputError('name', ...) naming the choices."""
+    if name not in BENCHES:
+        raise InputError("name", f"unknown benchmark {name!r}; choose one of {', '.join(BENCHES)}")
+    return BENCHES[name]()
