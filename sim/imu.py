@@ -48,6 +48,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.signal import lfilter
 
 from estimation.mars_constants import MARS_GRAVITY_M_S2
+from estimation.quaternion import quat_multiply
 from sim.errors import InputError
 
 FloatArray = NDArray[np.float64]
@@ -349,16 +350,8 @@ def _ou_moments(
 
 def _qmul(p: FloatArray, q: FloatArray) -> FloatArray:
     """Hamilton products ``p (x) q`` of scalar-last quaternions stored as rows (4, N)."""
-    px, py, pz, pw = p
-    qx, qy, qz, qw = q
-    return np.stack(
-        [
-            pw * qx + px * qw + py * qz - pz * qy,
-            pw * qy - px * qz + py * qw + pz * qx,
-            pw * qz + px * qy - py * qx + pz * qw,
-            pw * qw - px * qx - py * qy - pz * qz,
-        ]
-    )
+    out: FloatArray = quat_multiply(p.T, q.T).T
+    return out
 
 
 def _rotate(q: FloatArray, v: FloatArray) -> FloatArray:
