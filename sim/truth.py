@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
 
 FloatArray = NDArray[np.float64]
 
@@ -66,3 +67,25 @@ class TruthTrajectory:
 
     def __len__(self) -> int:
         return int(self.t_s.shape[0])
+
+    def v_s(self) -> FloatArray:
+        """Velocity of the body origin in the Site frame, m/s, (N, 3).
+
+        Central differences inside, one-sided at the ends (second order on the 8 Hz grid).
+        """
+        if len(self) < 2:
+            return np.zeros((len(self), 3))
+        out: FloatArray = np.gradient(self.p_s, self.t_s, axis=0)
+        return out
+
+    def omega_b_s_in_b(self) -> FloatArray:
+        """Angular rate of the body relative to the Site frame, in body axes, rad/s, (N-1, 3).
+
+        One value per interval: the rotation vector of ``R_s_b(k)ᵀ R_s_b(k+1)`` over its
+        duration, exact for a rotation about a fixed axis within the interval.
+        """
+        if len(self) < 2:
+            return np.zeros((0, 3))
+        R = Rotation.from_quat(self.q_s_b)
+        out: FloatArray = (R[:-1].inv() * R[1:]).as_rotvec() / np.diff(self.t_s)[:, None]
+        return out
