@@ -60,7 +60,7 @@ def _print(result: dict[str, Any], as_json: bool) -> None:
 
 def _fmt(value: Any) -> str:
     if isinstance(value, float):
-        return f"{value:.6g}"
+        return f"{round(value, 9) + 0.0:.6g}"  # so 1e-16 of a heading reads as 0, not -0
     if isinstance(value, list):
         return "[" + ", ".join(_fmt(v) for v in value) + "]"
     return str(value)
