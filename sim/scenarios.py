@@ -133,7 +133,7 @@ def summarize(
         "wall_s": wall_s,
         "distance_truth_m": totals.distance_truth_m,
         "final_p_s": [float(v) for v in sim.state.p_s],
-        "final_heading_deg": math.degrees(yaw) % 360.0,
+        "final_heading_deg": round(math.degrees(yaw), 9) % 360.0,  # -1e-16 is North, not 360
         "final_roll_deg": math.degrees(roll),
         "final_pitch_deg": math.degrees(pitch),
         "max_wheel_gap_mm": totals.max_wheel_gap_m * 1e3,
