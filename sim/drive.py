@@ -19,12 +19,13 @@ middle wheels sit on the body y axis, so they roll straight on any arc and turn 
 commanded rates for the nominal radius, and a drive ends when they have turned the
 commanded amount, as MER's wheel odometry decides (no visual odometry here).
 
-Actual motion: along the track the ground moves ``ds (r_eff / r) (1 - s)`` (slip ``s``,
-effective radius ``r_eff = r - sinkage`` from ``sim.slip``), whose horizontal part is that
-times ``cos(θ_a)`` for the along-track slope ``θ_a``; lateral creep ``c`` moves the rover
-sideways by ``ds (r_eff / r) c cos(θ_c)``; on an arc the heading follows the horizontal
-path. A turn in place turns ``(r_eff / r)(1 - s)`` of the commanded angle and creeps down
-the fall line. The planar motion is integrated step by step, each step's slip from the
+Actual motion: along the track the ground moves ``ds (1 - s)`` (slip ``s`` from
+``sim.slip``, defined on the undeformed wheel radius as in Wong ch. 2, so the losses of a
+sunk wheel are in ``s`` and sinkage only lowers the rover in ``sim.settle``), whose
+horizontal part is that times ``cos(θ_a)`` for the along-track slope ``θ_a``; lateral
+creep ``c`` moves the rover sideways by ``ds c cos(θ_c)``; on an arc the heading follows
+the horizontal path. A turn in place turns ``(1 - s)`` of the commanded angle and creeps
+down the fall line. The planar motion is integrated step by step, each step's slip from the
 slope under the rover at its start (the plane through the ground under the six wheels:
 the gradient at the body position alone would answer to a rock under the belly); for
 speed a window of steps is evaluated at once from guessed start poses and the steps whose
@@ -264,12 +265,13 @@ def _path_increments(
 ) -> Increments:
     """Increments of a drive along a path of ``curvature`` (1/m) in steps ``ds`` (m)."""
     noise = slip_model.noise(ds)
-    r = slip_model.geometry.wheel_radius_m
 
     def f(steps: slice, x: FloatArray, y: FloatArray, yaw: FloatArray) -> Step:
         ta, tc = _slopes(terrain, slip_model.geometry, x, y, yaw)
         sample = slip_model.drive(np.arctan(ta), np.arctan(tc), noise[steps])
-        rolled = ds[steps] * (r - sample.sinkage_m) / r
+        # Slip is defined on the undeformed radius (Wong, ch. 2): the soil losses that
+        # sinkage brings are already in the slip law, so sinkage only lowers the rover.
+        rolled = ds[steps]
         along = rolled * (1.0 - sample.slip) / np.sqrt(1.0 + ta**2)  # horizontal
         side = rolled * sample.creep / np.sqrt(1.0 + tc**2)
         turn = curvature * along
@@ -289,7 +291,6 @@ def _turn_increments(
     the body creeps down the fall line by the creep fraction of the mean wheel travel."""
     rolled_cmd = np.abs(dpsi) * mean_lever_m
     noise = slip_model.noise(rolled_cmd)
-    r = slip_model.geometry.wheel_radius_m
 
     def f(steps: slice, x: FloatArray, y: FloatArray, yaw: FloatArray) -> Step:
         along, across = _slopes(terrain, slip_model.geometry, x, y, yaw)
@@ -297,10 +298,9 @@ def _turn_increments(
         hx, hy = along * c - across * s, along * s + across * c  # back to North, East
         grade = np.hypot(hx, hy)
         sample = slip_model.turn(np.arctan(grade), noise[steps])
-        ratio = (r - sample.sinkage_m) / r
-        creep = rolled_cmd[steps] * ratio * sample.creep / np.sqrt(1.0 + grade**2)
+        creep = rolled_cmd[steps] * sample.creep / np.sqrt(1.0 + grade**2)
         down = np.where(grade > 0.0, creep / np.where(grade > 0.0, grade, 1.0), 0.0)
-        turn = dpsi[steps] * ratio * (1.0 - sample.slip)
+        turn = dpsi[steps] * (1.0 - sample.slip)  # slip on the undeformed radius, as above
         return -down * hx, -down * hy, turn, sample.slip, sample.sinkage_m
 
     return f

@@ -31,7 +31,8 @@ Bekker 1969), reduced to the whole vehicle:
   against the traction left over by the longitudinal thrust (the traction ellipse, Wong
   ch. 2), directed downslope, as a fraction of the rolled distance.
 - Slip-sinkage (Lyasko 2010; Ding et al. 2011, linearised): ``z = z0 (1 + k_z max(s, 0))``,
-  so a digging wheel sinks deeper; the effective rolling radius is ``r - z``.
+  so a digging wheel sinks deeper and the rover rides lower: ``sim.settle`` puts the wheel
+  centres ``r - z`` above the surface. Slip is on the undeformed radius (Wong, ch. 2).
 
 With the default parameters the curve reproduces MER's experience (seed 000 section 4;
 Maimone et al. 2007): a few % on level ground, tens of % at 15-20° on loose sand, 100 %

@@ -160,10 +160,10 @@ def test_slip_on_a_steep_uphill_shortens_the_drive() -> None:
     s_expected = float(slip_curve(plane.soil, slope)[0])
     assert 0.1 < s_expected < 0.5
     assert covered_up < ideal_run * (1.0 - 0.5 * s_expected)
-    # The covered distance is what the slip and the sunk wheel allow (noise: ~2 % slip).
-    sinkage = SlipModel(plane.soil, np.random.default_rng(0)).sinkage_m(s_expected)
-    predicted = ideal_run * (1.0 - s_expected) * (R_WHEEL - sinkage) / R_WHEEL
-    assert covered_up == pytest.approx(predicted, rel=0.1)
+    # The covered distance is what the slip allows (slip is on the undeformed radius, Wong
+    # ch. 2, so sinkage adds no shortfall of its own; noise: ~2 % slip).
+    predicted = ideal_run * (1.0 - s_expected)
+    assert covered_up == pytest.approx(predicted, rel=0.05)
     assert np.mean(up.slip[1:]) == pytest.approx(s_expected, abs=0.05)
     assert covered_down > covered_up  # downhill the wheels skid: no shortfall from slope
     # The wheels still turned the commanded amount (MER's odometry ends the drive).
