@@ -19,11 +19,11 @@ from typing import Any
 import numpy as np
 
 from sim.errors import InputError
+from sim.marsclock import SOL_S
 from sim.rover_sim import RoverSim
 from sim.settle import settle
 from sim.sites import make_terrain
 
-SOL_S = 88775.244  # one Mars solar day (Allison and McEwen 2000)
 _START_UTC = datetime(2004, 4, 14, 12, 0, 0, tzinfo=UTC)
 
 

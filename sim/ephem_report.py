@@ -46,6 +46,8 @@ def parse_utc(utc: str) -> datetime:
         )
     text = utc.strip()
     text = text[:-1] if text.endswith("Z") else text
+    if re.search(r"T\d\d:\d\d:60", text):
+        raise InputError("utc", f"leap seconds (:60) cannot be represented; got {utc!r}")
     try:
         when = datetime.fromisoformat(text)
     except ValueError as err:

@@ -25,6 +25,7 @@ outputs have shape ``t_s.shape + (3,)``.
 from __future__ import annotations
 
 import functools
+from datetime import UTC, datetime, timedelta
 from importlib.resources import files
 from pathlib import Path
 from typing import Any, Literal
@@ -81,9 +82,11 @@ def check_t_s(t_s: ArrayLike) -> FloatArray:
     t = np.asarray(t_s, dtype=float)
     first, last = coverage_t_s()
     if not np.all(np.isfinite(t)) or np.any(t < first) or np.any(t > last):
-        raise InputError(
-            "utc", "outside the DE421 ephemeris (1899-07-30 .. 2053-10-08); cannot compute truth"
+        j2000 = datetime(2000, 1, 1, 12, tzinfo=UTC)  # TT; minutes are all the message needs
+        span = " .. ".join(
+            (j2000 + timedelta(seconds=t)).strftime("%Y-%m-%dT%H:%M TT") for t in (first, last)
         )
+        raise InputError("utc", f"outside the DE421 ephemeris ({span}); cannot compute truth")
     return t
 
 

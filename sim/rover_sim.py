@@ -35,6 +35,15 @@ from sim.truth import TruthTrajectory
 FloatArray = NDArray[np.float64]
 
 
+@dataclass(frozen=True)
+class Segment:
+    """One motion command's truth and what the sensors made of it, sample for sample."""
+
+    truth: TruthTrajectory
+    imu: ImuSamples
+    encoders: EncoderSamples
+
+
 @dataclass
 class RunningTotals:
     """Figures accumulated over a run (truth and sensors side by side)."""
@@ -79,13 +88,11 @@ class RoverSim:
         )
         self.state = drive.initial_state(self.terrain, self.t_s, slip_model=self.slip)
         self.totals = RunningTotals()
-        self.last_imu: ImuSamples | None = None
-        self.last_encoders: EncoderSamples | None = None
         self._encoder_counts = self.encoders.read(self.state.as_trajectory()).wheel_counts[0]
 
     # ---- commands -------------------------------------------------------------------
 
-    def rest(self, duration_s: float) -> None:
+    def rest(self, duration_s: float) -> ImuSamples:
         """Stay still for ``duration_s``: jump the clock, one aggregated IMU sample."""
         q_ll_b = self.q_ll_b()
         samples = self.imu.measure_interval(duration_s, q_ll_b, self.omega_mars_ll)
@@ -95,19 +102,19 @@ class RoverSim:
         self.t_s += duration_s
         self.state = self.state.at_time(self.t_s)
         self.totals.idle_s_jumped += duration_s
-        self.last_imu = samples
+        return samples
 
-    def drive_straight(self, distance_m: float) -> TruthTrajectory:
-        """Drive ``distance_m`` (> 0) straight ahead; returns the truth of the drive."""
+    def drive_straight(self, distance_m: float) -> Segment:
+        """Drive ``distance_m`` (> 0) straight ahead; returns its truth and sensor samples."""
         traj, self.state = drive.drive_straight(self.terrain, self.state, distance_m, self.slip)
         return self._sense(traj)
 
-    def drive_arc(self, radius_m: float, angle_rad: float) -> TruthTrajectory:
+    def drive_arc(self, radius_m: float, angle_rad: float) -> Segment:
         """Drive along an arc (see ``sim.drive.drive_arc`` for the signs)."""
         traj, self.state = drive.drive_arc(self.terrain, self.state, radius_m, angle_rad, self.slip)
         return self._sense(traj)
 
-    def turn_in_place(self, angle_rad: float) -> TruthTrajectory:
+    def turn_in_place(self, angle_rad: float) -> Segment:
         """Turn in place by ``angle_rad`` (positive: clockwise seen from above, to the right)."""
         traj, self.state = drive.turn_in_place(self.terrain, self.state, angle_rad, self.slip)
         return self._sense(traj)
@@ -128,7 +135,7 @@ class RoverSim:
         out: FloatArray = R_b_ll.apply(self.omega_mars_ll * duration_s)
         return out
 
-    def _sense(self, traj: TruthTrajectory) -> TruthTrajectory:
+    def _sense(self, traj: TruthTrajectory) -> Segment:
         q_ll_b = q_ll_b_from_site(traj.q_s_b, traj.p_s, self.lat_rad, self.lon_east_rad)
         # Quasi-static truth: the rover's own accelerations (~1e-3 m/s^2 at 3.75 cm/s,
         # seed 000 uses the accelerometers only at rest) are left out of the IMU input.
@@ -146,5 +153,4 @@ class RoverSim:
         totals.max_wheel_gap_m = max(totals.max_wheel_gap_m, self.state.max_gap_m)
         totals.unsettled_poses += self.state.unsettled_poses
         self.t_s = float(traj.t_s[-1])
-        self.last_imu, self.last_encoders = samples, encoders
-        return traj
+        return Segment(traj, samples, encoders)

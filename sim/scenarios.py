@@ -16,9 +16,11 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from sim.drive import MAX_PATH_M, MAX_TURN_RAD
 from sim.errors import InputError
-from sim.marsclock import lmst_h_from_t_s, sol_number_t_s, t_s_to_utc
+from sim.marsclock import SOL_S, lmst_h_from_t_s, sol_number_t_s, t_s_to_utc
 from sim.rover_sim import RoverSim
+from sim.truth import CONTROL_DT_S
 
 DEG_PER_H_PER_RAD_S = math.degrees(1.0) * 3600.0
 
@@ -49,7 +51,13 @@ SCENARIOS: dict[str, Scenario] = {
 }
 # The parameter that overrides each kind's amount, and its limits (outside input).
 _AMOUNT_PARAMETER = {"rest": "duration_s", "straight": "distance_m", "turn": "angle_deg"}
-_AMOUNT_LIMITS = {"rest": (0.0, 10 * 88775.244), "straight": (0.0, 1000.0), "turn": (0.0, 3600.0)}
+# Lower limits: one control cycle, a centimetre, a tenth of a degree (a smaller command is
+# below what the sensors resolve); upper: ten sols, sim.drive's longest path and turn.
+_AMOUNT_LIMITS = {
+    "rest": (CONTROL_DT_S, 10 * SOL_S),
+    "straight": (0.01, MAX_PATH_M),
+    "turn": (0.1, math.degrees(MAX_TURN_RAD)),
+}
 
 
 def get_scenario(name: str) -> Scenario:
@@ -69,8 +77,8 @@ def _amount(scenario: Scenario, overrides: dict[str, float | None]) -> float:
     if value is None:
         return scenario.amount
     low, high = _AMOUNT_LIMITS[scenario.kind]
-    if not (math.isfinite(value) and low < value <= high):
-        raise InputError(own, f"must be > {low:g} and <= {high:g}, got {value!r}")
+    if not (math.isfinite(value) and low <= value <= high):
+        raise InputError(own, f"must be between {low:g} and {high:g}, got {value!r}")
     return value
 
 
@@ -94,7 +102,7 @@ def run_scenario(
         scenario, {"duration_s": duration_s, "distance_m": distance_m, "angle_deg": angle_deg}
     )
     wall_start = time.perf_counter()
-    sim = RoverSim(site or scenario.site, seed, scenario.start_utc)
+    sim = RoverSim(scenario.site if site is None else site, seed, scenario.start_utc)
     t_start = sim.t_s
     if scenario.kind == "rest":
         sim.rest(amount)
@@ -111,8 +119,7 @@ def summarize(
 ) -> dict[str, Any]:
     """The scenario summary: clock, truth beside sensors, and run statistics."""
     lon_west_deg = (360.0 - sim.site.lon_east_deg) % 360.0
-    # Sols count from the landing of the rover whose landing site this is.
-    mission = "opportunity" if sim.site.lon_east_deg > 180.0 else "spirit"
+    mission = sim.site.mission  # sols count from the landing of this site's rover
     totals = sim.totals
     roll, pitch, yaw = Rotation.from_quat(sim.state.q_s_b).as_euler("ZYX")[::-1]
     summary: dict[str, Any] = {

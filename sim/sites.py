@@ -81,13 +81,17 @@ ANALYTIC_ALBEDO = AlbedoStyle(mean=0.25, contrast=0.2, grains=GUSEV_ALBEDO.grain
 
 @dataclass(frozen=True)
 class Site:
-    """A named site: planetographic ``lat_deg`` (north positive), ``lon_east_deg``, soil."""
+    """A named site: planetographic ``lat_deg`` (north positive), ``lon_east_deg``, soil.
+
+    ``mission`` is the MER rover that landed there: its landing starts the sol count.
+    """
 
     name: str
     lat_deg: float
     lon_east_deg: float
     soil: Soil
     description: str
+    mission: str = "spirit"
 
 
 _SITES = {
@@ -106,6 +110,7 @@ _SITES = {
             OPPORTUNITY_LON_EAST_DEG,
             MERIDIANI_SAND,
             "Meridiani Planum: flat dark sand plains with small ripples, few rocks",
+            mission="opportunity",
         ),
         Site(
             "eq22",

@@ -72,6 +72,14 @@ def test_ephem_json_has_the_documented_sections(capsys: pytest.CaptureFixture[st
         (["run", "--scenario", "drive_100m", "--distance-m", "nan"], "distance-m"),
         (["run", "--scenario", "rest_1h", "--distance-m", "5"], "distance_m"),
         (["run", "--scenario", "rest_1h", "--seed", "-1"], "seed"),
+        (["run", "--scenario", "drive_100m", "--site", ""], "site"),
+        (["run", "--scenario", "rest_1h", "--duration-s", "1e-300"], "duration_s"),
+        (["run", "--scenario", "turn_360_eq22", "--angle-deg", "3600"], "angle_deg"),
+        (["run", "--scenario", "drive_100m", "--distance-m", "1e-300"], "distance_m"),
+        (
+            ["ephem", "--utc", "2004-12-31T23:59:60", "--lat-deg", "0", "--lon-west-deg", "0"],
+            "leap",
+        ),
         (["bench", "warp"], "name"),
     ],
 )

@@ -26,7 +26,7 @@ def test_turn_in_place_rate_is_the_commanded_rate_about_body_down() -> None:
 
 def test_straight_drive_velocity_is_the_commanded_speed() -> None:
     sim = RoverSim("flat", 0, START, slip=False)
-    traj = sim.drive_straight(2.0)
+    traj = sim.drive_straight(2.0).truth
     v = traj.v_s()[5:-5]
     np.testing.assert_allclose(v[:, 0], 0.0375, rtol=1e-9)  # seed 000: 3.75 cm/s
     np.testing.assert_allclose(v[:, 1:], 0.0, atol=1e-12)
