@@ -62,7 +62,29 @@ def test_body_correction_on_left_llcorrection_on_right() -> None:
     # about the common z axis both agree; about x they must differ (non-commuting)
     np.testing.assert_allclose(left.as_matrix(), right.as_matrix(), atol=1e-12)
     dqx = quat_from_rotvec([0.1, 0.0, 0.0])
+    # The left factor acts in the body frame: R(δq ⊗ q_b_ll) = R(δq) R_b_ll, and the right
+    # one in LL: R(q_b_ll ⊗ δq) = R_b_ll R(δq).
+    R_dq = Rotation.from_quat(dqx).as_matrix()
+    R_b_ll = Rotation.from_quat(q_b_ll).as_matrix()
+    np.testing.assert_allclose(
+        Rotation.from_quat(quat_multiply(dqx, q_b_ll)).as_matrix(), R_dq @ R_b_ll, atol=1e-12
+    )
+    np.testing.assert_allclose(
+        Rotation.from_quat(quat_multiply(q_b_ll, dqx)).as_matrix(), R_b_ll @ R_dq, atol=1e-12
+    )
     assert not np.allclose(
         Rotation.from_quat(quat_multiply(dqx, q_b_ll)).as_matrix(),
         Rotation.from_quat(quat_multiply(q_b_ll, dqx)).as_matrix(),
     )
+
+
+def test_settled_heading_follows_the_convention() -> None:
+    # The simulator's own attitude: yaw 90 deg (facing East) maps body forward to Site East,
+    # and body right to Site South; a nose-up pitch lifts body forward (Down < 0).
+    from sim.settle import rotation_s_b
+
+    R_s_b = rotation_s_b(np.zeros(1), np.zeros(1), np.array([np.pi / 2]))[0][0]
+    np.testing.assert_allclose(R_s_b @ [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], atol=1e-15)
+    np.testing.assert_allclose(R_s_b @ [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], atol=1e-15)
+    R_up = rotation_s_b(np.zeros(1), np.array([0.1]), np.zeros(1))[0][0]
+    assert (R_up @ [1.0, 0.0, 0.0])[2] < 0.0

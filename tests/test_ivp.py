@@ -2,10 +2,8 @@
 
 from __future__ import annotations
 
-import ast
 import math
 from datetime import UTC, datetime
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -112,14 +110,3 @@ def test_bad_site_raises_value_error() -> None:
         ivp.earth_ll(0.0, 0.0, float("inf"))
     with pytest.raises(ValueError, match="t_s"):
         ivp.sun_ll(float("nan"), 0.0, 0.0)
-
-
-def test_flight_software_imports_no_simulator() -> None:
-    source = Path(ivp.__file__).read_text()
-    imported: set[str] = set()
-    for node in ast.walk(ast.parse(source)):
-        if isinstance(node, ast.Import):
-            imported.update(a.name.split(".")[0] for a in node.names)
-        elif isinstance(node, ast.ImportFrom) and node.module:
-            imported.add(node.module.split(".")[0])
-    assert imported <= {"__future__", "math", "numpy", "scipy", "estimation"}

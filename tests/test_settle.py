@@ -248,7 +248,8 @@ def test_gusev_six_wheels_within_2_mm() -> None:
     n = 400
     x, y = rng.uniform(-25.0, 25.0, n), rng.uniform(-25.0, 25.0, n)
     s = settle(terrain, x, y, rng.uniform(-np.pi, np.pi, n))
-    assert np.mean(s.ok) >= 0.99
+    # ~1 pose in 10,000 jams a wheel against a steep rock face; none of these 400 may.
+    assert np.all(s.ok)
     clearance = rim_clearance(terrain, s, sinkage_m=terrain.soil.sinkage_m)[s.ok]
     assert np.max(np.abs(clearance)) < ACCEPT_M
     # A straight path across rocks, settled as a path (warm-started between poses).
@@ -256,8 +257,8 @@ def test_gusev_six_wheels_within_2_mm() -> None:
     path = settle(
         terrain, 3.0 + 0.8 * d, -2.0 + 0.6 * d, np.full(800, math.atan2(0.6, 0.8)), along_path=True
     )
-    assert np.mean(path.ok) >= 0.99
-    clearance = rim_clearance(terrain, path, sinkage_m=terrain.soil.sinkage_m)[path.ok]
+    assert np.all(path.ok)
+    clearance = rim_clearance(terrain, path, sinkage_m=terrain.soil.sinkage_m)
     assert np.max(np.abs(clearance)) < ACCEPT_M
 
 
