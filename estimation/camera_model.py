@@ -35,16 +35,9 @@ FloatArray = NDArray[np.float64]
 PANCAM_WIDTH_PX = 1024
 PANCAM_HEIGHT_PX = 1024
 PANCAM_FOV_RAD = math.radians(16.0)  # full field, edge to edge (Bell et al. 2003)
-PANCAM_STEREO_BASELINE_M = 0.30  # Bell et al. 2003
 
-# Mast geometry (approximate, documented defaults). The Pancam Mast Assembly stands near
-# the front of the deck with the camera bar ~1.5 m above the ground (REFERENCES.md). With
-# the body origin ~0.3 m above level ground, the mast head (the azimuth/elevation axes'
-# intersection, midway between the two Pancam eyes) is at these body coordinates.
-# For the sun (at infinity) the mast head offset causes no parallax; it matters only when
-# imaging terrain.
-BODY_ORIGIN_HEIGHT_M = 0.30  # approximate: body origin above level ground
-PANCAM_MAST_HEAD_B_M = (0.45, 0.0, -1.20)  # metres, body frame (x fwd, y right, z down)
+# The sun is at infinity, so where on the mast the camera sits causes no parallax: only
+# the pointing (R_b_pancam) matters here.
 
 
 @dataclass(frozen=True)

@@ -23,24 +23,11 @@ from numpy.typing import ArrayLike, NDArray
 
 from estimation.mars_constants import MARS_EQUATORIAL_RADIUS_M, MARS_POLAR_RADIUS_M
 from estimation.quaternion import quat_multiply
+from sim.mars_frames import R_ll_mf
 
 FloatArray = NDArray[np.float64]
 
 _E2 = 1.0 - (MARS_POLAR_RADIUS_M / MARS_EQUATORIAL_RADIUS_M) ** 2  # first eccentricity squared
-
-
-def _R_ll_mf(lat_rad: FloatArray, lon_east_rad: FloatArray) -> FloatArray:
-    """Vectorised ``R_ll_mf`` (rows North, East, Down in Mars-fixed axes); (..., 3, 3)."""
-    sp, cp = np.sin(lat_rad), np.cos(lat_rad)
-    sl, cl = np.sin(lon_east_rad), np.cos(lon_east_rad)
-    zero = np.zeros_like(sp)
-    rows = [
-        np.stack([-sp * cl, -sp * sl, cp], axis=-1),  # North
-        np.stack([-sl, cl, zero], axis=-1),  # East
-        np.stack([-cp * cl, -cp * sl, -sp], axis=-1),  # Down
-    ]
-    out: FloatArray = np.stack(rows, axis=-2)
-    return out
 
 
 def R_ll_s(p_s: ArrayLike, site_lat_rad: float, site_lon_east_rad: float) -> FloatArray:
@@ -55,8 +42,8 @@ def R_ll_s(p_s: ArrayLike, site_lat_rad: float, site_lon_east_rad: float) -> Flo
     prime_vertical_m = a / np.sqrt(w)
     lat = site_lat_rad + p[..., 0] / meridian_m
     lon = site_lon_east_rad + p[..., 1] / (prime_vertical_m * np.cos(site_lat_rad))
-    R_ll_mf_here = _R_ll_mf(lat, lon)
-    R_ll_mf_site = _R_ll_mf(np.asarray(site_lat_rad), np.asarray(site_lon_east_rad))
+    R_ll_mf_here = R_ll_mf(lat, lon)
+    R_ll_mf_site = R_ll_mf(site_lat_rad, site_lon_east_rad)
     out: FloatArray = R_ll_mf_here @ R_ll_mf_site.T
     return out
 

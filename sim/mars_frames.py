@@ -127,22 +127,29 @@ def site_mf_m(lat_rad: float, lon_east_rad: float) -> FloatArray:
     )
 
 
-def R_ll_mf(lat_rad: float, lon_east_rad: float) -> FloatArray:
+def R_ll_mf(lat_rad: ArrayLike, lon_east_rad: ArrayLike) -> FloatArray:
     """Rotation taking Mars-fixed coordinates to Local-Level (N, E, Down) at the site.
 
-    ``lat_rad`` planetographic (Down = inward ellipsoid normal), ``lon_east_rad`` East.
-    Rows are the North, East and Down unit vectors in Mars-fixed coordinates.
+    ``lat_rad`` planetographic (Down = inward ellipsoid normal), ``lon_east_rad`` East;
+    scalars give (3, 3), arrays broadcast to (..., 3, 3). Rows are the North, East and
+    Down unit vectors in Mars-fixed coordinates.
     """
-    _check_site(lat_rad, lon_east_rad)
-    sp, cp = math.sin(lat_rad), math.cos(lat_rad)
-    sl, cl = math.sin(lon_east_rad), math.cos(lon_east_rad)
-    return np.array(
-        [
-            [-sp * cl, -sp * sl, cp],  # North
-            [-sl, cl, 0.0],  # East
-            [-cp * cl, -cp * sl, -sp],  # Down
-        ]
-    )
+    lat = np.asarray(lat_rad, dtype=float)
+    lon = np.asarray(lon_east_rad, dtype=float)
+    if not (np.all(np.isfinite(lat)) and np.all(np.abs(lat) <= math.pi / 2)):
+        raise InputError("lat_rad", f"must be in [-pi/2, pi/2], got {lat_rad!r}")
+    if not np.all(np.isfinite(lon)):
+        raise InputError("lon_east_rad", f"must be finite, got {lon_east_rad!r}")
+    sp, cp = np.sin(lat), np.cos(lat)
+    sl, cl = np.sin(lon), np.cos(lon)
+    sp, cp, sl, cl = np.broadcast_arrays(sp, cp, sl, cl)
+    rows = [
+        np.stack([-sp * cl, -sp * sl, cp], axis=-1),  # North
+        np.stack([-sl, cl, np.zeros_like(sl)], axis=-1),  # East
+        np.stack([-cp * cl, -cp * sl, -sp], axis=-1),  # Down
+    ]
+    out: FloatArray = np.stack(rows, axis=-2)
+    return out
 
 
 def body_ll_truth(body: Body, t_s: ArrayLike, lat_rad: float, lon_east_rad: float) -> FloatArray:
