@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from sim.heightmap import derive_key
+from sim.noise import derive_key
 
 FloatArray = NDArray[np.float64]
 

@@ -40,7 +40,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.special import exp1
 
-from sim.heightmap import GroundField, derive_key
+from sim.noise import GroundField, derive_key
 
 FloatArray = NDArray[np.float64]
 

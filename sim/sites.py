@@ -30,13 +30,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from sim.albedo import AlbedoStyle, AlbedoTexture, GrainLayer
 from sim.errors import InputError
-from sim.heightmap import (
-    FractalNoise,
-    HeightmapTerrain,
-    derive_key,
-    grid_axes,
-    lattice_uniform,
-)
+from sim.heightmap import HeightmapTerrain
+from sim.noise import FractalNoise, derive_key, grid_axes, lattice_uniform
 from sim.rocks import RockField, RockPopulation
 from sim.terrain import (
     BEDROCK,

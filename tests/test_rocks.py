@@ -8,7 +8,8 @@ from numpy.typing import ArrayLike
 from scipy import integrate, stats
 
 from sim.albedo import AlbedoStyle, AlbedoTexture
-from sim.heightmap import FloatArray, FractalNoise, HeightmapTerrain
+from sim.heightmap import FloatArray, HeightmapTerrain
+from sim.noise import FractalNoise
 from sim.rocks import (
     HEIGHT_TO_DIAMETER,
     RockField,

@@ -1,4 +1,4 @@
-"""Heightmap tiles (sim.heightmap) and the albedo texture (sim.albedo)."""
+"""Lattice noise (sim.noise), heightmap tiles (sim.heightmap), albedo texture (sim.albedo)."""
 
 from __future__ import annotations
 
@@ -8,13 +8,8 @@ from scipy import integrate, stats
 
 from sim.albedo import AlbedoStyle, AlbedoTexture, GrainLayer
 from sim.errors import InputError
-from sim.heightmap import (
-    RESOLUTION_M,
-    FractalNoise,
-    HeightmapTerrain,
-    derive_key,
-    lattice_uniform,
-)
+from sim.heightmap import RESOLUTION_M, HeightmapTerrain
+from sim.noise import FractalNoise, derive_key, lattice_uniform
 from sim.sites import GUSEV_ALBEDO, MERIDIANI_ALBEDO, make_terrain
 from sim.terrain import BEDROCK
 
