@@ -99,6 +99,39 @@ class FlatTerrain:
         return self.height_m(x_m, y_m) + self._albedo
 
 
+class PlaneTerrain:
+    """A tilted plane ``h = dh_dx x + dh_dy y + h0_m``: the surface with exact answers.
+
+    ``dh_dx`` rises towards North, ``dh_dy`` towards East (tangent of the slope).
+    """
+
+    def __init__(
+        self,
+        dh_dx: float,
+        dh_dy: float,
+        h0_m: float = 0.0,
+        *,
+        soil: Soil = BEDROCK,
+        albedo_value: float = 0.2,
+    ) -> None:
+        self.name = "plane"
+        self.soil = soil
+        self.dh_dx, self.dh_dy, self.h0_m = dh_dx, dh_dy, h0_m
+        self._albedo = albedo_value
+
+    def height_m(self, x_m: ArrayLike, y_m: ArrayLike) -> FloatArray:
+        x, y = np.broadcast_arrays(np.asarray(x_m, float), np.asarray(y_m, float))
+        out: FloatArray = self.dh_dx * x + self.dh_dy * y + self.h0_m
+        return out
+
+    def gradient(self, x_m: ArrayLike, y_m: ArrayLike) -> tuple[FloatArray, FloatArray]:
+        shape = np.broadcast_shapes(np.shape(x_m), np.shape(y_m))
+        return np.full(shape, self.dh_dx), np.full(shape, self.dh_dy)
+
+    def albedo(self, x_m: ArrayLike, y_m: ArrayLike) -> FloatArray:
+        return np.full(np.broadcast_shapes(np.shape(x_m), np.shape(y_m)), self._albedo)
+
+
 class Eq22Terrain:
     """Balaram's undulating test surface, seed 001 equation 22 (see the module docstring)."""
 

@@ -8,7 +8,7 @@ from collections.abc import Callable
 
 import numpy as np
 import pytest
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from sim import drive
@@ -16,31 +16,12 @@ from sim.errors import InputError
 from sim.rover_geometry import MER_GEOMETRY, STEERED_INDEX
 from sim.sites import make_terrain
 from sim.slip import SlipModel, slip_curve
-from sim.terrain import BEDROCK, MERIDIANI_SAND, Eq22Terrain, FlatTerrain, Soil
+from sim.terrain import MERIDIANI_SAND, Eq22Terrain, FlatTerrain, PlaneTerrain
 from sim.truth import CONTROL_DT_S, TruthTrajectory
 
 FloatArray = NDArray[np.float64]
 G = MER_GEOMETRY
 R_WHEEL = G.wheel_radius_m
-
-
-class PlaneTerrain:
-    """``h = a x + b y`` (elevation up)."""
-
-    def __init__(self, a: float, b: float, soil: Soil = BEDROCK) -> None:
-        self.name, self.soil, self.a, self.b = "plane", soil, a, b
-
-    def height_m(self, x_m: ArrayLike, y_m: ArrayLike) -> FloatArray:
-        x, y = np.broadcast_arrays(np.asarray(x_m, float), np.asarray(y_m, float))
-        out: FloatArray = self.a * x + self.b * y
-        return out
-
-    def gradient(self, x_m: ArrayLike, y_m: ArrayLike) -> tuple[FloatArray, FloatArray]:
-        h = self.height_m(x_m, y_m)
-        return np.full(h.shape, self.a), np.full(h.shape, self.b)
-
-    def albedo(self, x_m: ArrayLike, y_m: ArrayLike) -> FloatArray:
-        return self.height_m(x_m, y_m) * 0.0 + 0.2
 
 
 def ideal(terrain: object) -> SlipModel:
@@ -144,7 +125,7 @@ def test_no_slip_on_a_slope_advances_by_the_cosine() -> None:
 
 def test_slip_on_a_steep_uphill_shortens_the_drive() -> None:
     slope = math.radians(18.0)
-    plane = PlaneTerrain(math.tan(slope), 0.0, MERIDIANI_SAND)
+    plane = PlaneTerrain(math.tan(slope), 0.0, soil=MERIDIANI_SAND)
     distance = 3.0
     start = drive.initial_state(plane, 0.0)
     up, _ = drive.drive_straight(

@@ -19,30 +19,11 @@ from sim.errors import InputError
 from sim.rover_geometry import MER_GEOMETRY, RoverGeometry, wheel_kinematics
 from sim.settle import Settled, settle
 from sim.sites import make_terrain
-from sim.terrain import BEDROCK, GUSEV_SOIL, Eq22Terrain, FlatTerrain, Soil
+from sim.terrain import BEDROCK, GUSEV_SOIL, Eq22Terrain, FlatTerrain, PlaneTerrain, Soil
 
 FloatArray = NDArray[np.float64]
 G = MER_GEOMETRY
 ACCEPT_M = 2e-3  # acceptance: every wheel within 2 mm of the ground
-
-
-class PlaneTerrain:
-    """``h = a x + b y + c`` (elevation up), a test surface with an exact answer."""
-
-    def __init__(self, a: float, b: float, c: float = 0.0, soil: Soil = BEDROCK) -> None:
-        self.name, self.soil, self.a, self.b, self.c = "plane", soil, a, b, c
-
-    def height_m(self, x_m: ArrayLike, y_m: ArrayLike) -> FloatArray:
-        x, y = np.broadcast_arrays(np.asarray(x_m, float), np.asarray(y_m, float))
-        out: FloatArray = self.a * x + self.b * y + self.c
-        return out
-
-    def gradient(self, x_m: ArrayLike, y_m: ArrayLike) -> tuple[FloatArray, FloatArray]:
-        h = self.height_m(x_m, y_m)
-        return np.full(h.shape, self.a), np.full(h.shape, self.b)
-
-    def albedo(self, x_m: ArrayLike, y_m: ArrayLike) -> FloatArray:
-        return self.height_m(x_m, y_m) * 0.0 + 0.2
 
 
 class BumpTerrain(PlaneTerrain):
