@@ -37,7 +37,7 @@ bias over 3.711 m/s², as ``estimation.nadir`` computes).
 How good is it? At Gusev (14.57° S) ``Ω cos φ = 14.62 · 0.968 = 14.15 deg/h``, so a 1 deg/h
 gyro bias alone gives ``1 / 14.15 rad = 4.0 deg`` of heading error (1 σ; 12 deg 3 σ), and no
 averaging removes it: gyrocompassing is **Coarse-class at best, never Fine** (seed 000's
-HGA needs 2 deg 3 σ, sec. 4; Sungaze gives 1.5 deg 3 σ). Near the poles the horizontal
+HGA needs 2 deg 3 σ, sec. 1; Sungaze gives 1.5 deg 3 σ). Near the poles the horizontal
 signal vanishes and the method fails: refused below ``min_horizontal_rate_rad_s``
 (5 deg/h, |φ| > ~70°). A span so short that the ARW alone would exceed
 ``max_arw_heading_sigma_rad`` (1 deg; ~10 min at Gusev) is refused too. These two limits
@@ -105,7 +105,8 @@ class GyrocompassResult:
 
     ``q_b_ll`` (4,) the heading-corrected estimate (eq. 4 form, G4); ``heading_rad`` the
     azimuth of body x's horizontal projection, clockwise from North, in [0, 2π);
-    ``delta_heading_rad`` the turn ``δ`` about LL Down that was applied, in (-π, π];
+    ``delta_q_ll_angle_rad`` the angle ``δ`` of the correction about LL Down, applied on
+    the right (eq. 4 form), in (-π, π]: it is minus the change of heading;
     ``delta_q_ll`` (4,) its quaternion (eq. 3 form); ``omega_b_rad_s`` (3,) the mean
     measured rate (G1); ``horizontal_rate_rad_s`` its measured horizontal magnitude, to
     compare with ``expected_horizontal_rate_rad_s = Ω cos φ`` (a consistency figure: a
@@ -115,7 +116,7 @@ class GyrocompassResult:
 
     q_b_ll: FloatArray
     heading_rad: float
-    delta_heading_rad: float
+    delta_q_ll_angle_rad: float
     delta_q_ll: FloatArray
     omega_b_rad_s: FloatArray
     horizontal_rate_rad_s: float
@@ -236,7 +237,7 @@ def gyrocompass(
     return GyrocompassResult(
         q_b_ll=q_new,
         heading_rad=heading,
-        delta_heading_rad=delta,
+        delta_q_ll_angle_rad=delta,
         delta_q_ll=dq_ll,
         omega_b_rad_s=omega_b,
         horizontal_rate_rad_s=horizontal,

@@ -34,7 +34,8 @@ HGA_ELEVATION_MAX_RAD = math.pi / 2  # ... to straight up
 class HgaCommand:
     """Where the flight software points the HGA.
 
-    ``boresight_b``: unit vector in the body frame; ``az_rad``, ``el_rad``: gimbal angles;
+    ``az_rad``, ``el_rad``: gimbal angles, clipped to the travel; ``boresight_b``: the unit
+    vector they point along in the body frame (``hga_boresight_b``);
     ``earth_above_horizon``: Earth's elevation in LL is positive (from IVP);
     ``within_gimbal``: the gimbal can reach the boresight.
     """
@@ -59,11 +60,27 @@ def point_hga(q_b_ll_est: ArrayLike, earth_ll: ArrayLike) -> HgaCommand:
         raise ValueError(f"earth_ll: must be a finite non-zero 3-vector, got {e_ll!r}")
     e_ll = e_ll / np.linalg.norm(e_ll)
     earth_b = Rotation.from_quat(q).apply(e_ll)  # R_b_ll(q̂) earth_ll
-    az, el = mast_az_el_for(earth_b)
+    az, el_wanted = mast_az_el_for(earth_b)
+    # The gimbal stops at its travel: the dish then points as close as it can.
+    el = min(max(el_wanted, HGA_ELEVATION_MIN_RAD), HGA_ELEVATION_MAX_RAD)
     return HgaCommand(
-        boresight_b=earth_b,
+        boresight_b=hga_boresight_b(az, el),
         az_rad=az,
         el_rad=el,
         earth_above_horizon=bool(e_ll[2] < 0.0),  # LL z is Down
-        within_gimbal=HGA_ELEVATION_MIN_RAD <= el <= HGA_ELEVATION_MAX_RAD,
+        within_gimbal=el == el_wanted,
+    )
+
+
+def hga_boresight_b(az_rad: float, el_rad: float) -> FloatArray:
+    """The gimbal's forward model: boresight in the body frame for angles ``(az, el)``.
+
+    ``(cos el cos az, cos el sin az, -sin el)``: the Pancam mast's convention.
+    """
+    return np.array(
+        [
+            math.cos(el_rad) * math.cos(az_rad),
+            math.cos(el_rad) * math.sin(az_rad),
+            -math.sin(el_rad),
+        ]
     )

@@ -12,7 +12,10 @@ seconds"). A sample is dropped if the driver flags it invalid, if ``dv_b`` or ``
 finite, if ``dt <= 0``, or if its magnitude ``|f_b|`` differs from the known gravity by more
 than ``sample_gate_m_s2`` (1.0 m/s^2 default, a documented choice: some 700 sigmas of the
 LN-200's 8 Hz white noise, 1.4e-3 m/s^2, so it only removes gross faults such as a stuck
-or saturated channel or a bump). The measured down direction is ``g_b = -f_b / |f_b|``.
+or saturated channel or a bump). A consequence, unlike the paper's order of checks: a
+gravity reading off by more than the gate on every sample fails as "too few samples", not
+as a gravity-magnitude failure; the outcome (estimate unchanged, AQF Unknown) is the same.
+The measured down direction is ``g_b = -f_b / |f_b|``.
 
 Sanity checks (sec. 2.2.1, repeated by 2.3.1), defaults are documented choices since the
 paper leaves every threshold to the ground (sec. 2, "almost all numerical values ... are

@@ -181,12 +181,13 @@ class MotionCheck:
 @dataclass(frozen=True)
 class HeadingUpdate:
     """Eq. (4): the updated ``q_b_ll``, the correction ``delta_q_ll`` (right-multiplied),
-    its angle ``heading_change_rad`` about LL Down (in ``(-π, π]``), and ``applied``
+    its angle ``delta_q_ll_angle_rad`` about LL Down (in ``(-π, π]``; minus the change of
+    heading, as in ``estimation.gyrocompass``), and ``applied``
     (False near the zenith: estimate unchanged, Sunfind still succeeds)."""
 
     q_b_ll: FloatArray
     delta_q_ll: FloatArray
-    heading_change_rad: float
+    delta_q_ll_angle_rad: float
     applied: bool
 
 

@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 
-from estimation.hga_pointing import HGA_POINTING_REQUIREMENT_DEG, HgaCommand
+from estimation.hga_pointing import HGA_POINTING_REQUIREMENT_DEG, HgaCommand, hga_boresight_b
 
 
 @dataclass(frozen=True)
@@ -34,6 +34,8 @@ def hga_pointing_truth(
         np.asarray(earth_ll_true, dtype=float)
     )
     earth_b /= np.linalg.norm(earth_b)
-    cos_angle = float(np.clip(command.boresight_b @ earth_b, -1.0, 1.0))
+    # Score the gimbal angles themselves, through the forward model, not the intent.
+    boresight_b = hga_boresight_b(command.az_rad, command.el_rad)
+    cos_angle = float(np.clip(boresight_b @ earth_b, -1.0, 1.0))
     error_deg = math.degrees(math.acos(cos_angle))
     return HgaPointing(error_deg=error_deg, margin_deg=HGA_POINTING_REQUIREMENT_DEG - error_deg)

@@ -69,3 +69,20 @@ def test_bad_arguments_name_the_parameter() -> None:
         propagate_gyro([0, 0, 0, 1.0], np.zeros((3, 3)), 0.0, OMEGA_LL)
     with pytest.raises(ValueError, match="q_b_ll"):
         propagate_gyro([0, 0, 0, 0.0], np.zeros((3, 3)), 0.125, OMEGA_LL)
+
+
+def test_a_wrong_estimate_at_rest_drifts_at_its_share_of_mars_rotation() -> None:
+    # Subtracting Mars' rotation with a heading error δ leaves ω_perp 2 sin(δ/2) of rate,
+    # with ω_perp = Ω cos(lat) the part of the spin across the error axis (Down): 0.25 deg
+    # an hour per degree of heading error at Gusev (sec. 2.4.1's subtraction, by geometry).
+    q_ll_b = Rotation.from_euler("ZYX", [37.0, 4.0, -6.0], degrees=True).as_quat()
+    imu = Ln200Imu(Ln200Params.noise_free(), np.random.default_rng(0))
+    n = 8 * 3600
+    samples = imu.measure(np.arange(n + 1) * 0.125, np.tile(q_ll_b, (n + 1, 1)), OMEGA_LL)
+    q_b_ll_true = Rotation.from_quat(q_ll_b).inv()
+    error = Rotation.from_euler("z", 1.0, degrees=True)  # 1 deg about LL Down
+    q_b_ll_est = (q_b_ll_true * error).as_quat()
+    q = propagate_gyro(q_b_ll_est, samples.delta_angle_b, samples.dt_s, OMEGA_LL)
+    drift = _angle_between(q[-1], q_b_ll_est)
+    predicted = np.linalg.norm(OMEGA_LL) * math.cos(LAT) * 2 * math.sin(math.radians(0.5)) * 3600
+    assert drift == pytest.approx(predicted, rel=0.02)

@@ -102,7 +102,7 @@ def test_raw_samples_agree_with_sum_and_level_rover() -> None:
     assert res_scalar.heading_rad == pytest.approx(res.heading_rad, abs=1e-12)
     assert res.duration_s == pytest.approx(900.0)
     # Level estimate at heading 0: the applied turn is minus the heading (ψ_new = ψ - δ).
-    assert _wrap(res.delta_heading_rad + math.radians(250.0)) == pytest.approx(0.0, abs=1e-9)
+    assert _wrap(res.delta_q_ll_angle_rad + math.radians(250.0)) == pytest.approx(0.0, abs=1e-9)
 
 
 def test_tilt_preserved_by_the_update() -> None:

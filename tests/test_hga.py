@@ -8,7 +8,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from estimation import ivp
-from estimation.hga_pointing import point_hga
+from estimation.hga_pointing import hga_boresight_b, point_hga
 from sim.hga import hga_pointing_truth
 from sim.mars_frames import earth_ll_truth, elevation_rad
 from sim.marsclock import utc_to_t_s
@@ -50,9 +50,26 @@ def test_heading_error_costs_its_cosine_of_elevation(yaw_error_deg: float) -> No
 
 
 def test_earth_below_the_horizon_is_reported() -> None:
-    command = point_hga([0, 0, 0, 1.0], [1.0, 0.0, 0.5])  # Down component > 0: below
+    earth_ll = np.array([1.0, 0.0, 0.5]) / math.sqrt(1.25)  # Down component > 0: below
+    command = point_hga([0, 0, 0, 1.0], earth_ll)
     assert not command.earth_above_horizon
     assert not command.within_gimbal  # below the deck of a level rover too
+    # the dish stops at the deck: it misses Earth by Earth's depression, atan(0.5)
+    result = hga_pointing_truth(command, [0, 0, 0, 1.0], earth_ll)
+    assert result.error_deg == pytest.approx(math.degrees(math.atan(0.5)), abs=1e-9)
+
+
+def test_gimbal_angles_point_where_the_command_says() -> None:
+    rng = np.random.default_rng(11)
+    for _ in range(50):
+        q = Rotation.random(random_state=rng).as_quat()
+        earth = rng.normal(size=3)
+        command = point_hga(q, earth / np.linalg.norm(earth))
+        if command.within_gimbal:
+            aimed = hga_boresight_b(command.az_rad, command.el_rad)
+            np.testing.assert_allclose(aimed, command.boresight_b, atol=1e-12)
+            expected_b = Rotation.from_quat(q).apply(earth / np.linalg.norm(earth))
+            np.testing.assert_allclose(aimed, expected_b, atol=1e-12)
 
 
 def test_bad_arguments_name_the_parameter() -> None:

@@ -266,7 +266,7 @@ def test_heading_update_recovers_true_heading_exactly() -> None:
         # scipy's relative rotation est^-1 * true is the correction about LL Down
         rel = (Rotation.from_quat(q_est).inv() * Rotation.from_quat(q_true)).as_rotvec()
         assert np.allclose(rel[:2], 0.0, atol=1e-12)
-        assert up.heading_change_rad == pytest.approx(rel[2], abs=1e-9)
+        assert up.delta_q_ll_angle_rad == pytest.approx(rel[2], abs=1e-9)
         assert np.allclose(Rotation.from_quat(up.q_b_ll).apply(sun), obs_b, atol=1e-12)
     assert worst < 1e-12
 
@@ -276,7 +276,7 @@ def test_zenith_rule() -> None:
     q_est = quat_multiply(q_true, heading_delta_quat(math.radians(60.0)))
     high = sun_dir_ll(200.0, 86.0)
     skip = heading_update(q_est, Rotation.from_quat(q_true).apply(high), high)
-    assert not skip.applied and skip.heading_change_rad == 0.0
+    assert not skip.applied and skip.delta_q_ll_angle_rad == 0.0
     assert np.array_equal(skip.q_b_ll, q_est / np.linalg.norm(q_est))
     lower = sun_dir_ll(200.0, 84.0)
     done = heading_update(q_est, Rotation.from_quat(q_true).apply(lower), lower)
