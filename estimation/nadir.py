@@ -69,6 +69,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from estimation.aqf import AttitudeQuality
+from estimation.checks import angle_between_rad, unit_quaternion, unit_vector
 from estimation.mars_constants import MARS_GRAVITY_M_S2
 from estimation.quaternion import quat_canonical, quat_from_rotvec, quat_multiply
 
@@ -229,36 +230,9 @@ def check_average(average: AccelAverage, params: NadirParams | None = None) -> N
     return None
 
 
-def _unit_quat(q_b_ll: ArrayLike) -> FloatArray:
-    q = np.asarray(q_b_ll, dtype=np.float64)
-    if q.shape != (4,) or not np.all(np.isfinite(q)):
-        raise ValueError(f"q_b_ll: must be a finite (4,) quaternion, got shape {q.shape}")
-    norm = float(np.linalg.norm(q))
-    if abs(norm - 1.0) > 1e-6:
-        raise ValueError(f"q_b_ll: must be a unit quaternion, norm {norm}")
-    out: FloatArray = q / norm
-    return out
-
-
-def _unit_vector(v: ArrayLike, name: str) -> FloatArray:
-    a = np.asarray(v, dtype=np.float64)
-    if a.shape != (3,) or not np.all(np.isfinite(a)):
-        raise ValueError(f"{name}: must be a finite (3,) vector, got shape {a.shape}")
-    norm = float(np.linalg.norm(a))
-    if norm == 0.0:
-        raise ValueError(f"{name}: must be non-zero")
-    out: FloatArray = a / norm
-    return out
-
-
-def _angle_rad(u: FloatArray, v: FloatArray) -> float:
-    """Angle between two vectors, accurate at 0 and pi: atan2(|u x v|, u . v)."""
-    return math.atan2(float(np.linalg.norm(np.cross(u, v))), float(np.dot(u, v)))
-
-
 def nadir_in_body(q_b_ll: ArrayLike) -> FloatArray:
     """Expected nadir ``n_b = R_b_ll [0, 0, 1]``, unit (3,), from the estimate ``q_b_ll``."""
-    out: FloatArray = Rotation.from_quat(_unit_quat(q_b_ll)).apply(DOWN_LL)
+    out: FloatArray = Rotation.from_quat(unit_quaternion(q_b_ll)).apply(DOWN_LL)
     return out
 
 
@@ -269,7 +243,7 @@ def tilt_of_estimate_rad(q_b_ll: ArrayLike) -> float:
     >>> round(math.degrees(tilt_of_estimate_rad(quat_from_rotvec([0.0, 0.2, 0.0]))), 6)
     11.459156
     """
-    return _angle_rad(nadir_in_body(q_b_ll), DOWN_LL)
+    return angle_between_rad(nadir_in_body(q_b_ll), DOWN_LL)
 
 
 def tilt_from_specific_force_rad(f_b_m_s2: ArrayLike) -> float:
@@ -280,7 +254,7 @@ def tilt_from_specific_force_rad(f_b_m_s2: ArrayLike) -> float:
     >>> tilt_from_specific_force_rad([0.0, 0.0, -3.711])
     0.0
     """
-    return _angle_rad(-_unit_vector(f_b_m_s2, "f_b_m_s2"), DOWN_LL)
+    return angle_between_rad(-unit_vector(f_b_m_s2, "f_b_m_s2"), DOWN_LL)
 
 
 def tilt_correction(q_b_ll: ArrayLike, down_b: ArrayLike) -> tuple[FloatArray, float]:
@@ -292,9 +266,9 @@ def tilt_correction(q_b_ll: ArrayLike, down_b: ArrayLike) -> tuple[FloatArray, f
     180 deg about a horizontal axis if opposite (module doc).
     """
     n_b = nadir_in_body(q_b_ll)
-    g_b = _unit_vector(down_b, "down_b")
+    g_b = unit_vector(down_b, "down_b")
     axis_b = np.cross(n_b, g_b)  # sec. 2.2.1: rotate along n^B x g^B
-    angle = _angle_rad(n_b, g_b)  # sec. 2.2.1: by the angle between n^B and g^B
+    angle = angle_between_rad(n_b, g_b)  # sec. 2.2.1: by the angle between n^B and g^B
     sin_angle = float(np.linalg.norm(axis_b))
     if angle > 0.5 * math.pi and sin_angle < 1e-12:  # opposite: an axis normal to n_b
         e_k = np.zeros(3)
@@ -333,7 +307,7 @@ def nadir_update(
 ) -> NadirUpdateResult:
     """Nadir Update (sec. 2.2.1, eq. 1) of the estimate ``q_b_ll`` (4,) from one window's
     ``average`` (``AccelAverager``/``average_accelerometer``)."""
-    q_minus = _unit_quat(q_b_ll)
+    q_minus = unit_quaternion(q_b_ll)
     failure = check_average(average, params)
     if failure is not None:  # sec. 2.2.1: estimate unchanged, flag Unknown
         return NadirUpdateResult(
@@ -380,7 +354,7 @@ def nadir_check(
     failure = check_average(average, p)
     if failure is not None:  # sec. 2.3.1: abort without changing the flag
         return NadirCheckResult(NadirCheckOutcome.ABORTED, aqf, failure, math.nan, average)
-    error = _angle_rad(n_b, average.down_b)  # sec. 2.3.1: angle between the nadirs
+    error = angle_between_rad(n_b, average.down_b)  # sec. 2.3.1: angle between the nadirs
     if error < p.check_tolerance_rad:
         return NadirCheckResult(NadirCheckOutcome.PASSED, aqf, None, error, average)
     return NadirCheckResult(NadirCheckOutcome.FAILED, AttitudeQuality.UNKNOWN, None, error, average)

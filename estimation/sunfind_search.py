@@ -92,6 +92,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from estimation.camera_model import PANCAM_FOV_RAD, mast_az_el_for
+from estimation.checks import angle_between_rad, unit_quaternion, unit_vector
 from estimation.quaternion import quat_canonical, quat_multiply
 
 FloatArray = NDArray[np.float64]
@@ -191,36 +192,9 @@ class HeadingUpdate:
     applied: bool
 
 
-def _unit_quat(q_b_ll: ArrayLike) -> FloatArray:
-    q = np.asarray(q_b_ll, dtype=np.float64)
-    if q.shape != (4,) or not np.all(np.isfinite(q)):
-        raise ValueError(f"q_b_ll: must be a finite (4,) quaternion, got shape {q.shape}")
-    norm = float(np.linalg.norm(q))
-    if abs(norm - 1.0) > 1e-6:
-        raise ValueError(f"q_b_ll: must be a unit quaternion, norm {norm}")
-    out: FloatArray = q / norm
-    return out
-
-
-def _unit_vector(v: ArrayLike, name: str) -> FloatArray:
-    a = np.asarray(v, dtype=np.float64)
-    if a.shape != (3,) or not np.all(np.isfinite(a)):
-        raise ValueError(f"{name}: must be a finite (3,) vector, got shape {a.shape}")
-    norm = float(np.linalg.norm(a))
-    if norm == 0.0:
-        raise ValueError(f"{name}: must be non-zero")
-    out: FloatArray = a / norm
-    return out
-
-
-def _angle_rad(u: FloatArray, v: FloatArray) -> float:
-    """Angle between two vectors, accurate at 0 and pi: atan2(|u x v|, u . v)."""
-    return math.atan2(float(np.linalg.norm(np.cross(u, v))), float(np.dot(u, v)))
-
-
 def elevation_rad(v_ll: ArrayLike) -> float:
     """Elevation above the horizon of LL direction ``v_ll`` (3,, any length), rad."""
-    v = _unit_vector(v_ll, "v_ll")
+    v = unit_vector(v_ll, "v_ll")
     return math.atan2(-v[2], math.hypot(v[0], v[1]))  # Down is +z: up is -z
 
 
@@ -259,8 +233,8 @@ def search_guess(q_b_ll: ArrayLike, sun_ll: ArrayLike, index: int, step_rad: flo
     sun from IVP at the image time; ``step_rad`` the Δξ of ``search_plan``. Returns
     ``q_i = q ⊗ δq(i Δξ)`` (eqs. 2-3), ``p_b(i) = R_b_ll(q_i) sun_ll`` and the mast pose.
     """
-    q = _unit_quat(q_b_ll)
-    s_ll = _unit_vector(sun_ll, "sun_ll")
+    q = unit_quaternion(q_b_ll)
+    s_ll = unit_vector(sun_ll, "sun_ll")
     if index < 0:
         raise ValueError(f"index: must be >= 0, got {index}")
     if not (math.isfinite(step_rad) and 0.0 < step_rad <= _TWO_PI):
@@ -276,8 +250,8 @@ def observed_elevation_rad(q_b_ll: ArrayLike, sun_b: ArrayLike) -> float:
 
     ``el = asin(-n_b · sun_b)``, ``n_b = R_b_ll Down``: the heading plays no part.
     """
-    n_b = Rotation.from_quat(_unit_quat(q_b_ll)).apply(DOWN_LL)
-    s_b = _unit_vector(sun_b, "sun_b")
+    n_b = Rotation.from_quat(unit_quaternion(q_b_ll)).apply(DOWN_LL)
+    s_b = unit_vector(sun_b, "sun_b")
     return math.asin(max(-1.0, min(1.0, -float(np.dot(n_b, s_b)))))
 
 
@@ -291,7 +265,7 @@ def elevation_check(
     ``q_b_ll`` against the IVP sun ``sun_ll_expected`` (3,) at the image time."""
     p = params if params is not None else SunfindSearchParams()
     observed = observed_elevation_rad(q_b_ll, sun_b_obs)
-    expected = elevation_rad(_unit_vector(sun_ll_expected, "sun_ll_expected"))
+    expected = elevation_rad(unit_vector(sun_ll_expected, "sun_ll_expected"))
     error = observed - expected
     return ElevationCheck(observed, expected, error, abs(error) <= p.elevation_tolerance_rad)
 
@@ -311,10 +285,12 @@ def motion_check(
     sun_ll_2)``; no attitude enters.
     """
     p = params if params is not None else SunfindSearchParams()
-    observed = _angle_rad(
-        _unit_vector(sun_b_obs_1, "sun_b_obs_1"), _unit_vector(sun_b_obs_2, "sun_b_obs_2")
+    observed = angle_between_rad(
+        unit_vector(sun_b_obs_1, "sun_b_obs_1"), unit_vector(sun_b_obs_2, "sun_b_obs_2")
     )
-    expected = _angle_rad(_unit_vector(sun_ll_1, "sun_ll_1"), _unit_vector(sun_ll_2, "sun_ll_2"))
+    expected = angle_between_rad(
+        unit_vector(sun_ll_1, "sun_ll_1"), unit_vector(sun_ll_2, "sun_ll_2")
+    )
     error = observed - expected
     tol = p.motion_tolerance_rad
     return MotionCheck(observed, expected, error, abs(error) <= tol, expected > tol)
@@ -326,9 +302,9 @@ def heading_correction_rad(q_b_ll: ArrayLike, sun_b_obs: ArrayLike, sun_ll: Arra
 
     Raises ``ValueError`` if either sun is exactly at the zenith or nadir (no azimuth).
     """
-    q = _unit_quat(q_b_ll)
-    s_obs_ll = Rotation.from_quat(q).inv().apply(_unit_vector(sun_b_obs, "sun_b_obs"))
-    s_ll = _unit_vector(sun_ll, "sun_ll")
+    q = unit_quaternion(q_b_ll)
+    s_obs_ll = Rotation.from_quat(q).inv().apply(unit_vector(sun_b_obs, "sun_b_obs"))
+    s_ll = unit_vector(sun_ll, "sun_ll")
     if math.hypot(s_obs_ll[0], s_obs_ll[1]) < 1e-12:
         raise ValueError("sun_b_obs: is at the zenith or nadir, its azimuth is undefined")
     if math.hypot(s_ll[0], s_ll[1]) < 1e-12:
@@ -353,10 +329,10 @@ def heading_update(
     estimate returned unchanged).
     """
     p = params if params is not None else SunfindSearchParams()
-    q = _unit_quat(q_b_ll)
+    q = unit_quaternion(q_b_ll)
     limit = 0.5 * math.pi - p.zenith_exclusion_rad
     near_zenith = (
-        elevation_rad(_unit_vector(sun_ll, "sun_ll")) >= limit
+        elevation_rad(unit_vector(sun_ll, "sun_ll")) >= limit
         or observed_elevation_rad(q, sun_b_obs) >= limit
     )
     if near_zenith:  # sec. 2.2.2: heading not determinable, no update
