@@ -98,6 +98,14 @@ def _bspline_weights(t: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray,
     )
 
 
+def _cell(
+    g: FloatArray,
+) -> tuple[IntArray, tuple[FloatArray, FloatArray, FloatArray, FloatArray]]:
+    """Lattice cell index of lattice coordinates ``g`` and its four B-spline weights."""
+    f = np.floor(g)
+    return f.astype(np.int64), _bspline_weights(g - f)
+
+
 def grid_axes(i0: int, j0: int, n: int, spacing_m: float) -> tuple[FloatArray, FloatArray]:
     """Coordinates (m) of grid nodes ``x = (i0 + a)·s``, ``y = (j0 + b)·s``, ``a, b < n``.
 
@@ -157,14 +165,8 @@ class FractalNoise:
         x, y = np.broadcast_arrays(np.asarray(x_m, np.float64), np.asarray(y_m, np.float64))
         out = np.zeros(x.shape)
         for c, amp, key, (ox, oy) in self._octaves():
-            gx = x / c + ox
-            gy = y / c + oy
-            fx = np.floor(gx)
-            fy = np.floor(gy)
-            ix = fx.astype(np.int64)
-            iy = fy.astype(np.int64)
-            wx = _bspline_weights(gx - fx)
-            wy = _bspline_weights(gy - fy)
+            ix, wx = _cell(x / c + ox)
+            iy, wy = _cell(y / c + oy)
             # All 16 lattice values in one hash call, shape (..., 4, 4) indexed [a, b].
             lat = lattice_uniform(
                 key, (ix[..., None] + _TAPS)[..., :, None], (iy[..., None] + _TAPS)[..., None, :]
@@ -190,14 +192,8 @@ class FractalNoise:
         xs, ys = xg[:, 0], yg[0, :]
         out = np.zeros((n, n))
         for c, amp, key, (ox, oy) in self._octaves():
-            gx = xs / c + ox
-            gy = ys / c + oy
-            fx = np.floor(gx)
-            fy = np.floor(gy)
-            ix = fx.astype(np.int64)
-            iy = fy.astype(np.int64)
-            wx = _bspline_weights(gx - fx)
-            wy = _bspline_weights(gy - fy)
+            ix, wx = _cell(xs / c + ox)
+            iy, wy = _cell(ys / c + oy)
             lx = np.arange(ix[0] - 1, ix[-1] + 3, dtype=np.int64)
             ly = np.arange(iy[0] - 1, iy[-1] + 3, dtype=np.int64)
             lat = lattice_uniform(key, lx[:, None], ly[None, :])  # (Lx, Ly)
