@@ -341,6 +341,11 @@ class NadirCheckResult:
     nadir_error_rad: float
     average: AccelAverage = field(repr=False)
 
+    @property
+    def success(self) -> bool:
+        """True if the check passed."""
+        return self.outcome is NadirCheckOutcome.PASSED
+
 
 def nadir_check(
     q_b_ll: ArrayLike,

@@ -6,15 +6,21 @@ a batch at the 8 Hz control rate (DESIGN.md, "One control cycle") and the sensor
 for that batch; an idle span is jumped over in one step, with one aggregated IMU sample
 that is distributed exactly as the sum of its 8 Hz samples (``sim.imu``).
 
-The flight software is not in the loop yet; ``RoverSim`` records what it would receive
-(``ImuSamples``, ``EncoderSamples``) and keeps running figures an operator reads in a
-scenario summary.
+``RoverSim`` gives what the flight software receives (``ImuSamples``, ``EncoderSamples``,
+Pancam sun images at a commanded mast pointing) and keeps running figures an operator
+reads in a scenario summary; ``sim.session`` puts the flight software in the loop.
+
+The Pancam mast points where it is commanded plus a fixed per-rover bias in azimuth and
+elevation (``mast_bias_sigma_deg``, 1σ per axis, default 0.05 deg: approximate, a
+calibrated pan/tilt actuator's absolute knowledge), which the flight software does not
+know: it enters every sun vector as an unmodelled systematic error.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass, field, fields
 from datetime import datetime
 
 import numpy as np
@@ -23,14 +29,16 @@ from scipy.spatial.transform import Rotation
 
 from sim import drive
 from sim.encoders import EncoderParams, EncoderSamples, MobilityEncoders
+from sim.errors import InputError
 from sim.imu import ImuSamples, Ln200Imu, Ln200Params
 from sim.local_level import q_ll_b_from_site
-from sim.mars_frames import mars_rotation_ll
+from sim.mars_frames import earth_ll_truth, mars_rotation_ll, sun_ll_truth
 from sim.marsclock import utc_to_t_s
+from sim.pancam import SunImage, render_sun_image
 from sim.rover_geometry import MER_GEOMETRY
 from sim.sites import Site, make_terrain, site
 from sim.slip import SlipModel
-from sim.truth import TruthTrajectory
+from sim.truth import CONTROL_DT_S, TruthTrajectory
 
 FloatArray = NDArray[np.float64]
 
@@ -73,20 +81,30 @@ class RoverSim:
         start_utc: datetime,
         imu_params: Ln200Params | None = None,
         slip: bool = True,
+        yaw_rad: float = 0.0,
+        x_m: float = 0.0,
+        y_m: float = 0.0,
+        mast_bias_sigma_deg: float = 0.05,
     ) -> None:
         self.site: Site = site(site_name)
         self.terrain = make_terrain(site_name, seed)
         self.lat_rad = math.radians(self.site.lat_deg)
         self.lon_east_rad = math.radians(self.site.lon_east_deg)
         self.omega_mars_ll = mars_rotation_ll(self.lat_rad)
-        rng_imu, rng_encoders, rng_slip = np.random.default_rng(seed).spawn(3)
+        rng_imu, rng_encoders, rng_slip, rng_cam = np.random.default_rng(seed).spawn(4)
         self.t_s = utc_to_t_s(start_utc)
         self.imu = Ln200Imu(imu_params or Ln200Params(), rng_imu, t_on_s=self.t_s)
         self.encoders = MobilityEncoders(EncoderParams(), rng_encoders)
         self.slip = (
             SlipModel(self.terrain.soil, rng_slip) if slip else SlipModel.ideal(self.terrain.soil)
         )
-        self.state = drive.initial_state(self.terrain, self.t_s, slip_model=self.slip)
+        self.state = drive.initial_state(
+            self.terrain, self.t_s, x_m=x_m, y_m=y_m, yaw_rad=yaw_rad, slip_model=self.slip
+        )
+        if not (math.isfinite(mast_bias_sigma_deg) and 0.0 <= mast_bias_sigma_deg <= 5.0):
+            raise InputError("mast_bias_sigma_deg", "must be in [0, 5] deg")
+        self.mast_bias_rad = np.radians(mast_bias_sigma_deg) * rng_cam.standard_normal(2)
+        self._rng_cam = rng_cam
         self.totals = RunningTotals()
         self._encoder_counts = self.encoders.read(self.state.as_trajectory()).wheel_counts[0]
 
@@ -106,20 +124,80 @@ class RoverSim:
 
     def drive_straight(self, distance_m: float) -> Segment:
         """Drive ``distance_m`` (> 0) straight ahead; returns its truth and sensor samples."""
-        traj, self.state = drive.drive_straight(self.terrain, self.state, distance_m, self.slip)
-        return self._sense(traj)
+        steer = bool(np.any(self.state.steer_rad != 0.0))
+        return self._drive(
+            lambda start: drive.drive_straight(self.terrain, start, distance_m, self.slip), steer
+        )
 
     def drive_arc(self, radius_m: float, angle_rad: float) -> Segment:
         """Drive along an arc (see ``sim.drive.drive_arc`` for the signs)."""
-        traj, self.state = drive.drive_arc(self.terrain, self.state, radius_m, angle_rad, self.slip)
-        return self._sense(traj)
+        return self._drive(
+            lambda start: drive.drive_arc(self.terrain, start, radius_m, angle_rad, self.slip),
+            True,
+        )
 
     def turn_in_place(self, angle_rad: float) -> Segment:
         """Turn in place by ``angle_rad`` (positive: clockwise seen from above, to the right)."""
-        traj, self.state = drive.turn_in_place(self.terrain, self.state, angle_rad, self.slip)
+        return self._drive(
+            lambda start: drive.turn_in_place(self.terrain, start, angle_rad, self.slip), True
+        )
+
+    def _drive(
+        self,
+        primitive: Callable[[drive.DriveState], tuple[TruthTrajectory, drive.DriveState]],
+        steers: bool,
+    ) -> Segment:
+        """Run a drive primitive. Steering the corner wheels at rest moves their contact
+        points and so the body's attitude: when the wheels steer, one control cycle of
+        steering comes first, from the pose at rest to the primitive's first (steered)
+        pose, so that the IMU and the truth see the change."""
+        before = self.state
+        start = before.at_time(before.t_s + CONTROL_DT_S) if steers else before
+        traj, self.state = primitive(start)
+        if steers:
+            traj = _prepend(before.as_trajectory(), traj)
         return self._sense(traj)
 
+    def rest_cycles(self, duration_s: float) -> ImuSamples:
+        """Stay still for ``duration_s`` with every 8 Hz IMU sample (the last may be short),
+        for the modes that average the accelerometers sample by sample."""
+        if not (math.isfinite(duration_s) and duration_s > 0.0):
+            raise InputError("duration_s", "must be positive and finite")
+        n = max(1, math.ceil(duration_s / CONTROL_DT_S - 1e-9))
+        t = self.t_s + np.minimum(np.arange(n + 1) * CONTROL_DT_S, duration_s)
+        q_ll_b = self.q_ll_b()
+        samples = self.imu.measure(t, np.tile(q_ll_b, (n + 1, 1)), self.omega_mars_ll)
+        self.totals.rest_s += duration_s
+        self.totals.gyro_rest_angle_b += samples.delta_angle_b.sum(axis=0)
+        self.totals.truth_rest_angle_b += self._inertial_rest_angle(q_ll_b, duration_s)
+        self.t_s = float(t[-1])
+        self.state = self.state.at_time(self.t_s)
+        return samples
+
+    def pancam_sun_image(self, az_rad: float, el_rad: float) -> SunImage:
+        """A Pancam solar-filter frame now, the mast commanded to ``(az_rad, el_rad)``."""
+        sun_b = Rotation.from_quat(self.q_ll_b()).inv().apply(self.sun_ll())
+        az_true = az_rad + float(self.mast_bias_rad[0])
+        el_true = el_rad + float(self.mast_bias_rad[1])
+        return render_sun_image(sun_b, az_true, el_true, self._rng_cam)
+
+    def wheel_angle_rad_now(self) -> FloatArray:
+        """The wheel encoders' angles now (6,), rad since power-on, as the flight
+        software reads them (quantised)."""
+        out: FloatArray = self.encoders.wheel_angle_rad(np.asarray(self._encoder_counts))
+        return out
+
     # ---- truth views ----------------------------------------------------------------
+
+    def sun_ll(self) -> FloatArray:
+        """Truth apparent sun direction in LL now, unit (3,)."""
+        out: FloatArray = sun_ll_truth(self.t_s, self.lat_rad, self.lon_east_rad)
+        return out
+
+    def earth_ll(self) -> FloatArray:
+        """Truth apparent Earth direction in LL now, unit (3,)."""
+        out: FloatArray = earth_ll_truth(self.t_s, self.lat_rad, self.lon_east_rad)
+        return out
 
     def q_ll_b(self) -> FloatArray:
         """Truth attitude of the body in the Local-Level frame at the rover, ``[x, y, z, w]``."""
@@ -154,3 +232,13 @@ class RoverSim:
         totals.unsettled_poses += self.state.unsettled_poses
         self.t_s = float(traj.t_s[-1])
         return Segment(traj, samples, encoders)
+
+
+def _prepend(first: TruthTrajectory, rest: TruthTrajectory) -> TruthTrajectory:
+    """One trajectory: the sample(s) of ``first`` then those of ``rest``."""
+    return TruthTrajectory(
+        **{
+            f.name: np.concatenate([getattr(first, f.name), getattr(rest, f.name)])
+            for f in fields(TruthTrajectory)
+        }
+    )

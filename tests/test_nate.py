@@ -18,6 +18,8 @@ from sim.imu import Ln200Imu, Ln200Params
 from sim.rover_sim import RoverSim
 
 LAT = math.radians(-14.57)
+LON = math.radians(175.47)
+T0 = 1.3e8  # s from J2000 (2004-02-13)
 OMEGA_LL = np.array([7.0882181e-5 * math.cos(LAT), 0.0, -7.0882181e-5 * math.sin(LAT)])
 Q_LL_B = Rotation.from_euler("ZYX", [37.0, 4.0, -6.0], degrees=True).as_quat()  # truth
 Q_B_LL = Rotation.from_quat(Q_LL_B).inv().as_quat()
@@ -60,7 +62,7 @@ def _state(nate: Nate) -> tuple[object, ...]:
 
 
 def test_nadir_update_takes_unknown_to_tilt_only_with_the_true_tilt() -> None:
-    nate = Nate(LAT)
+    nate = Nate(LAT, LON, T0)
     assert nate.aqf is Aqf.UNKNOWN and nate.mode is NateMode.IDLE  # after landing
     nate.nadir_update()
     samples = _static(80, Ln200Params(), seed=3)
@@ -78,7 +80,7 @@ def test_nadir_update_takes_unknown_to_tilt_only_with_the_true_tilt() -> None:
 
 @pytest.mark.parametrize("fault", ["gravity", "invalid"])
 def test_failed_nadir_update_sets_unknown_and_keeps_the_estimate(fault: str) -> None:
-    nate = Nate(LAT)
+    nate = Nate(LAT, LON, T0)
     nate.load_attitude(quat := Rotation.from_rotvec([0.02, -0.01, 0.3]).as_quat(), Aqf.COARSE)
     nate.nadir_update()
     for s in _static(80):
@@ -96,7 +98,7 @@ def test_failed_nadir_update_sets_unknown_and_keeps_the_estimate(fault: str) -> 
 
 
 def test_nadir_check_pass_keeps_the_flag_and_the_estimate() -> None:
-    nate = Nate(LAT)
+    nate = Nate(LAT, LON, T0)
     nate.load_attitude(Q_B_LL, Aqf.COARSE)
     nate.nadir_check()
     outs = [nate.step(s) for s in _static(80, Ln200Params(), seed=5)]
@@ -108,7 +110,7 @@ def test_nadir_check_fail_sets_unknown_without_touching_the_estimate() -> None:
     off = (
         Rotation.from_rotvec([math.radians(2.0), 0.0, 0.0]) * Rotation.from_quat(Q_B_LL)
     ).as_quat()
-    nate = Nate(LAT)
+    nate = Nate(LAT, LON, T0)
     nate.load_attitude(off, Aqf.FINE)  # 2 deg of tilt error > 1 deg tolerance
     nate.nadir_check()
     out = [nate.step(s) for s in _static(80)][-1]
@@ -121,7 +123,7 @@ def test_nadir_check_fail_sets_unknown_without_touching_the_estimate() -> None:
 
 
 def test_nadir_check_sanity_failure_changes_nothing() -> None:
-    nate = Nate(LAT)
+    nate = Nate(LAT, LON, T0)
     nate.load_attitude(Q_B_LL, Aqf.TILT_ONLY)
     nate.nadir_check()
     for s in _static(80):
@@ -141,7 +143,7 @@ def _rest_one(imu: Ln200Imu, dt_s: float) -> ImuSample:
 @pytest.mark.parametrize("mode", ["articulate", "mobility"])
 def test_fine_drops_to_coarse_after_15_min_of_gyro_counter_and_not_before(mode: str) -> None:
     imu = Ln200Imu(Ln200Params.noise_free(), np.random.default_rng(0))
-    nate = Nate(LAT)
+    nate = Nate(LAT, LON, T0)
     nate.load_attitude(Q_B_LL, Aqf.FINE)
     getattr(nate, mode)()
     out = nate.step(_rest_one(imu, 899.875))
@@ -161,7 +163,7 @@ def test_fine_drops_to_coarse_after_15_min_of_gyro_counter_and_not_before(mode: 
 @pytest.mark.parametrize("flag", [Aqf.UNKNOWN, Aqf.TILT_ONLY, Aqf.COARSE, Aqf.FINE])
 @pytest.mark.parametrize("mode", ["articulate", "mobility"])
 def test_propagation_never_improves_the_flag(flag: Aqf, mode: str) -> None:
-    nate = Nate(LAT)
+    nate = Nate(LAT, LON, T0)
     nate.load_attitude(Q_B_LL, flag)
     getattr(nate, mode)()
     outs = [nate.step(s) for s in _static(200, Ln200Params(), seed=1)]
@@ -170,7 +172,7 @@ def test_propagation_never_improves_the_flag(flag: Aqf, mode: str) -> None:
 
 
 def test_rover_at_rest_in_articulate_keeps_its_attitude() -> None:
-    nate = Nate(LAT)
+    nate = Nate(LAT, LON, T0)
     nate.load_attitude(Q_B_LL, Aqf.FINE)
     nate.articulate()
     outs = [nate.step(s) for s in _static(400)]  # 50 s: reference + 4 tilt corrections
@@ -183,7 +185,7 @@ def test_articulate_tilt_corrections_remove_gyro_tilt_drift_but_not_yaw_drift() 
     # A gyro with a 200 deg/h bias and nothing else: pure gyro propagation drifts.
     params = Ln200Params(200.0, 0.0, 0.0, 3600.0, 0.0, 0.0)
     samples = _static(480, params, seed=8)  # 60 s
-    nate = Nate(LAT)
+    nate = Nate(LAT, LON, T0)
     nate.load_attitude(Q_B_LL, Aqf.COARSE)
     nate.articulate()
     out = [nate.step(s) for s in samples][-1]
@@ -220,7 +222,7 @@ def _drive(nate: Nate, sim: RoverSim, distance_m: float) -> np.ndarray:
 
 def test_straight_drive_on_flat_ends_at_the_commanded_distance_and_plant_site_resets() -> None:
     sim = RoverSim("flat", 0, START, imu_params=Ln200Params.noise_free(), slip=False)
-    nate = Nate(sim.lat_rad)
+    nate = Nate(sim.lat_rad, sim.lon_east_rad, sim.t_s)
     nate.load_attitude(Rotation.from_quat(sim.q_ll_b()).inv().as_quat(), Aqf.FINE)
     truth_delta = _drive(nate, sim, 3.0)
     p_s = nate.p_s
@@ -238,7 +240,7 @@ def test_straight_drive_on_flat_ends_at_the_commanded_distance_and_plant_site_re
 def test_mobility_wheel_odometry_submode_turns_the_attitude_with_the_wheels() -> None:
     sim = RoverSim("flat", 1, START, imu_params=Ln200Params.noise_free(), slip=False)
     q0 = Rotation.from_quat(sim.q_ll_b()).inv().as_quat()
-    nate = Nate(sim.lat_rad)
+    nate = Nate(sim.lat_rad, sim.lon_east_rad, sim.t_s)
     nate.load_attitude(q0, Aqf.COARSE)
     seg = sim.turn_in_place(math.radians(30.0))
     wheel = sim.encoders.wheel_angle_rad(seg.encoders.wheel_counts)
@@ -256,7 +258,7 @@ def test_mobility_wheel_odometry_submode_turns_the_attitude_with_the_wheels() ->
 
 
 def test_refused_commands_leave_the_state_untouched() -> None:
-    nate = Nate(LAT)
+    nate = Nate(LAT, LON, T0)
     nate.load_attitude(Q_B_LL, Aqf.COARSE)
     bad_idle: list[tuple[Callable[[], object], str]] = [
         (lambda: nate.nadir_update(window_s=-1.0), "window_s"),

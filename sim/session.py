@@ -1,0 +1,510 @@
+"""A rover session: the flight software in the loop on the simulated rover, command by command.
+
+DESIGN.md, "One control cycle": ``sim`` advances the truth and makes the measurements, the
+sequencer hands the next command to the flight software when the previous one completes,
+SAPP's NATE (``estimation.nate``) steps on the measurements, and a telemetry frame puts the
+estimate beside the truth with the derived figures (HGA pointing error and margin, position
+and attitude error). ``RoverSession.run`` executes a list of typed commands
+(``sequences.commands``) in order; each yields a ``CommandReport``.
+
+How time passes. Motion runs at 8 Hz: a drive's truth and sensor samples are made as a
+batch (``sim.rover_sim``) and NATE steps through them one cycle at a time with the encoders.
+NATE's 8 Hz modes (Nadir Update and Check, Articulate, the Sungaze gravity window) get every
+8 Hz sample. A camera mode waits for its image: the session jumps the clock to the requested
+time with one aggregated IMU sample, renders the Pancam frame at the commanded mast pointing
+from the truth (``RoverSim.pancam_sun_image``), and steps NATE with both. Gyrocompassing and
+Idle waits are jumped over the same way. NATE's clock and the simulator's advance together
+(every sample's ``dt``).
+
+Commands are refused, with the reason and nothing changed, when NATE refuses them (wrong
+mode, out-of-range parameter, the sun too low) or when the simulator does (a drive outside
+its limits). The HGA figures in every frame are those of an HGA pointed at that moment from
+the onboard estimate and IVP's Earth (``estimation.hga_pointing``), scored against the truth
+(``sim.hga``): during an HGA pass that is the antenna's real error, and at other times the
+error it would have. Earth's direction changes by 0.004 deg per second, so it is computed
+once per second of simulated time.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Iterable, Sequence
+from dataclasses import asdict, dataclass, field
+from datetime import datetime
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
+
+from estimation.aqf import AttitudeQuality
+from estimation.hga_pointing import point_hga
+from estimation.ivp import earth_ll
+from estimation.nate import (
+    DriveCommand,
+    EncoderSample,
+    ImuSample,
+    Nate,
+    NateOutput,
+    NateParams,
+)
+from estimation.wheel_odometry import DriveKind, steer_six
+from sequences import commands as cmd
+from sim.errors import InputError
+from sim.hga import hga_pointing_truth
+from sim.imu import ImuSamples, Ln200Params
+from sim.local_level import q_ll_b_from_site
+from sim.mars_frames import earth_ll_truth, elevation_rad
+from sim.marsclock import lmst_h_from_t_s, sol_number_t_s
+from sim.rover_sim import RoverSim, Segment
+from sim.truth import CONTROL_DT_S
+
+FloatArray = NDArray[np.float64]
+
+EARTH_REFRESH_S = 1.0  # see the module docstring
+HGA_FRAME_S = 60.0  # one frame a minute during an Idle HGA pass
+WAIT_CHUNK_S = 600.0  # 8 Hz waits are simulated in chunks of this length
+
+
+@dataclass(frozen=True)
+class TelemetryFrame:
+    """One control cycle's telemetry (DESIGN.md's frame, plus derived figures).
+
+    Angles in degrees at this edge; positions in metres: ``p_s_*`` in the current Site,
+    ``p_mission_*`` in the mission frame (the first Site; the chain of Site offsets).
+    ``hga_error_deg``/``hga_margin_deg`` as the module docstring says; ``earth_up`` whether
+    Earth is above the horizon (truth). ``attitude_error_deg``: angle between the estimated
+    and true attitude; ``position_error_m``: between estimated and true mission positions.
+    """
+
+    t_s: float
+    sol: int
+    lmst_h: float
+    nate_mode: str
+    aqf: str
+    q_b_ll_est: list[float]
+    q_b_ll_true: list[float]
+    p_s_est: list[float]
+    p_s_true: list[float]
+    site_index: int
+    p_mission_est: list[float]
+    p_mission_true: list[float]
+    imu_integration_s: float
+    gyro_counter_s: float
+    tilt_est_deg: float
+    tilt_accel_deg: float
+    hga_error_deg: float
+    hga_margin_deg: float
+    earth_up: bool
+    attitude_error_deg: float
+    position_error_m: float
+    command: str
+    events: list[str] = field(default_factory=list)
+
+    def as_dict(self) -> dict[str, Any]:
+        """The frame as a JSON-ready dict."""
+        return asdict(self)
+
+
+@dataclass
+class CommandReport:
+    """What a command did: ``status`` is ``completed``, ``refused`` (nothing changed;
+    ``reason`` says why) or ``failed`` (it ran and its mode failed; ``reason``)."""
+
+    command: str
+    status: str
+    start_t_s: float
+    end_t_s: float
+    reason: str | None = None
+    events: list[str] = field(default_factory=list)
+    details: dict[str, Any] = field(default_factory=dict)
+    results: list[Any] = field(default_factory=list)
+
+
+class CommandRefusedError(Exception):
+    """A command refused before it changed anything."""
+
+
+class RoverSession:
+    """A rover at a site with SAPP in the loop. Arguments as ``RoverSim`` (the rover's
+    placement, IMU and slip) plus NATE's parameters, and ``frame_every_s``: keep one
+    telemetry frame per that many seconds of 8 Hz data (0: every cycle; frames with events
+    or a mode change are always kept)."""
+
+    def __init__(
+        self,
+        site_name: str,
+        seed: int,
+        start_utc: datetime,
+        *,
+        imu_params: Ln200Params | None = None,
+        slip: bool = True,
+        yaw_rad: float = 0.0,
+        x_m: float = 0.0,
+        y_m: float = 0.0,
+        mast_bias_sigma_deg: float = 0.05,
+        nate_params: NateParams | None = None,
+        frame_every_s: float = 0.0,
+    ) -> None:
+        if not (math.isfinite(frame_every_s) and frame_every_s >= 0.0):
+            raise InputError("frame_every_s", "must be finite and non-negative")
+        self.sim = RoverSim(
+            site_name,
+            seed,
+            start_utc,
+            imu_params=imu_params,
+            slip=slip,
+            yaw_rad=yaw_rad,
+            x_m=x_m,
+            y_m=y_m,
+            mast_bias_sigma_deg=mast_bias_sigma_deg,
+        )
+        sim = self.sim
+        self.nate = Nate(sim.lat_rad, sim.lon_east_rad, sim.t_s, nate_params)
+        self.frames: list[TelemetryFrame] = []
+        self.reports: list[CommandReport] = []
+        self.frame_every_s = frame_every_s
+        self._lon_west_deg = (360.0 - sim.site.lon_east_deg) % 360.0
+        self._site_origins_true: list[FloatArray] = [sim.state.p_s.copy()]  # mission frame
+        self._command = ""
+        self._events: list[str] = []
+        self._last_frame_t = -math.inf
+        self._last_mode = ""
+        self._earth_t = math.nan
+        self._earth_ivp = np.zeros(3)
+        self._earth_true = np.zeros(3)
+
+    # ---- the sequencer ------------------------------------------------------------
+
+    def run(self, commands: Iterable[cmd.Command]) -> list[CommandReport]:
+        """Execute ``commands`` in order (each when the previous completes)."""
+        return [self.execute(c) for c in commands]
+
+    def execute(self, command: cmd.Command) -> CommandReport:
+        """Execute one command to completion and report it."""
+        if not isinstance(command, cmd.Command):
+            raise InputError("command", f"must be a sequences.commands.Command, got {command!r}")
+        self._command = command.describe()
+        report = CommandReport(self._command, "completed", self.sim.t_s, self.sim.t_s)
+        first_frame = len(self.frames)
+        self._results: list[Any] = []
+        try:
+            details = self._dispatch(command)
+        except (CommandRefusedError, ValueError, InputError) as exc:
+            report.status, report.reason = "refused", str(exc)
+            self._events.append(f"{command.name} refused: {exc}")
+            self._frame_now(force=True)
+        else:
+            report.details = details
+            failure = details.pop("failure", None)
+            if failure:
+                report.status, report.reason = "failed", str(failure)
+        report.end_t_s = self.sim.t_s
+        report.results = self._results
+        report.events = [e for f in self.frames[first_frame:] for e in f.events]
+        self.reports.append(report)
+        self._command = ""
+        return report
+
+    def _dispatch(self, c: cmd.Command) -> dict[str, Any]:
+        nate = self.nate
+        if isinstance(c, cmd.DriveStraight):
+            return self._drive(DriveCommand(DriveKind.STRAIGHT), "straight", c.distance_m)
+        if isinstance(c, cmd.DriveArc):
+            angle = math.radians(c.angle_deg)
+            return self._drive(DriveCommand(DriveKind.ARC, c.radius_m), "arc", c.radius_m, angle)
+        if isinstance(c, cmd.TurnInPlace):
+            drive = DriveCommand(DriveKind.TURN_IN_PLACE)
+            return self._drive(drive, "turn", math.radians(c.angle_deg))
+        if isinstance(c, cmd.PlantSite):
+            index = nate.plant_site()
+            self._site_origins_true.append(self.sim.state.p_s.copy())
+            self._events.append(f"Site {index} planted")
+            self._frame_now(force=True)
+            return {"site_index": index}
+        if isinstance(c, cmd.SetParam):
+            nate.set_param(c.param, c.value)
+            self._events.append(f"parameter {c.param} = {c.value}")
+            self._frame_now(force=True)
+            return {}
+        if isinstance(c, cmd.ArticulateStart):
+            nate.articulate()
+            self._frame_now(force=True)
+            return {}
+        if isinstance(c, cmd.ArticulateStop):
+            nate.stop()
+            self._frame_now(force=True)
+            return {}
+        if isinstance(c, cmd.Wait):
+            self._wait(c.duration_s)
+            return {}
+        if isinstance(c, cmd.HgaPass):
+            return self._hga_pass(c.duration_min * 60.0)
+        self._start_acquisition(c)
+        return self._run_until_idle()
+
+    def _start_acquisition(self, c: cmd.Command) -> None:
+        nate = self.nate
+        if isinstance(c, cmd.NadirUpdate):
+            nate.nadir_update(c.window_s)
+        elif isinstance(c, cmd.NadirCheck):
+            nate.nadir_check(c.window_s, c.tolerance_deg)
+        elif isinstance(c, cmd.Sunfind):
+            nate.sunfind()
+        elif isinstance(c, cmd.Suncheck):
+            nate.suncheck(c.tolerance_deg)
+        elif isinstance(c, cmd.Sungaze):
+            nate.sungaze(c.use_gravity)
+        elif isinstance(c, cmd.GetTiltAttitude):
+            nate.get_tilt_attitude()
+        elif isinstance(c, cmd.GetCoarseAttitude):
+            nate.get_coarse_attitude()
+        elif isinstance(c, cmd.GetFineAttitude):
+            nate.get_fine_attitude()
+        elif isinstance(c, cmd.SuncheckSungaze):
+            nate.suncheck_sungaze()
+        elif isinstance(c, cmd.Gyrocompass):
+            nate.gyrocompass(c.duration_s)
+        else:  # pragma: no cover - every command class is dispatched above
+            raise CommandRefusedError(f"{c.name}: not implemented by the session")
+
+    # ---- running NATE -------------------------------------------------------------
+
+    def _run_until_idle(self) -> dict[str, Any]:
+        """Feed NATE until the acquisition, check or gyrocompass it started has ended."""
+        nate, sim = self.nate, self.sim
+        aqf_before = nate.aqf
+        results: list[Any] = []
+        while nate.busy:
+            request = nate.camera_request
+            hint = nate.wait_hint_s
+            if request is not None:
+                samples = sim.rest(max(hint, CONTROL_DT_S))  # slew, expose: one cycle at least
+                image = sim.pancam_sun_image(request.az_rad, request.el_rad).image
+                out = nate.step(_imu(samples, 0), image=image)
+                results += [out.completed] if out.completed is not None else []
+                self._frame(out, force=True)
+            elif hint <= CONTROL_DT_S:
+                samples = sim.rest_cycles(1.0)
+                for k in range(len(samples)):
+                    out = nate.step(_imu(samples, k))
+                    results += [out.completed] if out.completed is not None else []
+                    self._frame(out, force=out.completed is not None)
+            else:
+                out = nate.step(_imu(sim.rest(hint), 0))
+                results += [out.completed] if out.completed is not None else []
+                self._frame(out, force=True)
+        details: dict[str, Any] = {"aqf_before": aqf_before.paper_name, "aqf": nate.aqf.paper_name}
+        self._results = results
+        if results and not results[-1].success:
+            details["failure"] = self._last_event() or "the mode failed"
+        return details
+
+    def _last_event(self) -> str:
+        for frame in reversed(self.frames):
+            if frame.events:
+                return frame.events[-1]
+        return ""
+
+    def _wait(self, duration_s: float) -> None:
+        """Let time pass; Articulate keeps propagating at 8 Hz, Idle is jumped over."""
+        nate, sim = self.nate, self.sim
+        if nate.busy:
+            raise CommandRefusedError(f"WAIT: refused while {nate.mode.value} runs")
+        if nate.wait_hint_s > CONTROL_DT_S:  # Idle: one jump
+            out = nate.step(_imu(sim.rest(duration_s), 0))
+            self._frame(out, force=True)
+            return
+        remaining = duration_s
+        while remaining > 1e-9:
+            chunk = min(WAIT_CHUNK_S, remaining)
+            samples = sim.rest_cycles(chunk)
+            for k in range(len(samples)):
+                self._frame(nate.step(_imu(samples, k)))
+            remaining -= chunk
+
+    def _hga_pass(self, duration_s: float) -> dict[str, Any]:
+        nate, sim = self.nate, self.sim
+        if nate.busy:
+            raise CommandRefusedError(f"HGA_PASS: refused while {nate.mode.value} runs")
+        earth = earth_ll(sim.t_s, sim.lat_rad, sim.lon_east_rad)
+        if not point_hga(nate.q_b_ll, earth).earth_above_horizon:
+            raise CommandRefusedError(
+                "HGA_PASS: Earth is below the horizon (IVP): no link possible"
+            )
+        if nate.aqf < AttitudeQuality.FINE:
+            self._events.append(f"HGA pass with AQF {nate.aqf.paper_name}: pointing not assured")
+        first = len(self.frames)
+        self._frame_now(force=True)
+        end = sim.t_s + duration_s
+        while sim.t_s < end - 1e-9:
+            step = min(HGA_FRAME_S, end - sim.t_s)
+            if nate.wait_hint_s > CONTROL_DT_S:
+                self._frame(nate.step(_imu(sim.rest(step), 0)), force=True)
+            else:
+                samples = sim.rest_cycles(step)
+                for k in range(len(samples)):
+                    self._frame(nate.step(_imu(samples, k)))
+        frames = self.frames[first:]
+        errors = [f.hga_error_deg for f in frames if f.earth_up]
+        worst = max(errors) if errors else math.nan
+        margin = 2.0 - worst
+        self.frames[-1].events.append(
+            f"HGA pass: worst error {worst:.2f} deg, margin {margin:.2f} deg"
+            + ("" if len(errors) == len(frames) else ", Earth set during the pass")
+        )
+        out: dict[str, Any] = {"hga_worst_error_deg": worst, "hga_min_margin_deg": margin}
+        if margin < 0.0:
+            out["failure"] = f"HGA margin gone: worst error {worst:.2f} deg > 2 deg"
+        return out
+
+    def _drive(self, drive: DriveCommand, kind: str, *args: float) -> dict[str, Any]:
+        nate, sim = self.nate, self.sim
+        wheel0 = sim.wheel_angle_rad_now()
+        nate.mobility(drive, wheel_angle_rad=wheel0)  # refuses if NATE is not Idle
+        try:
+            if kind == "straight":
+                seg = sim.drive_straight(args[0])
+            elif kind == "arc":
+                seg = sim.drive_arc(args[0], args[1])
+            else:
+                seg = sim.turn_in_place(args[0])
+        except InputError:
+            nate.stop()  # nothing moved: back to Idle, estimate untouched
+            raise
+        outputs = self._step_segment(seg)
+        nate.stop()
+        self._segment_frames(seg, outputs)
+        self._frame_now(force=True)
+        distance = float(np.sum(np.linalg.norm(np.diff(seg.truth.p_s, axis=0), axis=1)))
+        return {"distance_truth_m": distance}
+
+    def _step_segment(self, seg: Segment) -> list[NateOutput]:
+        wheel = self.sim.encoders.wheel_angle_rad(seg.encoders.wheel_counts)
+        steer = seg.encoders.steer_rad
+        outputs = []
+        for k in range(len(seg.imu)):
+            enc = EncoderSample(wheel[k + 1], steer_six(steer[k + 1]))
+            outputs.append(self.nate.step(_imu(seg.imu, k), enc))
+        return outputs
+
+    # ---- telemetry ----------------------------------------------------------------
+
+    def _earth(self, t_s: float) -> tuple[FloatArray, FloatArray]:
+        if not abs(t_s - self._earth_t) < EARTH_REFRESH_S:
+            sim = self.sim
+            self._earth_t = t_s
+            self._earth_ivp = earth_ll(t_s, sim.lat_rad, sim.lon_east_rad)
+            self._earth_true = earth_ll_truth(t_s, sim.lat_rad, sim.lon_east_rad)
+        return self._earth_ivp, self._earth_true
+
+    def _keep(self, out: NateOutput, force: bool) -> bool:
+        return (
+            force
+            or bool(out.events)
+            or bool(self._events)
+            or out.mode.value != self._last_mode
+            or out.t_s - self._last_frame_t >= self.frame_every_s - 1e-9
+        )
+
+    def _frame(self, out: NateOutput, force: bool = False) -> None:
+        """A frame for the rover at rest now (truth from the simulator's state)."""
+        if not self._keep(out, force):
+            return
+        sim = self.sim
+        self._append(out, sim.q_ll_b(), sim.state.p_s.copy())
+
+    def _frame_now(self, force: bool = False) -> None:
+        """A frame of the current state without a NATE cycle (after a command)."""
+        nate = self.nate
+        out = NateOutput(
+            q_b_ll=nate.q_b_ll,
+            tilt_est_deg=math.nan,
+            tilt_accel_deg=math.nan,
+            p_s=nate.p_s,
+            site_index=nate.sites.current.index,
+            aqf=nate.aqf,
+            mode=nate.mode,
+            imu_integration_s=nate.imu_integration_s,
+            gyro_counter_s=nate.gyro_counter_s,
+            t_s=nate.t_s,
+        )
+        self._frame(out, force)
+
+    def _segment_frames(self, seg: Segment, outputs: Sequence[NateOutput]) -> None:
+        sim = self.sim
+        traj = seg.truth
+        q_ll_b = q_ll_b_from_site(traj.q_s_b, traj.p_s, sim.lat_rad, sim.lon_east_rad)
+        for k, out in enumerate(outputs):
+            if self._keep(out, False):
+                self._append(out, q_ll_b[k + 1], traj.p_s[k + 1])
+
+    def _append(self, out: NateOutput, q_ll_b_true: FloatArray, p_mission_true: FloatArray) -> None:
+        sim, nate = self.sim, self.nate
+        t = out.t_s
+        q_b_ll_true = Rotation.from_quat(q_ll_b_true).inv()
+        earth_ivp, earth_true = self._earth(t)
+        hga = hga_pointing_truth(
+            point_hga(out.q_b_ll, earth_ivp), q_b_ll_true.as_quat(), earth_true
+        )
+        p_mission_est = nate.sites.to_mission(out.p_s, out.site_index)
+        origin = self._site_origins_true[min(out.site_index, len(self._site_origins_true) - 1)]
+        att_err = (Rotation.from_quat(out.q_b_ll) * q_b_ll_true.inv()).magnitude()
+        events = list(out.events) + self._events
+        self._events = []
+        self.frames.append(
+            TelemetryFrame(
+                t_s=t,
+                sol=int(sol_number_t_s(sim.site.mission, t)),
+                lmst_h=float(lmst_h_from_t_s(t, self._lon_west_deg)),
+                nate_mode=out.mode.value,
+                aqf=out.aqf.paper_name,
+                q_b_ll_est=[float(v) for v in out.q_b_ll],
+                q_b_ll_true=[float(v) for v in q_b_ll_true.as_quat()],
+                p_s_est=[float(v) for v in out.p_s],
+                p_s_true=[float(v) for v in p_mission_true - origin],
+                site_index=out.site_index,
+                p_mission_est=[float(v) for v in p_mission_est],
+                p_mission_true=[float(v) for v in p_mission_true],
+                imu_integration_s=out.imu_integration_s,
+                gyro_counter_s=out.gyro_counter_s,
+                tilt_est_deg=out.tilt_est_deg,
+                tilt_accel_deg=out.tilt_accel_deg,
+                hga_error_deg=hga.error_deg,
+                hga_margin_deg=hga.margin_deg,
+                earth_up=bool(elevation_rad(earth_true) > 0.0),
+                attitude_error_deg=math.degrees(float(att_err)),
+                position_error_m=float(np.linalg.norm(p_mission_est - p_mission_true)),
+                command=self._command,
+                events=events,
+            )
+        )
+        self._last_frame_t = t
+        self._last_mode = out.mode.value
+
+    # ---- truth for benchmarks and tests -------------------------------------------
+
+    def attitude_error_rad(self) -> float:
+        """Angle between NATE's estimate and the truth now, rad."""
+        q_b_ll_true = Rotation.from_quat(self.sim.q_ll_b()).inv()
+        return float((Rotation.from_quat(self.nate.q_b_ll) * q_b_ll_true.inv()).magnitude())
+
+    def q_b_ll_true(self) -> FloatArray:
+        """The true ``q_b_ll`` now, (4,)."""
+        out: FloatArray = Rotation.from_quat(self.sim.q_ll_b()).inv().as_quat()
+        return out
+
+
+def _imu(samples: ImuSamples, k: int) -> ImuSample:
+    return ImuSample(samples.delta_angle_b[k], samples.delta_velocity_b[k], float(samples.dt_s[k]))
+
+
+def run_commands(
+    site_name: str, seed: int, start_utc: datetime, commands: Sequence[cmd.Command], **kwargs: Any
+) -> tuple[RoverSession, list[CommandReport], float]:
+    """A session that runs ``commands``; returns it, the reports and the wall time, s."""
+    wall = time.perf_counter()
+    session = RoverSession(site_name, seed, start_utc, **kwargs)
+    reports = session.run(commands)
+    return session, reports, time.perf_counter() - wall
