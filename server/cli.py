@@ -121,7 +121,11 @@ def build_parser() -> argparse.ArgumentParser:
     ephem.set_defaults(handler=_cmd_ephem)
 
     run = sub.add_parser("run", help="run a built-in headless scenario and print its summary")
-    run.add_argument("--scenario", required=True, help="rest_1h, drive_100m or turn_360_eq22")
+    run.add_argument(
+        "--scenario",
+        required=True,
+        help="rest_1h, drive_100m, turn_360_eq22 or fine_drive_hga (SAPP in the loop)",
+    )
     run.add_argument("--seed", type=_non_negative_int("--seed"), default=0, help="random seed")
     run.add_argument("--site", help="override the scenario's site: gusev, meridiani, eq22, flat")
     run.add_argument("--duration-s", type=_finite_float("--duration-s"), help="rest length, s")
@@ -131,7 +135,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.set_defaults(handler=_cmd_run)
 
     bench = sub.add_parser("bench", help="run a benchmark and print its figures")
-    bench.add_argument("name", help="benchmark name: sim")
+    bench.add_argument("name", help="benchmark name: sim or sapp")
     bench.add_argument("--json", action="store_true", help="print JSON (one object)")
     bench.set_defaults(handler=_cmd_bench)
     return parser

@@ -2,8 +2,8 @@
 
 Output contract (DESIGN.md): ``{"bench": NAME, "metrics": {...}, "targets": {...},
 "ok": bool}``, every metric with its unit in its key. A target ``{"le": x}`` holds when
-the metric is at most ``x``. Wall-clock figures depend on the machine; the
-``machine`` entry says which one ran them.
+the metric is at most ``x``, ``{"ge": x}`` when it is at least ``x``. Wall-clock figures
+depend on the machine; the ``machine`` entry says which one ran them.
 """
 
 from __future__ import annotations
@@ -75,10 +75,20 @@ def bench_sim(repeats: int = 3) -> dict[str, Any]:
     return _result("sim", metrics, targets)
 
 
+def _meets(value: float, target: dict[str, float]) -> bool:
+    """``{"le": x}``: at most x; ``{"ge": x}``: at least x (NaN meets neither)."""
+    ok = True
+    if "le" in target:
+        ok = ok and value <= target["le"]
+    if "ge" in target:
+        ok = ok and value >= target["ge"]
+    return bool(ok)
+
+
 def _result(
     name: str, metrics: dict[str, Any], targets: dict[str, dict[str, float]]
 ) -> dict[str, Any]:
-    ok = all(metrics[key] <= target["le"] for key, target in targets.items())
+    ok = all(_meets(metrics[key], target) for key, target in targets.items())
     return {
         "bench": name,
         "metrics": metrics,
@@ -92,7 +102,13 @@ def _result(
     }
 
 
-BENCHES: dict[str, Callable[[], dict[str, Any]]] = {"sim": bench_sim}
+def _bench_sapp() -> dict[str, Any]:
+    from sim.bench_sapp import bench_sapp  # imports this module's _result
+
+    return bench_sapp()
+
+
+BENCHES: dict[str, Callable[[], dict[str, Any]]] = {"sim": bench_sim, "sapp": _bench_sapp}
 
 
 def run_bench(name: str) -> dict[str, Any]:

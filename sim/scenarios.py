@@ -16,10 +16,12 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from sequences import commands as cmd
 from sim.drive import MAX_PATH_M, MAX_TURN_RAD
 from sim.errors import InputError
 from sim.marsclock import SOL_S, lmst_h_from_t_s, sol_number_t_s, t_s_to_utc
 from sim.rover_sim import RoverSim
+from sim.session import run_commands
 from sim.truth import CONTROL_DT_S
 
 DEG_PER_H_PER_RAD_S = math.degrees(1.0) * 3600.0
@@ -47,16 +49,29 @@ SCENARIOS: dict[str, Scenario] = {
         Scenario("rest_1h", "gusev", "rest", 3600.0, "rest at the site, idle time jumped over"),
         Scenario("drive_100m", "gusev", "straight", 100.0, "a straight drive north"),
         Scenario("turn_360_eq22", "eq22", "turn", 360.0, "a turn in place on seed 001 eq. 22"),
+        Scenario(
+            "fine_drive_hga",
+            "gusev",
+            "sapp",
+            100.0,
+            "SAPP in the loop: GetFineAttitude, a straight drive, a 15 min HGA pass",
+        ),
     )
 }
 # The parameter that overrides each kind's amount, and its limits (outside input).
-_AMOUNT_PARAMETER = {"rest": "duration_s", "straight": "distance_m", "turn": "angle_deg"}
+_AMOUNT_PARAMETER = {
+    "rest": "duration_s",
+    "straight": "distance_m",
+    "turn": "angle_deg",
+    "sapp": "distance_m",
+}
 # Lower limits: one control cycle, a centimetre, a tenth of a degree (a smaller command is
 # below what the sensors resolve); upper: ten sols, sim.drive's longest path and turn.
 _AMOUNT_LIMITS = {
     "rest": (CONTROL_DT_S, 10 * SOL_S),
     "straight": (0.01, MAX_PATH_M),
     "turn": (0.1, math.degrees(MAX_TURN_RAD)),
+    "sapp": (0.01, MAX_PATH_M),
 }
 
 
@@ -101,6 +116,8 @@ def run_scenario(
     amount = _amount(
         scenario, {"duration_s": duration_s, "distance_m": distance_m, "angle_deg": angle_deg}
     )
+    if scenario.kind == "sapp":
+        return _run_sapp(scenario, amount, seed, site)
     wall_start = time.perf_counter()
     sim = RoverSim(scenario.site if site is None else site, seed, scenario.start_utc)
     t_start = sim.t_s
@@ -163,3 +180,37 @@ def summarize(
         bias = sim.imu.gyro_bias_rad_s * DEG_PER_H_PER_RAD_S
         summary["gyro_bias_truth_deg_per_h"] = [float(v) for v in bias]
     return summary
+
+
+def _run_sapp(scenario: Scenario, distance_m: float, seed: int, site: str | None) -> dict[str, Any]:
+    """A scenario with the flight software in the loop (``sim.session``)."""
+    commands = [cmd.GetFineAttitude(), cmd.DriveStraight(distance_m), cmd.HgaPass(15.0)]
+    session, reports, wall_s = run_commands(
+        scenario.site if site is None else site, seed, scenario.start_utc, commands
+    )
+    base = summarize(scenario, distance_m, seed, session.sim, reports[0].start_t_s, wall_s)
+    last = session.frames[-1]
+    base["commands"] = [
+        {
+            "command": r.command,
+            "status": r.status,
+            "reason": r.reason,
+            "duration_s": r.end_t_s - r.start_t_s,
+            "events": r.events,
+        }
+        for r in reports
+    ]
+    base["final_aqf"] = last.aqf
+    base["final_nate_mode"] = last.nate_mode
+    base["attitude_error_deg"] = math.degrees(session.attitude_error_rad())
+    base["p_s_est"] = last.p_s_est
+    base["p_s_true"] = last.p_s_true
+    base["position_error_m"] = last.position_error_m
+    base["position_error_pct_of_distance"] = (
+        100.0 * last.position_error_m / max(session.sim.totals.distance_truth_m, 1e-9)
+    )
+    base["imu_integration_s"] = last.imu_integration_s
+    base["hga_error_deg"] = last.hga_error_deg
+    base["hga_margin_deg"] = last.hga_margin_deg
+    base["earth_above_horizon"] = last.earth_up
+    return base
