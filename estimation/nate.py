@@ -10,22 +10,25 @@ off-nominal wheel-odometry attitude submode), 2.5 (position, eqs. 5-7), sec. 1 /
 The math lives in ``nadir``, ``gyro_propagation``, ``wheel_odometry`` and ``site_frames``;
 this module sequences it, one 8 Hz control cycle per ``Nate.step``.
 
-Design. ``Nate.step(imu, encoders)`` takes only sensor data (``ImuSample``: delta angles,
-delta velocities, dt, validity; ``EncoderSample``: wheel angles since power-on, steering
-angles); commands are methods (``nadir_update``, ``nadir_check``, ``articulate``,
-``mobility``, ``set_drive``, ``stop``, ``plant_site``, ``set_params``, ``load_attitude``).
+Design. ``Nate.step(imu, encoders, image)`` takes only sensor data (``ImuSample``: delta
+angles, delta velocities, dt, validity; ``EncoderSample``: wheel angles since power-on,
+steering angles; a Pancam frame when a camera mode asked for one); commands are methods
+(``nadir_update``, ``nadir_check``, ``sunfind``, ``sungaze``, ``suncheck``, the acquisition
+commands, ``gyrocompass``, ``articulate``, ``mobility``, ``set_drive``, ``stop``,
+``plant_site``, ``set_param``, ``load_attitude``).
 A command not allowed in the current mode, or with an out-of-range parameter, raises
 ``ValueError`` with the reason and changes nothing (every check runs before any state is
 touched). Documented choices (the paper leaves these to the ground):
 
 - Commands are accepted in Idle only, except ``stop`` (Articulate, Mobility) and
-  ``set_drive`` (Mobility). Nadir Update / Nadir Check end by themselves and return to Idle.
+  ``set_drive`` (Mobility). The acquisition and check modes and gyrocompassing end by
+  themselves and return to Idle.
 - In Idle and the acquisition modes the rover is stationary and the estimate is not
   propagated (the estimate changes only when an acquisition mode exits, sec. 2.4).
 - The gyro counter counts seconds (the sum of the IMU ``dt`` of every Articulate or Mobility
   cycle, sec. 2.4); the IMU integration time counts the seconds the gyros were actually
   integrated, so the two differ only in Mobility's wheel-odometry submode. Both are reset
-  only by a Fine attitude (Sungaze; here ``load_attitude(..., FINE)``, the seam for it).
+  only by a Fine attitude (Sungaze, or a ground ``load_attitude(..., FINE)``).
 - Articulate (sec. 2.4.1), simplest faithful form: gyro propagation every cycle; the first
   accelerometer window after entry is the reference vertical, stored in LL with the
   estimate at entry (``ref_ll = R_ll_b(q_entry) ref_b``: the mode "starts with the SAPP

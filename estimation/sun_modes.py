@@ -41,8 +41,12 @@ Documented choices (the paper leaves them to the ground):
   then (AQF Unknown).
 - Sungaze images are ``interval_s`` apart (20 s: 31 images in the ten minutes). An image in
   which the finder sees no sun is skipped. The per-image sun-vector σ is
-  ``sun_sigma_rad`` (default 0.02 deg: the finder's centroid error plus the mast's
-  short-term jitter, argued in docs/BENCHMARKS.md from the measured centroid scatter).
+  ``sun_sigma_rad`` (default 0.02 deg, about 1.3 Pancam pixels: a budget for what a real
+  frame adds to the centroid, flat-field and distortion residuals, scattered light and the
+  mast's thermal motion over ten minutes. With it Sungaze converges to 1.5 deg 3σ in
+  about seven minutes, as on MER, where the timer was ten. The simulator's clean frames
+  centroid to about 2.5e-5 deg per axis, so in simulation the covariance is conservative;
+  docs/BENCHMARKS.md compares it with the true error).
 - Suncheck takes one image where the estimate puts the sun; no sun in the image fails the
   check; otherwise the angle between observed and expected body sun is compared with
   ``tolerance_rad`` (default 2 deg). Its sanity check is the sun's elevation: a command

@@ -11,7 +11,8 @@ judged against the simulator's truth.
   Update, Sunfind's success and heading error, Sungaze's attitude error against its
   reported 3σ. The same run is repeated with the Sungaze gravity variation.
 - Odometry runs: 100 m of mixed straight, arc and turn-in-place driving after
-  GetFineAttitude, on ``flat`` without slip and on ``gusev`` with slip.
+  GetFineAttitude, on ``flat`` without slip and on ``gusev`` with slip; the horizontal
+  position error at the end, as a percentage of the distance really driven.
 - HGA runs: GetFineAttitude, then Articulate at rest (gyro propagation with tilt
   corrections) until the Earth-pointing error passes 2 deg or ``hga_max_h`` hours.
 

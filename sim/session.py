@@ -21,8 +21,9 @@ mode, out-of-range parameter, the sun too low) or when the simulator does (a dri
 its limits). The HGA figures in every frame are those of an HGA pointed at that moment from
 the onboard estimate and IVP's Earth (``estimation.hga_pointing``), scored against the truth
 (``sim.hga``): during an HGA pass that is the antenna's real error, and at other times the
-error it would have. Earth's direction changes by 0.004 deg per second, so it is computed
-once per second of simulated time.
+error it would have. Earth's direction is computed every ``EARTH_NODE_S`` of simulated time
+and interpolated linearly in between (normalised): over a minute its path bends by far
+less than a microradian from the chord.
 """
 
 from __future__ import annotations
@@ -62,7 +63,7 @@ from sim.truth import CONTROL_DT_S
 
 FloatArray = NDArray[np.float64]
 
-EARTH_REFRESH_S = 1.0  # see the module docstring
+EARTH_NODE_S = 60.0  # see the module docstring
 HGA_FRAME_S = 60.0  # one frame a minute during an Idle HGA pass
 WAIT_CHUNK_S = 600.0  # 8 Hz waits are simulated in chunks of this length
 
@@ -171,9 +172,8 @@ class RoverSession:
         self._events: list[str] = []
         self._last_frame_t = -math.inf
         self._last_mode = ""
-        self._earth_t = math.nan
-        self._earth_ivp = np.zeros(3)
-        self._earth_true = np.zeros(3)
+        self._earth_t0 = math.nan  # interpolation node: Earth (IVP, truth) at t0, t0 + node
+        self._earth_nodes = np.zeros((2, 2, 3))
 
     # ---- the sequencer ------------------------------------------------------------
 
@@ -392,12 +392,21 @@ class RoverSession:
     # ---- telemetry ----------------------------------------------------------------
 
     def _earth(self, t_s: float) -> tuple[FloatArray, FloatArray]:
-        if not abs(t_s - self._earth_t) < EARTH_REFRESH_S:
+        """Earth in LL at ``t_s`` from IVP and from the truth (module docstring)."""
+        u = (t_s - self._earth_t0) / EARTH_NODE_S
+        if not 0.0 <= u <= 1.0:
             sim = self.sim
-            self._earth_t = t_s
-            self._earth_ivp = earth_ll(t_s, sim.lat_rad, sim.lon_east_rad)
-            self._earth_true = earth_ll_truth(t_s, sim.lat_rad, sim.lon_east_rad)
-        return self._earth_ivp, self._earth_true
+            self._earth_t0, u = t_s, 0.0
+            nodes = np.array([t_s, t_s + EARTH_NODE_S])
+            self._earth_nodes = np.stack(
+                [
+                    earth_ll(nodes, sim.lat_rad, sim.lon_east_rad),
+                    earth_ll_truth(nodes, sim.lat_rad, sim.lon_east_rad),
+                ]
+            )
+        v = (1.0 - u) * self._earth_nodes[:, 0] + u * self._earth_nodes[:, 1]
+        v /= np.linalg.norm(v, axis=1, keepdims=True)
+        return v[0], v[1]
 
     def _keep(self, out: NateOutput, force: bool) -> bool:
         return (
@@ -440,8 +449,11 @@ class RoverSession:
             if self._keep(out, False):
                 self._append(out, q_ll_b[k + 1], traj.p_s[k + 1])
 
-    def _append(self, out: NateOutput, q_ll_b_true: FloatArray, p_mission_true: FloatArray) -> None:
+    def _append(self, out: NateOutput, q_ll_b_true: FloatArray, p_world: FloatArray) -> None:
+        """Append a frame; ``p_world`` is the truth position in the simulator's frame, whose
+        offset from the first Site's origin (the start) is the true mission position."""
         sim, nate = self.sim, self.nate
+        p_mission_true = p_world - self._site_origins_true[0]
         t = out.t_s
         q_b_ll_true = Rotation.from_quat(q_ll_b_true).inv()
         earth_ivp, earth_true = self._earth(t)
@@ -463,7 +475,7 @@ class RoverSession:
                 q_b_ll_est=[float(v) for v in out.q_b_ll],
                 q_b_ll_true=[float(v) for v in q_b_ll_true.as_quat()],
                 p_s_est=[float(v) for v in out.p_s],
-                p_s_true=[float(v) for v in p_mission_true - origin],
+                p_s_true=[float(v) for v in p_world - origin],
                 site_index=out.site_index,
                 p_mission_est=[float(v) for v in p_mission_est],
                 p_mission_true=[float(v) for v in p_mission_true],
