@@ -70,7 +70,8 @@ view; a Suncheck that saw no sun aborts. ``gyrocompass`` (sec. 5's other lesson,
 ``estimation.gyrocompass``) sums the gyro delta angles over a stationary span (IMU samples
 of any length) and corrects the heading; the flag becomes Coarse only if the predicted
 heading 3σ is within ``gyrocompass_coarse_3sigma_rad`` (default 8 deg, Pancam's half field:
-a Coarse attitude must put the sun in a Suncheck image), and is otherwise left as it was; a
+a Coarse attitude must put the sun in a Suncheck image), and otherwise TiltOnly at best (a
+Fine or Coarse flag no longer describes the new heading); a
 refusal (too short, near a pole, or the measured horizontal rate off by more than
 ``gyrocompass_rate_tolerance`` of Mars' because the rover moved) leaves everything
 unchanged. ``wait_hint_s`` tells the caller how long it may aggregate IMU data before NATE
@@ -92,6 +93,7 @@ from __future__ import annotations
 import dataclasses
 import enum
 import math
+import numbers
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -302,6 +304,11 @@ class NateOutput:
     events: tuple[str, ...] = ()
 
 
+def _is_number(value: object) -> bool:
+    """A real number that is not a bool (``True`` is not 1 deg)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
 def _vec(value: ArrayLike, name: str, n: int) -> FloatArray:
     try:
         out = np.array(value, dtype=np.float64)
@@ -320,40 +327,36 @@ def _unit_q(value: ArrayLike, name: str) -> FloatArray:
     return quat_canonical(q / norm)
 
 
-def replace_param(params: NateParams, path: str, value: object) -> NateParams:
-    """``params`` with the field at dotted ``path`` (e.g. ``"sungaze.timer_s"``) set to
-    ``value``; the dataclasses' own checks validate it. ``ValueError`` names the path.
+def replace_param(params: Any, path: str, value: object) -> Any:
+    """``params`` (a parameter dataclass) with the field at dotted ``path`` (e.g.
+    ``"sungaze.timer_s"``, ``"sunfind.search.elevation_tolerance_rad"``) set to ``value``;
+    the dataclasses' own checks validate it. ``ValueError`` names the path.
 
     >>> replace_param(NateParams(), "sungaze.timer_s", 300.0).sungaze.timer_s
     300.0
     """
     if not isinstance(path, str) or not path:
         raise ValueError(f"set_param: the name must be a non-empty string, got {path!r}")
-    head, _, rest = path.partition(".")
-    names = {f.name for f in dataclasses.fields(params)}
-    if head not in names:
-        raise ValueError(f"{path}: no such parameter (top level: {', '.join(sorted(names))})")
-    current = getattr(params, head)
+    return _replace_in(params, path, path.split("."), value)
+
+
+def _replace_in(group: Any, path: str, names: list[str], value: object) -> Any:
+    head, rest = names[0], names[1:]
+    fields = sorted(f.name for f in dataclasses.fields(group))
+    if head not in fields:
+        raise ValueError(f"{path}: no such parameter (here: {', '.join(fields)})")
+    current = getattr(group, head)
     if rest:
         if not dataclasses.is_dataclass(current):
             raise ValueError(f"{path}: {head} has no sub-parameters")
-        sub = {f.name: f for f in dataclasses.fields(current)}
-        if rest not in sub:
-            raise ValueError(f"{path}: no such parameter (in {head}: {', '.join(sorted(sub))})")
-        old = getattr(current, rest)
-        new_value = _coerce(path, old, value)
-        try:
-            new_sub = dataclasses.replace(current, **{rest: new_value})  # type: ignore[type-var]
-        except ValueError as exc:
-            raise ValueError(f"{path}: {exc}") from exc
-        group: dict[str, Any] = {head: new_sub}
-        return dataclasses.replace(params, **group)
-    if dataclasses.is_dataclass(current):
+        new_value = _replace_in(current, path, rest, value)
+    elif dataclasses.is_dataclass(current):
         raise ValueError(f"{path}: is a group; set one of its fields, e.g. {path}.<name>")
-    new_value = _coerce(path, current, value)
-    top: dict[str, Any] = {head: new_value}
+    else:
+        new_value = _coerce(path, current, value)
+    changes: dict[str, Any] = {head: new_value}
     try:
-        return dataclasses.replace(params, **top)
+        return dataclasses.replace(group, **changes)
     except ValueError as exc:
         raise ValueError(f"{path}: {exc}") from exc
 
@@ -364,15 +367,19 @@ def _coerce(path: str, old: object, value: object) -> object:
         if not isinstance(value, bool):
             raise ValueError(f"{path}: must be true or false, got {value!r}")
         return value
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise ValueError(f"{path}: must be a number, got {value!r}")
-    if isinstance(old, int):
-        if float(value) != int(value):
-            raise ValueError(f"{path}: must be a whole number, got {value!r}")
-        return int(value)
-    if not math.isfinite(float(value)):
+    try:
+        number = float(value)
+    except OverflowError:
+        number = math.inf
+    if not math.isfinite(number):
         raise ValueError(f"{path}: must be finite, got {value!r}")
-    return float(value)
+    if isinstance(old, int):
+        if number != int(number):
+            raise ValueError(f"{path}: must be a whole number, got {value!r}")
+        return int(number)
+    return number
 
 
 def _rotation_onto(u_b: FloatArray, v_b: FloatArray) -> FloatArray:
@@ -609,7 +616,7 @@ class Nate:
         self._require("suncheck", NateMode.IDLE)
         params = self._params.suncheck
         if tolerance_deg is not None:
-            if not (isinstance(tolerance_deg, (int, float)) and 0.0 < tolerance_deg < 180.0):
+            if not (_is_number(tolerance_deg) and 0.0 < tolerance_deg < 180.0):
                 raise ValueError(f"tolerance_deg: must be in (0, 180), got {tolerance_deg!r}")
             params = SuncheckParams(math.radians(tolerance_deg))
         self._require_sun("suncheck")
@@ -663,7 +670,7 @@ class Nate:
         """Gyrocompass at rest over ``duration_s`` (default the parameter; sec. 5)."""
         self._require("gyrocompass", NateMode.IDLE)
         span = self._params.gyrocompass_duration_s if duration_s is None else duration_s
-        if not (isinstance(span, (int, float)) and math.isfinite(span) and span > 0.0):
+        if not (_is_number(span) and math.isfinite(span) and span > 0.0):
             raise ValueError(f"duration_s: must be positive and finite, got {duration_s!r}")
         self._gyro_sum_b, self._gyro_sum_s, self._gyro_span_s = np.zeros(3), 0.0, float(span)
         self._mode = NateMode.GYROCOMPASS
@@ -749,11 +756,11 @@ class Nate:
     def _nadir_params(self, window_s: float | None, tolerance_deg: float | None) -> NadirParams:
         nadir = self._params.nadir
         if window_s is not None:
-            if not (math.isfinite(window_s) and window_s > 0.0):
+            if not (_is_number(window_s) and math.isfinite(window_s) and window_s > 0.0):
                 raise ValueError(f"window_s: must be positive and finite, got {window_s!r}")
             nadir = dataclasses.replace(nadir, window_s=float(window_s))
         if tolerance_deg is not None:
-            if not (math.isfinite(tolerance_deg) and 0.0 < tolerance_deg < 180.0):
+            if not (_is_number(tolerance_deg) and 0.0 < tolerance_deg < 180.0):
                 raise ValueError(f"tolerance_deg: must be in (0, 180), got {tolerance_deg!r}")
             nadir = dataclasses.replace(nadir, check_tolerance_rad=math.radians(tolerance_deg))
         return nadir
@@ -803,6 +810,15 @@ class Nate:
         if image is not None and request is None:
             raise ValueError("image: no camera mode is waiting for an image")
 
+        if (
+            image is not None
+            and request is not None
+            and self._t_s + dt < request.not_before_t_s - 1e-6
+        ):
+            raise ValueError(
+                f"image: taken at {self._t_s + dt:.3f} s, before the requested "
+                f"{request.not_before_t_s:.3f} s"
+            )
         self._t_s += dt
         self._events = []
         completed: Completed | None = None
@@ -825,11 +841,6 @@ class Nate:
             self._sungaze_gravity_window(dv_b, dt, bool(imu.valid))
         elif mode in _CAMERA_MODES and image is not None:
             assert request is not None and self._procedure is not None
-            if self._t_s < request.not_before_t_s - 1e-6:
-                raise ValueError(
-                    f"image: taken at {self._t_s:.3f} s, before the requested "
-                    f"{request.not_before_t_s:.3f} s"
-                )
             completed = self._camera_image(request, image)
         if completed is not None:
             self._after_primitive(completed)

@@ -296,7 +296,7 @@ class Sungaze:
         self._q = unit_quaternion(q_b_ll)
         self._sun_ll = sun_ll
         self._p = params
-        self._t0 = t_s
+        self._t0: float | None = None  # the timer runs from the first image
         self._mast = mast
         self._acc = QuestAccumulator()
         self._n_images = 0
@@ -324,6 +324,8 @@ class Sungaze:
         if self.request is None:
             raise ValueError("on_image: Sungaze has finished")
         self._n_images += 1
+        if self._t0 is None:
+            self._t0 = t_s
         if fix is not None:
             self._n_sun += 1
             b_ll = Rotation.from_quat(self._q).inv().apply(fix.sun_b)  # observed, in LL

@@ -21,6 +21,7 @@ ValueError: distance_m: must be in (0, 100] m, got -1.0
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, fields
 from typing import ClassVar
 
@@ -30,9 +31,12 @@ MAX_HGA_PASS_MIN = 120.0
 
 
 def _number(name: str, value: object, lo: float, hi: float, unit: str, lo_open: bool) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise ValueError(f"{name}: must be a number, got {value!r}")
-    v = float(value)
+    try:
+        v = float(value)
+    except OverflowError:
+        v = math.inf
     ok = math.isfinite(v) and (v > lo if lo_open else v >= lo) and v <= hi
     if not ok:
         left = "(" if lo_open else "["
@@ -250,10 +254,15 @@ class SetParam(Command):
     def __post_init__(self) -> None:
         if not isinstance(self.param, str) or not self.param.strip():
             raise ValueError(f"param: must be a parameter name, got {self.param!r}")
-        if not isinstance(self.value, (bool, int, float)):
+        if not isinstance(self.value, (bool, numbers.Real)):
             raise ValueError(f"value: must be a number or true/false, got {self.value!r}")
-        if not isinstance(self.value, bool) and not math.isfinite(float(self.value)):
-            raise ValueError(f"value: must be finite, got {self.value!r}")
+        if not isinstance(self.value, bool):
+            try:
+                finite = math.isfinite(float(self.value))
+            except OverflowError:
+                finite = False
+            if not finite:
+                raise ValueError(f"value: must be finite, got {self.value!r}")
 
 
 COMMANDS: dict[str, type[Command]] = {

@@ -8,6 +8,7 @@ depend on the machine; the ``machine`` entry says which one ran them.
 
 from __future__ import annotations
 
+import math
 import os
 import platform
 import statistics
@@ -85,13 +86,25 @@ def _meets(value: float, target: dict[str, float]) -> bool:
     return bool(ok)
 
 
+def _json_safe(value: Any) -> Any:
+    """NaN and infinities (a figure that does not exist, e.g. a margin never lost) as
+    ``None``: JSON has no NaN."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v) for v in value]
+    return value
+
+
 def _result(
     name: str, metrics: dict[str, Any], targets: dict[str, dict[str, float]]
 ) -> dict[str, Any]:
     ok = all(_meets(metrics[key], target) for key, target in targets.items())
     return {
         "bench": name,
-        "metrics": metrics,
+        "metrics": _json_safe(metrics),
         "targets": targets,
         "ok": ok,
         "machine": {

@@ -244,7 +244,7 @@ def _acquisition_metrics(runs: list[dict[str, Any]], prefix: str) -> dict[str, A
 def bench_sapp(
     n_runs: int = 200,
     n_odometry: int = 3,
-    n_hga: int = 2,
+    n_hga: int = 4,
     hga_max_h: float = 8.0,
     seed: int = 0,
     workers: int | None = None,
@@ -294,7 +294,9 @@ def bench_sapp(
         "odometry_runs_per_site": n_odometry,
         "hga_err_after_10000s_deg": max(r["err_after_10000s_deg"] for r in hga),
         "hga_err_after_10000s_each_deg": [r["err_after_10000s_deg"] for r in hga],
+        # hours of propagation until the 2 deg margin was gone; null: not within hga_max_h
         "hga_margin_gone_h_each": [r["margin_gone_h"] for r in hga],
+        "hga_max_h": hga_max_h,
         "hga_runs": n_hga,
     }
     targets = {
