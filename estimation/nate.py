@@ -759,6 +759,12 @@ class Nate:
             if not (_is_number(window_s) and math.isfinite(window_s) and window_s > 0.0):
                 raise ValueError(f"window_s: must be positive and finite, got {window_s!r}")
             nadir = dataclasses.replace(nadir, window_s=float(window_s))
+            if window_s / CONTROL_DT_S < nadir.min_valid_samples:
+                shortest = nadir.min_valid_samples * CONTROL_DT_S
+                raise ValueError(
+                    f"window_s: {window_s!r} s holds fewer than min_valid_samples "
+                    f"({nadir.min_valid_samples}) 8 Hz samples; at least {shortest:g} s"
+                )
         if tolerance_deg is not None:
             if not (_is_number(tolerance_deg) and 0.0 < tolerance_deg < 180.0):
                 raise ValueError(f"tolerance_deg: must be in (0, 180), got {tolerance_deg!r}")
@@ -826,12 +832,12 @@ class Nate:
         if mode in (NateMode.NADIR_UPDATE, NateMode.NADIR_CHECK):
             completed = self._acquire(dv_b, dt, bool(imu.valid))
         elif mode is NateMode.ARTICULATE:
-            self._propagate_gyros(d_theta_b, dt)
+            self._propagate_gyros(d_theta_b, dt, bool(imu.valid))
             self._articulate_tilt(dv_b, dt, bool(imu.valid))
             self._count(dt)
         elif mode is NateMode.MOBILITY:
             if self._use_gyros:
-                self._propagate_gyros(d_theta_b, dt)  # sec. 2.5: attitude first ...
+                self._propagate_gyros(d_theta_b, dt, bool(imu.valid))  # sec. 2.5: attitude ...
             if enc is not None:
                 self._odometry(*enc)  # ... then position with the fresh attitude
             self._count(dt)
@@ -870,7 +876,9 @@ class Nate:
         if self._acquisition is None:
             return
         proceed = completed.success
-        if self._acquisition == "SuncheckSungaze" and isinstance(completed, SunResult):
+        suncheck_done = self._mode is NateMode.IDLE and self._pending == [NateMode.SUNGAZE]
+        if self._acquisition == "SuncheckSungaze" and suncheck_done:
+            assert isinstance(completed, SunResult)
             proceed = completed.sun_seen  # Sungaze needs only the sun in the field
         if proceed and self._pending:
             self._start_primitive(self._pending.pop(0))
@@ -991,7 +999,9 @@ class Nate:
             )
             self._events.append(f"Gyrocompass refused: {reason}")
             return GyrocompassOutcome(None, reason, False)
-        coarse = result.heading_3sigma_rad <= p.gyrocompass_coarse_3sigma_rad
+        # The 3σ assumes a measured tilt (Nadir Update): without one, never Coarse.
+        tilt_known = self._aqf >= AttitudeQuality.TILT_ONLY
+        coarse = tilt_known and result.heading_3sigma_rad <= p.gyrocompass_coarse_3sigma_rad
         # The heading is now the gyrocompass's: Coarse if good enough, else TiltOnly at best.
         aqf = AttitudeQuality.COARSE if coarse else min(self._aqf, AttitudeQuality.TILT_ONLY)
         self._set_attitude(result.q_b_ll, aqf)
@@ -1001,7 +1011,9 @@ class Nate:
         )
         return GyrocompassOutcome(result, None, coarse)
 
-    def _propagate_gyros(self, d_theta_b: FloatArray, dt: float) -> None:
+    def _propagate_gyros(self, d_theta_b: FloatArray, dt: float, valid: bool) -> None:
+        if not valid:
+            return  # the driver flagged the sample: not integrated (nor counted as IMU time)
         q = propagate_gyro(self._q_b_ll, d_theta_b[None, :], dt, self._omega_mars_ll)[-1]
         self._q_b_ll = quat_canonical(q)  # sec. 2.4.1
         self._imu_integration_s += dt

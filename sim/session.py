@@ -47,6 +47,7 @@ from estimation.nate import (
     EncoderSample,
     ImuSample,
     Nate,
+    NateMode,
     NateOutput,
     NateParams,
 )
@@ -362,17 +363,15 @@ class RoverSession:
     def _drive(self, drive: DriveCommand, kind: str, *args: float) -> dict[str, Any]:
         nate, sim = self.nate, self.sim
         wheel0 = sim.wheel_angle_rad_now()
-        nate.mobility(drive, wheel_angle_rad=wheel0)  # refuses if NATE is not Idle
-        try:
-            if kind == "straight":
-                seg = sim.drive_straight(args[0])
-            elif kind == "arc":
-                seg = sim.drive_arc(args[0], args[1])
-            else:
-                seg = sim.turn_in_place(args[0])
-        except InputError:
-            nate.stop()  # nothing moved: back to Idle, estimate untouched
-            raise
+        if nate.mode is not NateMode.IDLE:  # checked before the rover moves
+            raise CommandRefusedError(f"mobility: refused in mode {nate.mode.value}")
+        if kind == "straight":  # the simulator refuses bad sizes before anything moves
+            seg = sim.drive_straight(args[0])
+        elif kind == "arc":
+            seg = sim.drive_arc(args[0], args[1])
+        else:
+            seg = sim.turn_in_place(args[0])
+        nate.mobility(drive, wheel_angle_rad=wheel0)
         outputs = self._step_segment(seg)
         nate.stop()
         self._segment_frames(seg, outputs)
