@@ -1,4 +1,4 @@
-"""The ``roverops`` command line: ``ephem``, ``run`` and ``bench``.
+"""The ``roverops`` command line: ``ephem``, ``run``, ``validate`` and ``bench``.
 
 Every argument from outside is validated; a bad one ends the command with a one-line
 message naming the parameter and exit status 2, never a traceback.
@@ -12,6 +12,7 @@ import logging
 import math
 import sys
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any
 
 from sim.errors import InputError
@@ -85,6 +86,38 @@ def _cmd_run(args: argparse.Namespace) -> dict[str, Any]:
     )
 
 
+def _cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
+    from sequences.validate import validate
+
+    name = args.file
+    try:
+        text = sys.stdin.read() if name == "-" else Path(name).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError("FILE", f"no such file: {name}") from None
+    except IsADirectoryError:
+        raise InputError("FILE", f"is a directory: {name}") from None
+    except UnicodeDecodeError:
+        raise InputError("FILE", f"not UTF-8 text: {name}") from None
+    except OSError as error:
+        raise InputError("FILE", f"cannot read {name}: {error.strerror}") from None
+    return {"file": name, **validate(text).as_dict()}
+
+
+def _print_validation(result: dict[str, Any], as_json: bool) -> None:
+    """Compiler-style lines ``FILE:LINE:COL: error|warning CODE message`` on stdout, in
+    source order, and a count on stderr (so stdout holds only diagnostics)."""
+    if as_json:
+        print(json.dumps(result, indent=2))
+        return
+    from sequences.language import Diagnostic
+
+    found = [Diagnostic(**d) for d in (*result["errors"], *result["warnings"])]
+    for diagnostic in sorted(found, key=lambda d: (d.line, d.column)):
+        print(diagnostic.format(result["file"]))
+    errors, warnings = len(result["errors"]), len(result["warnings"])
+    print(f"{result['file']}: {errors} error(s), {warnings} warning(s)", file=sys.stderr)
+
+
 def _cmd_bench(args: argparse.Namespace) -> dict[str, Any]:
     from sim.bench import run_bench
 
@@ -134,6 +167,14 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--json", action="store_true", help="print JSON")
     run.set_defaults(handler=_cmd_run)
 
+    check = sub.add_parser(
+        "validate",
+        help="validate a sequence file (text or JSON); exit 0 if no errors, 1 if errors",
+    )
+    check.add_argument("file", metavar="FILE", help="sequence file, or - for standard input")
+    check.add_argument("--json", action="store_true", help="print JSON (one object)")
+    check.set_defaults(handler=_cmd_validate, printer=_print_validation)
+
     bench = sub.add_parser("bench", help="run a benchmark and print its figures")
     bench.add_argument("name", help="benchmark name: sim or sapp")
     bench.add_argument("--json", action="store_true", help="print JSON (one object)")
@@ -151,8 +192,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except InputError as error:
         print(f"roverops {args.command}: error: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    _print(result, args.json)
-    # A benchmark that misses a target still prints its figures, and says so in its status.
+    printer: Callable[[dict[str, Any], bool], None] = getattr(args, "printer", _print)
+    printer(result, args.json)
+    # A benchmark that misses a target still prints its figures, and says so in its status;
+    # a sequence with errors prints them: both exit 1.
     return 1 if result.get("ok") is False else 0
 
 

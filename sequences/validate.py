@@ -1,0 +1,400 @@
+"""Sequence validation: every error at once, and warnings about risky but legal plans.
+
+``validate(source, context)`` parses the source (``sequences.language``: syntax, commands,
+arguments, time tags) and then checks what spans lines: time tags going backwards and the
+Articulate state (NATE accepts only ARTICULATE_STOP, WAIT and HGA_PASS while
+articulating; Ali et al. 2005, seed 000, sec. 2.4.1, as ``estimation.nate`` implements it).
+
+With a ``ValidationContext`` (the rover's clock and state at the start, which the server fills
+from ``sim``) it also walks the sequence predicting when each command starts and what SAPP's
+Attitude Quality Flag (seed 000 sec. 2.1) and IMU integration time (sec. 4) will be, and
+warns where the plan is risky. The predictions are estimates, made without the simulator:
+
+- Durations: drives at 0.0375 m/s along the path and turns at 2.1 deg/s (seed 000 sec. 2.4.2
+  and 2.5, ``sim.drive``); NADIR_UPDATE/NADIR_CHECK their window (10 s by default); SUNFIND
+  5 min (its upper bound); SUNCHECK 1 min; SUNGAZE 10 min (its timer); GET_TILT_ATTITUDE
+  10 s; GET_COARSE_ATTITUDE 10 s + 5 min; GET_FINE_ATTITUDE 15 min; SUNCHECK_SUNGAZE
+  11 min; GYROCOMPASS, HGA_PASS and WAIT their duration; the others take no time.
+- Every acquisition succeeds: NADIR_UPDATE/GET_TILT_ATTITUDE give TiltOnly, SUNFIND/
+  GET_COARSE_ATTITUDE and GYROCOMPASS give Coarse, SUNGAZE/GET_FINE_ATTITUDE/
+  SUNCHECK_SUNGAZE give Fine and reset the IMU time; checks leave the flag alone.
+- Drives and the time spent in Articulate add their duration to the IMU time (and the gyro
+  counter, which is the same away from the wheel-odometry submode); Fine drops to Coarse
+  once that exceeds ``fine_to_coarse_s`` (900 s, seed 000 sec. 2.4; SET_PARAM may change it).
+- ``@ hh:mm LMST`` waits for the next time the LMST clock reads that; a passed
+  ``@ sol N hh:mm LMST`` is assumed to start at once, late.
+
+>>> result = validate("DRIVE_STRAIGHT distance_m=0\\nWAIT duration=5")
+>>> [(d.line, d.code) for d in result.errors]
+[(1, 'bad-value'), (2, 'missing-argument'), (2, 'unknown-argument')]
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from sequences import commands as cmd
+from sequences.language import (
+    Diagnostic,
+    Sequence,
+    SequenceStep,
+    TimeTag,
+    parse_any,
+)
+
+__all__ = [
+    "CODES",
+    "Diagnostic",
+    "ValidationContext",
+    "ValidationResult",
+    "estimate_duration_s",
+    "validate",
+]
+
+CODES: dict[str, str] = {
+    # from the parser (sequences.language)
+    "syntax": "error",
+    "unknown-command": "error",
+    "unknown-argument": "error",
+    "missing-argument": "error",
+    "duplicate-argument": "error",
+    "bad-value": "error",
+    "bad-time-tag": "error",
+    "missing-command": "error",
+    "sequence-not-first": "error",
+    "bad-name": "error",
+    "empty": "error",
+    "bad-json": "error",
+    "bad-structure": "error",
+    # from this module
+    "time-backwards": "error",
+    "refused-in-articulate": "error",
+    "not-articulating": "error",
+    "articulate-open": "warning",
+    "drive-not-fine": "warning",
+    "fine-expires": "warning",
+    "earth-below-horizon": "warning",
+    "hga-not-fine": "warning",
+    "imu-time": "warning",
+    "tag-next-sol": "warning",
+    "tag-passed": "warning",
+}
+"""Every diagnostic code and its severity; docs/sequences.md explains each."""
+
+AqfName = Literal["Unknown", "TiltOnly", "Coarse", "Fine"]
+AQF_RANK: dict[str, int] = {"Unknown": 0, "TiltOnly": 1, "Coarse": 2, "Fine": 3}
+
+DRIVE_SPEED_M_S = 0.0375  # seed 000 sec. 2.5, sim.drive.DEFAULT_SPEED_M_S
+TURN_RATE_DEG_S = 2.1  # seed 000 sec. 2.4.2, sim.drive.DEFAULT_TURN_RATE_RAD_S
+NADIR_WINDOW_S = 10.0  # seed 000 sec. 2.2.1, NATE's default window
+SUNFIND_S = 300.0  # upper bound of a Sunfind search (estimate)
+SUNCHECK_S = 60.0  # one pointed image (estimate)
+SUNGAZE_S = 600.0  # the Sungaze timer, sec. 2.2.3
+GET_FINE_ATTITUDE_S = 900.0  # estimate: Nadir Update, Sunfind, Sungaze
+SUNCHECK_SUNGAZE_S = 660.0  # estimate: Suncheck then Sungaze
+GYROCOMPASS_S = 1800.0  # NATE's gyrocompass_duration_s default
+FINE_TO_COARSE_S = 900.0  # seed 000 sec. 2.4: "currently 15 minutes"
+IMU_TIME_LIMIT_S = 10_000.0  # seed 000 sec. 4: the operators' limit since the last Sungaze
+_EPS_S = 1e-6
+
+_DRIVES = (cmd.DriveStraight, cmd.DriveArc, cmd.TurnInPlace)
+_ALLOWED_IN_ARTICULATE = (cmd.ArticulateStop, cmd.Wait, cmd.HgaPass)
+_FIXED_S: dict[type[cmd.Command], float] = {
+    cmd.Sunfind: SUNFIND_S,
+    cmd.Suncheck: SUNCHECK_S,
+    cmd.Sungaze: SUNGAZE_S,
+    cmd.GetTiltAttitude: NADIR_WINDOW_S,
+    cmd.GetCoarseAttitude: NADIR_WINDOW_S + SUNFIND_S,
+    cmd.GetFineAttitude: GET_FINE_ATTITUDE_S,
+    cmd.SuncheckSungaze: SUNCHECK_SUNGAZE_S,
+}
+_AQF_AFTER: dict[type[cmd.Command], str] = {
+    cmd.NadirUpdate: "TiltOnly",
+    cmd.GetTiltAttitude: "TiltOnly",
+    cmd.Sunfind: "Coarse",
+    cmd.GetCoarseAttitude: "Coarse",
+    cmd.Gyrocompass: "Coarse",
+    cmd.Sungaze: "Fine",
+    cmd.GetFineAttitude: "Fine",
+    cmd.SuncheckSungaze: "Fine",
+}
+
+
+@dataclass(frozen=True)
+class ValidationContext:
+    """The rover at the start of the sequence, for the predicting warnings.
+
+    ``start_t_s``: when the sequence starts (TT seconds since J2000, CONVENTIONS.md);
+    ``lmst_h(t_s)`` and ``sol(t_s)`` the rover's clock; ``t_s_for(sol, lmst_h)`` its inverse;
+    ``earth_elevation_deg(t_s)`` Earth above the rover's horizon. ``aqf`` the flag and
+    ``imu_integration_s`` the IMU time since the last Sungaze at the start; ``articulating``
+    whether NATE is in Articulate then (without a context: Idle).
+    """
+
+    start_t_s: float
+    lmst_h: Callable[[float], float]
+    sol: Callable[[float], int]
+    t_s_for: Callable[[int, float], float]
+    earth_elevation_deg: Callable[[float], float]
+    aqf: AqfName = "Unknown"
+    imu_integration_s: float = 0.0
+    articulating: bool = False
+
+    def __post_init__(self) -> None:
+        if self.aqf not in AQF_RANK:
+            raise ValueError(f"aqf: must be one of {', '.join(AQF_RANK)}, got {self.aqf!r}")
+        if not (math.isfinite(self.start_t_s) and math.isfinite(self.imu_integration_s)):
+            raise ValueError("start_t_s, imu_integration_s: must be finite")
+
+    def clock(self, t_s: float) -> str:
+        """``sol N hh:mm LMST`` at ``t_s``, for messages."""
+        lmst = self.lmst_h(t_s) % 24.0
+        minutes = int(lmst * 60.0 + 0.5) % 1440
+        return f"sol {self.sol(t_s)} {minutes // 60:02d}:{minutes % 60:02d} LMST"
+
+
+@dataclass
+class ValidationResult:
+    """``errors`` and ``warnings`` in source order; ``sequence`` when there are no errors."""
+
+    errors: list[Diagnostic] = field(default_factory=list)
+    warnings: list[Diagnostic] = field(default_factory=list)
+    sequence: Sequence | None = None
+
+    @property
+    def ok(self) -> bool:
+        """True when there is no error (warnings allowed)."""
+        return not self.errors
+
+    def as_dict(self) -> dict[str, Any]:
+        """A JSON-ready summary (what the CLI's ``--json`` prints)."""
+        return {
+            "ok": self.ok,
+            "errors": [d.as_dict() for d in self.errors],
+            "warnings": [d.as_dict() for d in self.warnings],
+        }
+
+
+def validate(
+    source: str | Mapping[str, Any] | list[Any], context: ValidationContext | None = None
+) -> ValidationResult:
+    """Check a text or JSON sequence; every error at once, warnings only with ``context``."""
+    parsed = parse_any(source)
+    result = ValidationResult(errors=list(parsed.diagnostics))
+    sequence = parsed.sequence
+    _check_time_order(sequence, result)
+    _check_articulate(sequence, context, result)
+    if context is not None and sequence.steps:
+        _Prediction(context, result).walk(sequence.steps)
+    result.errors.sort(key=_order)  # stable: JSON diagnostics (all at 0:0) keep step order
+    result.warnings.sort(key=_order)
+    if result.ok:
+        result.sequence = sequence
+    return result
+
+
+def _order(d: Diagnostic) -> tuple[int, int]:
+    return (d.line, d.column)
+
+
+def _diag(
+    step: SequenceStep, severity: Literal["error", "warning"], code: str, text: str
+) -> Diagnostic:
+    """A diagnostic about ``step``: at its time tag for the time codes, else its keyword; a
+    JSON step's location (``steps[3].time: ``) starts the message."""
+    tagged = code.startswith("time") or code.startswith("tag")
+    column = step.tag_column if tagged and step.tag_column else step.column
+    prefix = f"{step.where}{'.time' if tagged else ''}: " if step.where else ""
+    return Diagnostic(step.line, column, severity, code, prefix + text)
+
+
+def _check_time_order(sequence: Sequence, result: ValidationResult) -> None:
+    """An absolute tag earlier than the one before it is an error: ``@ 10:00 LMST`` after
+    ``@ 13:00 LMST`` would silently wait for the next sol (write ``@ sol N``), and a
+    ``@ sol N`` tag earlier than the previous one can never be met. A sol tag after a bare
+    LMST tag cannot be compared without the rover's clock."""
+    last: tuple[TimeTag, SequenceStep] | None = None
+    for step in sequence.steps:
+        tag = step.time_tag
+        if not tag.absolute:
+            continue
+        if last is not None:
+            prev, prev_step = last
+            where = f"line {prev_step.line}" if prev_step.line else prev_step.where
+            before = f"{_tag_words(tag)} is earlier than {_tag_words(prev)} ({where})"
+            if tag.kind == "lmst" and (tag.lmst_s or 0) < (prev.lmst_s or 0):
+                text = f"{before}: it would wait for the next sol; use @ sol N hh:mm LMST"
+                result.errors.append(_diag(step, "error", "time-backwards", text))
+            elif (
+                tag.kind == "sol_lmst"
+                and prev.kind == "sol_lmst"
+                and (tag.sol or 0, tag.lmst_s or 0) < (prev.sol or 0, prev.lmst_s or 0)
+            ):
+                result.errors.append(_diag(step, "error", "time-backwards", before))
+        last = (tag, step)
+
+
+def _tag_words(tag: TimeTag) -> str:
+    sol = f"sol {tag.sol} " if tag.kind == "sol_lmst" else ""
+    return f"{sol}{tag.clock()} LMST"
+
+
+def _check_articulate(
+    sequence: Sequence, context: ValidationContext | None, result: ValidationResult
+) -> None:
+    """NATE refuses most commands in Articulate and ARTICULATE_STOP outside it
+    (``estimation.nate``: commands are accepted in Idle only, ``stop`` in Articulate)."""
+    articulating = context.articulating if context is not None else False
+    opened: SequenceStep | None = None
+    for step in sequence.steps:
+        c = step.command
+        if articulating and not isinstance(c, _ALLOWED_IN_ARTICULATE):
+            where = f" (ARTICULATE_START on line {opened.line})" if opened and opened.line else ""
+            text = f"{c.name} is refused in Articulate{where}: ARTICULATE_STOP first"
+            result.errors.append(_diag(step, "error", "refused-in-articulate", text))
+        elif isinstance(c, cmd.ArticulateStop) and not articulating:
+            text = "ARTICULATE_STOP without ARTICULATE_START: NATE refuses it in Idle"
+            result.errors.append(_diag(step, "error", "not-articulating", text))
+        if isinstance(c, cmd.ArticulateStart) and not articulating:
+            articulating, opened = True, step
+        elif isinstance(c, cmd.ArticulateStop):
+            articulating = False
+    if articulating and opened is not None:
+        text = "the sequence ends in Articulate: the next sequence's commands will be refused"
+        result.warnings.append(_diag(opened, "warning", "articulate-open", text))
+
+
+def estimate_duration_s(command: cmd.Command, gyrocompass_s: float = GYROCOMPASS_S) -> float:
+    """How long ``command`` is expected to take, s (the module docstring's estimates).
+
+    >>> estimate_duration_s(cmd.DriveStraight(distance_m=3.75))
+    100.0
+    >>> estimate_duration_s(cmd.HgaPass(duration_min=15))
+    900.0
+    """
+    c = command
+    if isinstance(c, cmd.DriveStraight):
+        return float(c.distance_m) / DRIVE_SPEED_M_S
+    if isinstance(c, cmd.DriveArc):
+        return abs(float(c.radius_m)) * math.radians(c.angle_deg) / DRIVE_SPEED_M_S
+    if isinstance(c, cmd.TurnInPlace):
+        return abs(float(c.angle_deg)) / TURN_RATE_DEG_S
+    if isinstance(c, cmd.NadirUpdate | cmd.NadirCheck):
+        return NADIR_WINDOW_S if c.window_s is None else float(c.window_s)
+    if isinstance(c, cmd.Gyrocompass):
+        return gyrocompass_s if c.duration_s is None else float(c.duration_s)
+    if isinstance(c, cmd.HgaPass):
+        return float(c.duration_min) * 60.0
+    if isinstance(c, cmd.Wait):
+        return float(c.duration_s)
+    return _FIXED_S.get(type(c), 0.0)
+
+
+class _Prediction:
+    """The walk of the module docstring: start times, AQF and IMU time per command."""
+
+    def __init__(self, context: ValidationContext, result: ValidationResult) -> None:
+        self.ctx, self.result = context, result
+        self.t_s = context.start_t_s
+        self.aqf: str = context.aqf
+        self.imu_s = context.imu_integration_s
+        self.articulating = context.articulating
+        self.fine_to_coarse_s = FINE_TO_COARSE_S
+        self.gyrocompass_s = GYROCOMPASS_S
+        self.imu_warned = False
+
+    def warn(self, step: SequenceStep, code: str, text: str) -> None:
+        self.result.warnings.append(_diag(step, "warning", code, text))
+
+    def walk(self, steps: tuple[SequenceStep, ...]) -> None:
+        for i, step in enumerate(steps):
+            start = self.start_of(step, i)
+            duration = estimate_duration_s(step.command, self.gyrocompass_s)
+            self.check_start(step, start, duration)
+            self.advance(step, duration)
+            self.t_s = start + duration
+
+    def start_of(self, step: SequenceStep, i: int) -> float:
+        tag, ctx, now = step.time_tag, self.ctx, self.t_s
+        if tag.kind == "relative":
+            return now + (tag.after_s or 0.0)
+        if not tag.absolute:
+            return now
+        lmst_h = tag.lmst_h or 0.0
+        if tag.kind == "sol_lmst":
+            at = ctx.t_s_for(tag.sol or 0, lmst_h)
+            if at < now - _EPS_S:
+                late = ctx.clock(now)
+                text = f"{_tag_words(tag)} has passed when it comes up ({late}): it starts late"
+                self.warn(step, "tag-passed", text)
+                return now
+            return at
+        sol = ctx.sol(now)
+        at = ctx.t_s_for(sol, lmst_h)
+        if at < now - _EPS_S:
+            at = ctx.t_s_for(sol + 1, lmst_h)
+            if i > 0:
+                text = (
+                    f"the commands before end at {ctx.clock(now)}, after {tag.clock()} LMST: "
+                    f"this one waits until sol {sol + 1}"
+                )
+                self.warn(step, "tag-next-sol", text)
+        return at
+
+    def check_start(self, step: SequenceStep, start: float, duration: float) -> None:
+        c, ctx = step.command, self.ctx
+        if isinstance(c, _DRIVES) and self.aqf != "Fine":
+            text = f"{c.name} with the AQF predicted {self.aqf}, not Fine: a Sungaze first?"
+            self.warn(step, "drive-not-fine", text)
+        if isinstance(c, cmd.HgaPass):
+            elev = ctx.earth_elevation_deg(start)
+            end_elev = ctx.earth_elevation_deg(start + duration)
+            if elev < 0.0:
+                text = f"Earth is {elev:.1f} deg below the horizon at {ctx.clock(start)}"
+                self.warn(step, "earth-below-horizon", text)
+            elif end_elev < 0.0:
+                text = f"Earth sets before the pass ends ({ctx.clock(start + duration)})"
+                self.warn(step, "earth-below-horizon", text)
+            if self.aqf != "Fine":
+                text = f"HGA pass with the AQF predicted {self.aqf}: pointing not assured"
+                self.warn(step, "hga-not-fine", text)
+
+    def advance(self, step: SequenceStep, duration: float) -> None:
+        c = step.command
+        after = _AQF_AFTER.get(type(c))
+        if after == "Fine":
+            self.aqf, self.imu_s, self.imu_warned = "Fine", 0.0, False
+        elif after is not None:
+            self.aqf = after
+        propagating = self.articulating or isinstance(c, _DRIVES)
+        if propagating and duration > 0.0:
+            before = self.imu_s
+            self.imu_s += duration
+            if self.aqf == "Fine" and self.imu_s > self.fine_to_coarse_s:
+                self.aqf = "Coarse"
+                if isinstance(c, _DRIVES) and before < self.fine_to_coarse_s:
+                    text = (
+                        f"the AQF drops from Fine to Coarse {self.fine_to_coarse_s - before:.0f} s "
+                        f"into this {duration:.0f} s command ({self.fine_to_coarse_s:g} s of "
+                        "propagation since the last Sungaze)"
+                    )
+                    self.warn(step, "fine-expires", text)
+        if self.imu_s > IMU_TIME_LIMIT_S and not self.imu_warned:
+            self.imu_warned = True
+            text = (
+                f"IMU integration time since the last Sungaze reaches {self.imu_s:.0f} s "
+                f"(more than {IMU_TIME_LIMIT_S:.0f} s): plan a Sungaze"
+            )
+            self.warn(step, "imu-time", text)
+        if isinstance(c, cmd.ArticulateStart):
+            self.articulating = True
+        elif isinstance(c, cmd.ArticulateStop):
+            self.articulating = False
+        elif isinstance(c, cmd.SetParam) and not isinstance(c.value, bool):
+            if c.param == "fine_to_coarse_s":
+                self.fine_to_coarse_s = float(c.value)
+            elif c.param == "gyrocompass_duration_s":
+                self.gyrocompass_s = float(c.value)
