@@ -101,6 +101,18 @@ def _grain_mean_fraction() -> float:
 _GRAIN_MEAN = _grain_mean_fraction()
 
 
+def _lattice_table(rng: np.random.Generator) -> NDArray[np.float32]:
+    """The value-noise lattice, periodic, padded so the grain layers' strided lookups
+    never run off the end (drawn first from the texture's generator)."""
+    table = rng.uniform(-1.0, 1.0, (_P + 1, _P + 1)).astype(np.float32)
+    table[_P, :] = table[0, :]  # periodic wrap so index+1 never leaves the table
+    table[:, _P] = table[:, 0]
+    out: NDArray[np.float32] = np.concatenate(
+        [table.reshape(-1), table.reshape(-1)[: 4 * _GRAIN_STRIDE]]
+    )
+    return out
+
+
 class AlbedoTexture:
     """The reflectance texture of one terrain: ``texture(x_m, y_m)`` in [0, 1]; vectorised.
 
@@ -113,12 +125,9 @@ class AlbedoTexture:
         if not 0.0 < style.finest_m <= style.coarsest_m:
             raise ValueError("need 0 < finest_m <= coarsest_m")
         self.style = style
+        self._seed = seed
         rng = np.random.default_rng(derive_key(seed, 0xA1BED0))
-        table = rng.uniform(-1.0, 1.0, (_P + 1, _P + 1)).astype(np.float32)
-        table[_P, :] = table[0, :]  # periodic wrap so index+1 never leaves the table
-        table[:, _P] = table[:, 0]
-        # Padded so the grain layers' strided lookups never run off the end.
-        self._table = np.concatenate([table.reshape(-1), table.reshape(-1)[: 4 * _GRAIN_STRIDE]])
+        self._table = _lattice_table(rng)  # the rng's first draws; the offsets follow
         n_oct = int(np.ceil(np.log2(style.coarsest_m / style.finest_m) - 1e-9)) + 1  # last ≤ finest
         self.cells_m = style.coarsest_m * 0.5 ** np.arange(n_oct)
         w = (self.cells_m / style.coarsest_m) ** style.beta
@@ -127,6 +136,16 @@ class AlbedoTexture:
         self._cos = np.cos(angles)
         self._sin = np.sin(angles)
         self._offsets = rng.uniform(0.0, _P, (n_oct + len(style.grains), 2))
+
+    def __getstate__(self) -> dict[str, object]:
+        """Pickle without the 7.5 MB lattice table: it is rebuilt from the seed."""
+        state = self.__dict__.copy()
+        del state["_table"]
+        return state
+
+    def __setstate__(self, state: dict[str, object]) -> None:
+        self.__dict__.update(state)
+        self._table = _lattice_table(np.random.default_rng(derive_key(self._seed, 0xA1BED0)))
 
     def __call__(self, x_m: FloatArray, y_m: FloatArray) -> FloatArray:
         return self.evaluate(x_m, y_m)

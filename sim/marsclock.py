@@ -347,3 +347,21 @@ def sol_number(mission: str, utc: datetime) -> int:
     """
     m = get_mission(mission)
     return int(sol_number_t_s(m.name, utc_to_t_s(utc)))
+
+
+def t_s_for_sol_lmst(mission: str, sol: int, lmst_h: float) -> float:
+    """TT seconds from J2000 when the LMST at ``mission``'s landing site reads ``lmst_h``
+    on MER sol ``sol``: the inverse of ``sol_number_t_s`` and ``lmst_h_from_t_s`` (C-2, C-3).
+
+    >>> t = t_s_for_sol_lmst("spirit", 100, 10.5)
+    >>> lmst = float(lmst_h_from_t_s(t, MISSIONS["spirit"].lon_west_deg))
+    >>> int(sol_number_t_s("spirit", t)), round(lmst, 6)
+    (100, 10.5)
+    """
+    m = get_mission(mission)
+    if not (math.isfinite(lmst_h) and 0.0 <= lmst_h < 24.0):
+        raise InputError("lmst_h", f"must be in [0, 24), got {lmst_h!r}")
+    landing = math.floor(float(_local_sol_date(m, utc_to_t_s(m.landing_utc))))
+    msd = landing + (sol - 1) + lmst_h / 24.0 + m.lon_west_deg / 360.0
+    jd_tt = (msd - 44_796.0 + 0.0009626) * SOL_PER_DAY_RATIO + 2_451_549.5  # C-2 inverted
+    return (jd_tt - JD_J2000) * SECONDS_PER_DAY

@@ -1,0 +1,387 @@
+"""The rovers the server hosts: each a ``RoverSession`` on its own simulation clock.
+
+A ``RoverRuntime`` owns one rover's session (flight software in the loop, ``sim.session``),
+its queue of accepted sequences, and a thread that runs the clock:
+
+- The clock runs at ``speed`` simulated seconds per wall second (1 to ``MAX_SPEED``), or
+  as fast as the machine allows (``speed = inf``); it can be paused and resumed.
+- The next step of the queue starts when its time tag comes (``sequences.language``): an
+  LMST tag the next time the rover's LMST reads it, a sol-and-LMST tag at that moment, a
+  relative tag that long after the previous command completed, no tag at once. Until then
+  the rover waits: at a finite speed the wait is played out in wall time, at ``inf`` it is
+  skipped ("idle time is skipped"). With nothing queued the clock keeps running at a
+  finite speed and stands still at ``inf`` (there is nothing to skip to).
+- A command executes as a whole in the session (a drive takes a few seconds of wall time)
+  and its frames are then *played out*: published (WebSocket subscribers, storage) as the
+  clock reaches their time. So what is stored and shown never runs ahead of the clock.
+- Immediate commands (``POST .../commands``) run before the next queued step.
+
+The session is checkpointed (pickled) between commands through the storage writer, and a
+runtime restored from a checkpoint resumes there; a sequence that was running is
+resumed at its next step.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import pickle
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from typing import Any
+
+from sequences import commands as cmd
+from sequences.language import Sequence, TimeTag
+from sim.marsclock import (
+    get_mission,
+    lmst_h_from_t_s,
+    sol_number_t_s,
+    t_s_for_sol_lmst,
+    t_s_to_utc,
+)
+from sim.session import RoverSession
+
+log = logging.getLogger(__name__)
+
+MAX_SPEED = 10_000.0  # largest finite speed factor
+TICK_S = 0.05  # wall seconds between clock ticks
+IDLE_CHUNK_S = cmd.MAX_WAIT_S  # simulated seconds advanced at most per idle step
+IDLE_STEP_S = 10.0  # at a finite speed the idle rover is simulated in steps this long
+FRAME_EVERY_S = 1.0  # 8 Hz activity is recorded at most once a simulated second
+CHECKPOINT_EVERY_S = 5.0  # wall seconds between checkpoints (between commands)
+
+
+@dataclass(frozen=True)
+class RoverSpec:
+    """A rover the server hosts: its name, site, mission and start time."""
+
+    name: str
+    site: str
+    mission: str
+    start_utc: datetime
+    seed: int
+
+
+ROVERS: dict[str, RoverSpec] = {
+    "spirit": RoverSpec("spirit", "gusev", "spirit", datetime(2004, 4, 14, 15, 0, tzinfo=UTC), 1),
+    "opportunity": RoverSpec(
+        "opportunity", "meridiani", "opportunity", datetime(2004, 4, 14, 3, 0, tzinfo=UTC), 2
+    ),
+}
+
+
+@dataclass
+class QueuedSequence:
+    """An accepted sequence in a rover's queue; ``next_step`` indexes ``sequence.steps``."""
+
+    sequence_id: int
+    sequence: Sequence
+    next_step: int = 0
+    immediate: bool = False
+
+
+@dataclass
+class ClockState:
+    """The clock: ``running`` and ``speed`` (simulated s per wall s; ``inf`` = max)."""
+
+    running: bool = True
+    speed: float = 1.0
+
+
+@dataclass
+class Playout:
+    """Frames of the last command still to be published as the clock reaches them."""
+
+    frames: deque[dict[str, Any]] = field(default_factory=deque)
+
+
+Listener = Callable[[str, list[dict[str, Any]]], None]
+
+
+class RoverRuntime:
+    """One rover on its own clock (module docstring). ``listeners`` receive every frame
+    batch as it is played out (storage, WebSocket hub); ``on_command`` every command
+    report; ``on_sequence`` sequence status changes; ``on_checkpoint`` pickled state."""
+
+    def __init__(self, spec: RoverSpec, session: RoverSession | None = None) -> None:
+        self.spec = spec
+        self.session = session or RoverSession(
+            spec.site, spec.seed, spec.start_utc, frame_every_s=FRAME_EVERY_S
+        )
+        self.clock = ClockState()
+        self.queue: deque[QueuedSequence] = deque()
+        self.lock = threading.RLock()
+        self.listeners: list[Listener] = []
+        self.on_command: Callable[[str, dict[str, Any]], None] | None = None
+        self.on_sequence: Callable[[int, str, str | None], None] | None = None
+        self.on_checkpoint: Callable[[str, float, bytes], None] | None = None
+        self.executing: str = ""
+        self._playout: deque[dict[str, Any]] = deque()
+        self._clock_t_s = self.session.sim.t_s  # the published clock (<= the session's)
+        self._last_done_t_s = self._clock_t_s
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._last_checkpoint_wall = 0.0
+        self.last_frame: dict[str, Any] | None = None
+
+    # ---- control ------------------------------------------------------------------
+
+    @property
+    def t_s(self) -> float:
+        """The rover's clock (simulated TT seconds from J2000)."""
+        return self._clock_t_s
+
+    def start(self) -> None:
+        """Start the clock thread."""
+        self._thread = threading.Thread(
+            target=self._run, name=f"rover-{self.spec.name}", daemon=True
+        )
+        self._thread.start()
+
+    def stop(self) -> None:
+        """Stop the clock thread (at the next tick)."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=30.0)
+
+    def set_clock(self, running: bool | None = None, speed: float | None = None) -> None:
+        """Pause/resume and set the speed (validated by the caller)."""
+        with self.lock:
+            if running is not None:
+                self.clock.running = running
+            if speed is not None:
+                self.clock.speed = speed
+
+    def enqueue(self, sequence_id: int, sequence: Sequence, immediate: bool = False) -> None:
+        """Queue an accepted sequence (an immediate command goes first)."""
+        with self.lock:
+            item = QueuedSequence(sequence_id, sequence, immediate=immediate)
+            if immediate:
+                self.queue.appendleft(item)
+            else:
+                self.queue.append(item)
+
+    def cancel(self, sequence_id: int) -> bool:
+        """Drop a queued sequence (a running one stops after its current command)."""
+        with self.lock:
+            for item in list(self.queue):
+                if item.sequence_id == sequence_id:
+                    self.queue.remove(item)
+                    return True
+        return False
+
+    def queued_ids(self) -> list[int]:
+        """Sequence ids in queue order."""
+        with self.lock:
+            return [q.sequence_id for q in self.queue]
+
+    # ---- state for the API ----------------------------------------------------------
+
+    def lmst_h(self, t_s: float) -> float:
+        """LMST at the rover's mission site, hours."""
+        return float(lmst_h_from_t_s(t_s, get_mission(self.spec.mission).lon_west_deg))
+
+    def sol(self, t_s: float) -> int:
+        """MER sol number at ``t_s``."""
+        return int(sol_number_t_s(self.spec.mission, t_s))
+
+    def state(self) -> dict[str, Any]:
+        """A JSON-ready summary: clock, queue, executing command and the last frame."""
+        with self.lock:
+            t = self._clock_t_s
+            return {
+                "rover": self.spec.name,
+                "site": self.spec.site,
+                "mission": self.spec.mission,
+                "t_s": t,
+                "utc": t_s_to_utc(t).isoformat(),
+                "sol": self.sol(t),
+                "lmst_h": self.lmst_h(t),
+                "clock": {"running": self.clock.running, "speed": _speed_json(self.clock.speed)},
+                "executing": self.executing,
+                "queue": [
+                    {
+                        "sequence_id": q.sequence_id,
+                        "name": q.sequence.name,
+                        "next_step": q.next_step,
+                        "steps": len(q.sequence.steps),
+                    }
+                    for q in self.queue
+                ],
+                "frame": self.last_frame,
+            }
+
+    # ---- the clock thread -------------------------------------------------------------
+
+    def _run(self) -> None:
+        wall = time.monotonic()
+        while not self._stop.is_set():
+            now = time.monotonic()
+            dt_wall, wall = now - wall, now
+            try:
+                self._tick(dt_wall)
+            except Exception:  # keep the server alive; the rover stops its queue
+                log.exception("rover %s: clock tick failed", self.spec.name)
+                with self.lock:
+                    self.clock.running = False
+            time.sleep(TICK_S)
+
+    def _tick(self, dt_wall: float) -> None:
+        with self.lock:
+            if not self.clock.running:
+                return
+            speed = self.clock.speed
+        budget = math.inf if math.isinf(speed) else min(speed * dt_wall, IDLE_CHUNK_S)
+        # 1. play out frames of the last command
+        if self._playout:
+            self._advance_playout(budget)
+            return
+        self._maybe_checkpoint()
+        # 2. the next step, when its time comes
+        step = self._next_step()
+        sim_t = self.session.sim.t_s
+        target = math.inf if step is None else self._start_time(step[1])
+        if target <= sim_t + 1e-6:
+            assert step is not None
+            self._execute(step[0])
+            return
+        if math.isinf(speed):  # idle time is skipped: straight to the next step
+            if step is not None:
+                self._idle(min(target - sim_t, IDLE_CHUNK_S))
+            return
+        # a finite speed: the clock moves on; the rover is simulated in IDLE_STEP_S steps
+        self._clock_t_s = min(max(self._clock_t_s, sim_t) + budget, target)
+        lag = self._clock_t_s - sim_t
+        if lag >= IDLE_STEP_S or self._clock_t_s >= target - 1e-6:
+            self._idle(lag)
+
+    def _next_step(self) -> tuple[QueuedSequence, TimeTag] | None:
+        with self.lock:
+            while self.queue:
+                item = self.queue[0]
+                if item.next_step < len(item.sequence.steps):
+                    return item, item.sequence.steps[item.next_step].time_tag
+                self.queue.popleft()
+                self._sequence_status(item.sequence_id, "completed", None)
+            return None
+
+    def _start_time(self, tag: TimeTag) -> float:
+        now = self.session.sim.t_s
+        if tag.kind == "relative":
+            return self._last_done_t_s + float(tag.after_s or 0.0)
+        if tag.kind == "sol_lmst":
+            return t_s_for_sol_lmst(self.spec.mission, int(tag.sol or 0), float(tag.lmst_h or 0.0))
+        if tag.kind == "lmst":
+            sol = self.sol(now)
+            t = t_s_for_sol_lmst(self.spec.mission, sol, float(tag.lmst_h or 0.0))
+            return (
+                t
+                if t >= now - 1e-6
+                else t_s_for_sol_lmst(self.spec.mission, sol + 1, float(tag.lmst_h or 0.0))
+            )
+        return now
+
+    def _idle(self, duration_s: float) -> None:
+        if duration_s <= 0.0:
+            return
+        session = self.session
+        first = len(session.frames)
+        session.execute(cmd.Wait(duration_s))
+        self._publish(session.frames[first:])
+
+    def _execute(self, item: QueuedSequence) -> None:
+        session = self.session
+        step = item.sequence.steps[item.next_step]
+        if item.next_step == 0:
+            self._sequence_status(item.sequence_id, "running", None)
+        with self.lock:
+            self.executing = step.command.describe()
+        first = len(session.frames)
+        report = session.execute(step.command)
+        frames = [f.as_dict() for f in session.frames[first:]]
+        self._last_done_t_s = report.end_t_s
+        with self.lock:
+            item.next_step += 1
+            self._playout.extend(frames)
+        if self.on_command is not None:
+            self.on_command(
+                self.spec.name,
+                {
+                    "sequence_id": item.sequence_id,
+                    "step_index": item.next_step - 1,
+                    "command": report.command,
+                    "status": report.status,
+                    "reason": report.reason,
+                    "start_t_s": report.start_t_s,
+                    "end_t_s": report.end_t_s,
+                    "events": report.events,
+                },
+            )
+        if report.status != "completed":
+            log.info(
+                "rover %s: %s %s: %s", self.spec.name, report.command, report.status, report.reason
+            )
+        del session.frames[:]  # the frames live on in the play-out, storage and hub
+
+    def _advance_playout(self, budget_s: float) -> None:
+        limit = self._clock_t_s + budget_s
+        out: list[dict[str, Any]] = []
+        with self.lock:
+            while self._playout and self._playout[0]["t_s"] <= limit:
+                out.append(self._playout.popleft())
+            if not self._playout:
+                self.executing = ""
+        if out:
+            self._emit(out)
+        elif not math.isinf(budget_s):
+            self._clock_t_s = min(limit, self._playout[0]["t_s"]) if self._playout else limit
+
+    def _publish(self, frames: list[Any]) -> None:
+        batch = [f.as_dict() for f in frames]
+        del self.session.frames[:]
+        if batch:
+            self._emit(batch)
+        self._clock_t_s = max(self._clock_t_s, self.session.sim.t_s)
+
+    def _emit(self, batch: list[dict[str, Any]]) -> None:
+        self._clock_t_s = max(self._clock_t_s, float(batch[-1]["t_s"]))
+        self.last_frame = batch[-1]
+        for listener in self.listeners:
+            listener(self.spec.name, batch)
+
+    def _sequence_status(self, sequence_id: int, status: str, detail: str | None) -> None:
+        if self.on_sequence is not None:
+            self.on_sequence(sequence_id, status, detail)
+
+    def _maybe_checkpoint(self) -> None:
+        now = time.monotonic()
+        if self.on_checkpoint is None or now - self._last_checkpoint_wall < CHECKPOINT_EVERY_S:
+            return
+        self._last_checkpoint_wall = now
+        with self.lock:
+            state = {
+                "session": self.session,
+                "queue": list(self.queue),
+                "clock": self.clock,
+                "last_done_t_s": self._last_done_t_s,
+            }
+            blob = pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
+        self.on_checkpoint(self.spec.name, self.session.sim.t_s, blob)
+
+    @classmethod
+    def restore(cls, spec: RoverSpec, blob: bytes) -> RoverRuntime:
+        """A runtime from a checkpoint blob (written by this module only: trusted)."""
+        state = pickle.loads(blob)
+        runtime = cls(spec, state["session"])
+        runtime.queue = deque(state["queue"])
+        runtime.clock = state["clock"]
+        runtime._last_done_t_s = state["last_done_t_s"]
+        return runtime
+
+
+def _speed_json(speed: float) -> float | str:
+    return "max" if math.isinf(speed) else speed
