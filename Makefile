@@ -7,7 +7,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: run test lint typecheck pytest bench clean
+.PHONY: run test lint typecheck pytest pg bench clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -16,7 +16,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 run: $(STAMP)
-	$(BIN)/roverops run --scenario drive_100m --seed 1
+	$(BIN)/roverops serve --data-dir data
 
 test: lint typecheck pytest
 
@@ -27,8 +27,19 @@ lint: $(STAMP)
 typecheck: $(STAMP)
 	$(BIN)/mypy estimation sim server sequences
 
-pytest: $(STAMP)
+pytest: $(STAMP) pg
 	$(BIN)/pytest
+
+# PostgreSQL for the storage tests (tests/conftest.py starts a throwaway cluster from its
+# binaries): Debian's package, installed once, `apt-get update` only if the install needs it.
+PG_INSTALL := DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
+	postgresql >/dev/null
+
+pg:
+	@ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1 || { \
+	  test "$$(id -u)" = 0 || { echo "make pg: PostgreSQL missing; install it as root"; exit 0; }; \
+	  echo "make pg: installing PostgreSQL (Debian package postgresql)"; \
+	  $(PG_INSTALL) 2>/dev/null || { apt-get update -qq && $(PG_INSTALL); }; }
 
 bench: $(STAMP)
 	$(BIN)/roverops bench sim --json

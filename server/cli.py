@@ -1,4 +1,4 @@
-"""The ``roverops`` command line: ``ephem``, ``run``, ``validate`` and ``bench``.
+"""The ``roverops`` command line: ``serve``, ``ephem``, ``run``, ``validate`` and ``bench``.
 
 Every argument from outside is validated; a bad one ends the command with a one-line
 message naming the parameter and exit status 2, never a traceback.
@@ -10,6 +10,7 @@ import argparse
 import json
 import logging
 import math
+import os
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -44,6 +45,43 @@ def _non_negative_int(name: str) -> Callable[[str], int]:
         return value
 
     return parse
+
+
+def _env(name: str, default: str) -> str:
+    return os.environ.get(f"ROVEROPS_{name}", default)
+
+
+def _port(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--port must be an integer, got {text!r}") from None
+    if not 1 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"--port must be in 1-65535, got {value}")
+    return value
+
+
+def _cmd_serve(args: argparse.Namespace) -> dict[str, Any]:
+    import secrets
+
+    import uvicorn
+
+    from server.app import ServerConfig, create_app, data_dir_url
+
+    if args.operator_token and len(args.operator_token) < 8:
+        raise InputError("--operator-token", "must be at least 8 characters")
+    try:
+        url = args.database_url or data_dir_url(args.data_dir)
+    except OSError as exc:
+        raise InputError("--data-dir", f"cannot create {args.data_dir}: {exc.strerror}") from None
+    token = args.operator_token or secrets.token_urlsafe(18)
+    app = create_app(ServerConfig(database_url=url, operator_token=token))
+    shown = "localhost" if args.host in ("127.0.0.1", "0.0.0.0") else args.host
+    print(f"roverops server: http://{shown}:{args.port}/docs (the REST API)", flush=True)
+    print(f"operator token: {token}", flush=True)
+    print(f"database: {url}", flush=True)
+    uvicorn.run(app, host=args.host, port=args.port, log_level="warning")
+    return {}
 
 
 def _print(result: dict[str, Any], as_json: bool) -> None:
@@ -174,6 +212,34 @@ def build_parser() -> argparse.ArgumentParser:
     check.add_argument("file", metavar="FILE", help="sequence file, or - for standard input")
     check.add_argument("--json", action="store_true", help="print JSON (one object)")
     check.set_defaults(handler=_cmd_validate, printer=_print_validation)
+
+    serve = sub.add_parser(
+        "serve",
+        help="run the operations server (console, REST, WebSocket); each option also "
+        "from an environment variable ROVEROPS_<NAME>",
+    )
+    serve.add_argument("--host", default=_env("HOST", "127.0.0.1"), help="bind address")
+    serve.add_argument(
+        "--port", type=_port, default=_port(_env("PORT", "8000")), help="TCP port (1-65535)"
+    )
+    serve.add_argument(
+        "--data-dir",
+        type=Path,
+        default=Path(_env("DATA_DIR", "data")),
+        help="where the embedded SQLite database lives (default ./data)",
+    )
+    serve.add_argument(
+        "--database-url",
+        default=_env("DATABASE_URL", ""),
+        help="any SQLAlchemy URL, e.g. postgresql+psycopg://user@host/db (default: SQLite "
+        "in the data directory)",
+    )
+    serve.add_argument(
+        "--operator-token",
+        default=_env("OPERATOR_TOKEN", ""),
+        help="token for uploads, commands and clock control (default: a new one, printed)",
+    )
+    serve.set_defaults(handler=_cmd_serve, printer=lambda result, as_json: None, json=False)
 
     bench = sub.add_parser("bench", help="run a benchmark and print its figures")
     bench.add_argument("name", help="benchmark name: sim or sapp")

@@ -105,8 +105,13 @@ class TelemetryFrame:
     events: list[str] = field(default_factory=list)
 
     def as_dict(self) -> dict[str, Any]:
-        """The frame as a JSON-ready dict."""
-        return asdict(self)
+        """The frame as a JSON-ready dict; a figure that does not exist (NaN, e.g. the
+        accelerometer tilt of a cycle without a sample) is ``None``: JSON has no NaN."""
+        out = asdict(self)
+        for key, value in out.items():
+            if isinstance(value, float) and not math.isfinite(value):
+                out[key] = None
+        return out
 
 
 @dataclass

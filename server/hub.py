@@ -1,0 +1,87 @@
+"""Live telemetry fan-out: frames from the rover threads to WebSocket clients.
+
+Each client has its own bounded queue. The rover thread never waits: a full queue drops
+its oldest frame (``put_latest``), so a slow client loses frames, not the simulation, and
+never slows the other clients. Each client's sender sends at most ``MAX_RATE_HZ`` frames
+per wall second: it takes the newest frame waiting and carries the events of the frames
+it skipped, so no event is lost to decimation (a client too slow even for that loses
+whole frames, events included, and is told how many in ``dropped``).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import threading
+from dataclasses import dataclass, field
+from typing import Any
+
+MAX_RATE_HZ = 10.0
+QUEUE_FRAMES = 64
+
+
+@dataclass(eq=False)
+class Client:
+    """One WebSocket subscriber: its queue and how many frames it lost to a full queue."""
+
+    loop: asyncio.AbstractEventLoop
+    queue: asyncio.Queue[dict[str, Any]] = field(
+        default_factory=lambda: asyncio.Queue(maxsize=QUEUE_FRAMES)
+    )
+    dropped: int = 0
+
+    def put_latest(self, frame: dict[str, Any]) -> None:
+        """Enqueue on the client's loop, dropping the oldest frame when full."""
+        if self.queue.full():
+            self.queue.get_nowait()
+            self.dropped += 1
+        self.queue.put_nowait(frame)
+
+
+class TelemetryHub:
+    """Per-rover sets of clients; ``publish`` is called from the rover threads."""
+
+    def __init__(self) -> None:
+        self._clients: dict[str, set[Client]] = {}
+        self._lock = threading.Lock()
+
+    def subscribe(self, rover: str) -> Client:
+        """A new client on the running loop."""
+        client = Client(asyncio.get_running_loop())
+        with self._lock:
+            self._clients.setdefault(rover, set()).add(client)
+        return client
+
+    def unsubscribe(self, rover: str, client: Client) -> None:
+        """Forget a client."""
+        with self._lock:
+            self._clients.get(rover, set()).discard(client)
+
+    def count(self, rover: str) -> int:
+        """How many clients follow ``rover``."""
+        with self._lock:
+            return len(self._clients.get(rover, set()))
+
+    def publish(self, rover: str, frames: list[dict[str, Any]]) -> None:
+        """Hand frames to every client of ``rover`` (thread-safe, never blocks)."""
+        with self._lock:
+            clients = list(self._clients.get(rover, set()))
+        for client in clients:
+            for frame in frames:
+                try:
+                    client.loop.call_soon_threadsafe(client.put_latest, frame)
+                except RuntimeError:  # the client's loop has closed
+                    self.unsubscribe(rover, client)
+                    break
+
+
+async def next_message(client: Client) -> dict[str, Any]:
+    """The next frame to send: the newest waiting, with the skipped frames' events."""
+    frame = await client.queue.get()
+    events: list[str] = list(frame.get("events", []))
+    while not client.queue.empty():
+        frame = client.queue.get_nowait()
+        events.extend(frame.get("events", []))
+    out = dict(frame)
+    out["events"] = events
+    out["dropped"] = client.dropped
+    return out

@@ -1,0 +1,91 @@
+"""A sol's timeline for review, from storage: what ran, in which NATE mode and with which
+Attitude Quality Flag, what happened, and how good the estimate was.
+
+Intervals are built from the stored frames (a new interval wherever the mode or flag
+changes); times are given as TT seconds, UTC and LMST hours. The distance driven is the
+length of the true path over the sol.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from server.runtime import RoverRuntime
+from server.storage import Store
+from sim.marsclock import t_s_to_utc
+
+
+def _when(runtime: RoverRuntime, t_s: float) -> dict[str, Any]:
+    return {"t_s": t_s, "utc": t_s_to_utc(t_s).isoformat(), "lmst_h": runtime.lmst_h(t_s)}
+
+
+def _intervals(
+    runtime: RoverRuntime, frames: list[dict[str, Any]], key: str, end_t_s: float
+) -> list[dict[str, Any]]:
+    out: list[dict[str, Any]] = []
+    for f in frames:
+        if not out or out[-1]["value"] != f[key]:
+            if out:
+                out[-1]["end"] = _when(runtime, float(f["t_s"]))
+            out.append({"value": f[key], "start": _when(runtime, float(f["t_s"]))})
+    if out:
+        out[-1]["end"] = _when(runtime, end_t_s)
+    return out
+
+
+def sol_timeline(store: Store, runtime: RoverRuntime, sol: int) -> dict[str, Any] | None:
+    """The timeline of ``sol`` for ``runtime``'s rover, or ``None`` without telemetry."""
+    rover = runtime.spec.name
+    span = store.sol_range(rover, sol)
+    if span is None:
+        return None
+    t0, t1 = span
+    frames = store.frames(rover, t0, t1)
+    commands = store.commands(rover, t0, t1)
+    events = store.events(rover, t0, t1)
+    path = np.array([f["p_mission_true"] for f in frames], dtype=float)
+    distance = (
+        float(np.sum(np.linalg.norm(np.diff(path[:, :2], axis=0), axis=1)))
+        if len(path) > 1
+        else 0.0
+    )
+
+    def finite(key: str) -> list[float]:
+        return [
+            float(f[key]) for f in frames if f.get(key) is not None and math.isfinite(float(f[key]))
+        ]
+
+    margins = [float(f["hga_margin_deg"]) for f in frames if f.get("earth_up")]
+    pos_err = finite("position_error_m")
+    att_err = finite("attitude_error_deg")
+    return {
+        "rover": rover,
+        "sol": sol,
+        "start": _when(runtime, t0),
+        "end": _when(runtime, t1),
+        "commands": [
+            {
+                **c,
+                "start": _when(runtime, float(c["start_t_s"])),
+                "end": _when(runtime, float(c["end_t_s"])),
+            }
+            for c in commands
+        ],
+        "nate_modes": _intervals(runtime, frames, "nate_mode", t1),
+        "aqf": _intervals(runtime, frames, "aqf", t1),
+        "events": [{**e, "lmst_h": runtime.lmst_h(float(e["t_s"]))} for e in events],
+        "distance_m": distance,
+        "summary": {
+            "frames": len(frames),
+            "commands": len(commands),
+            "commands_failed": sum(1 for c in commands if c["status"] != "completed"),
+            "distance_m": distance,
+            "max_position_error_m": max(pos_err) if pos_err else None,
+            "max_attitude_error_deg": max(att_err) if att_err else None,
+            "min_hga_margin_deg": min(margins) if margins else None,
+            "max_imu_integration_s": max(finite("imu_integration_s"), default=None),
+        },
+    }
