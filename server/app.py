@@ -94,11 +94,38 @@ class Server:
             runtime = RoverRuntime.restore(spec, saved[1]) if saved else RoverRuntime(spec)
             if saved is None:
                 runtime.set_clock(speed=config.initial_speed)
+            if saved is not None:
+                self._resume(runtime)
             runtime.listeners.append(self._frames)
             runtime.on_command = self._command
             runtime.on_sequence = self._sequence
             runtime.on_checkpoint = self.writer.checkpoint
             self.rovers[name] = runtime
+
+    def _resume(self, runtime: RoverRuntime) -> None:
+        """After a restart: no frame stored twice, and every accepted sequence the
+        checkpoint does not hold (accepted or started after it) queued again, in order."""
+        rover = runtime.spec.name
+        last = self.store.last_frame(rover)
+        if last is not None:
+            runtime.watermark_t_s = float(last["t_s"])
+            runtime.last_frame = last
+        held = set(runtime.queued_ids())
+        pending = [
+            s
+            for s in self.store.list_sequences(rover)
+            if s["status"] in ("queued", "running") and s["id"] not in held
+        ]
+        for summary in sorted(pending, key=lambda s: s["id"]):
+            stored = self.store.get_sequence(summary["id"])
+            assert stored is not None
+            text = stored["source"]
+            source = json.loads(text) if stored["format"] in ("json", "command") else text
+            result = validate(source)
+            if result.sequence is None:  # cannot happen: it was accepted
+                self.store.set_sequence_status(summary["id"], "failed", "unreadable after restart")
+                continue
+            runtime.enqueue(summary["id"], result.sequence)
 
     def _frames(self, rover: str, frames: list[dict[str, Any]]) -> None:
         self.writer.frames(rover, frames)

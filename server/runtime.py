@@ -16,9 +16,11 @@ its queue of accepted sequences, and a thread that runs the clock:
   clock reaches their time. So what is stored and shown never runs ahead of the clock.
 - Immediate commands (``POST .../commands``) run before the next queued step.
 
-The session is checkpointed (pickled) between commands through the storage writer, and a
-runtime restored from a checkpoint resumes there; a sequence that was running is
-resumed at its next step.
+The whole runtime state (session, queue, clock, frames still to play out) is checkpointed
+(pickled, about 10 kB) once per wall second through the storage writer, in the same
+transaction as the frames published before it. A runtime restored from a checkpoint
+resumes there; frames it publishes again up to the last stored one (``watermark_t_s``) are
+dropped, so storage has no duplicates.
 """
 
 from __future__ import annotations
@@ -52,7 +54,7 @@ TICK_S = 0.05  # wall seconds between clock ticks
 IDLE_CHUNK_S = cmd.MAX_WAIT_S  # simulated seconds advanced at most per idle step
 IDLE_STEP_S = 10.0  # at a finite speed the idle rover is simulated in steps this long
 FRAME_EVERY_S = 1.0  # 8 Hz activity is recorded at most once a simulated second
-CHECKPOINT_EVERY_S = 5.0  # wall seconds between checkpoints (between commands)
+CHECKPOINT_EVERY_S = 1.0  # wall seconds between checkpoints
 
 
 @dataclass(frozen=True)
@@ -127,6 +129,7 @@ class RoverRuntime:
         self._thread: threading.Thread | None = None
         self._last_checkpoint_wall = 0.0
         self.last_frame: dict[str, Any] | None = None
+        self.watermark_t_s = -math.inf  # frames up to here are stored already (restore)
 
     # ---- control ------------------------------------------------------------------
 
@@ -236,11 +239,11 @@ class RoverRuntime:
                 return
             speed = self.clock.speed
         budget = math.inf if math.isinf(speed) else min(speed * dt_wall, IDLE_CHUNK_S)
+        self._maybe_checkpoint()
         # 1. play out frames of the last command
         if self._playout:
             self._advance_playout(budget)
             return
-        self._maybe_checkpoint()
         # 2. the next step, when its time comes
         step = self._next_step()
         sim_t = self.session.sim.t_s
@@ -349,6 +352,9 @@ class RoverRuntime:
 
     def _emit(self, batch: list[dict[str, Any]]) -> None:
         self._clock_t_s = max(self._clock_t_s, float(batch[-1]["t_s"]))
+        batch = [f for f in batch if f["t_s"] > self.watermark_t_s]
+        if not batch:
+            return
         self.last_frame = batch[-1]
         for listener in self.listeners:
             listener(self.spec.name, batch)
@@ -368,6 +374,9 @@ class RoverRuntime:
                 "queue": list(self.queue),
                 "clock": self.clock,
                 "last_done_t_s": self._last_done_t_s,
+                "playout": list(self._playout),
+                "clock_t_s": self._clock_t_s,
+                "executing": self.executing,
             }
             blob = pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
         self.on_checkpoint(self.spec.name, self.session.sim.t_s, blob)
@@ -380,6 +389,9 @@ class RoverRuntime:
         runtime.queue = deque(state["queue"])
         runtime.clock = state["clock"]
         runtime._last_done_t_s = state["last_done_t_s"]
+        runtime._playout = deque(state["playout"])
+        runtime._clock_t_s = state["clock_t_s"]
+        runtime.executing = state["executing"]
         return runtime
 
 
