@@ -103,6 +103,22 @@ class TurnInPlace(Command):
 
 
 @dataclass(frozen=True)
+class DriveTo(Command):
+    """Drive to ``(x_m, y_m)`` (North, East) in the current Site: turn in place towards the
+    goal and drive straight, both by the onboard estimate (the rover goes where it
+    *believes* the goal is; the difference is the estimate's error). The goal must be
+    0.01-100 m from the rover's estimated position when the command starts."""
+
+    name: ClassVar[str] = "DRIVE_TO"
+    x_m: float
+    y_m: float
+
+    def __post_init__(self) -> None:
+        _number("x_m", self.x_m, -1000.0, 1000.0, "m", lo_open=False)
+        _number("y_m", self.y_m, -1000.0, 1000.0, "m", lo_open=False)
+
+
+@dataclass(frozen=True)
 class PlantSite(Command):
     """Plant a new Site frame at the rover (position resets, index increments)."""
 
@@ -271,6 +287,7 @@ COMMANDS: dict[str, type[Command]] = {
         DriveStraight,
         DriveArc,
         TurnInPlace,
+        DriveTo,
         PlantSite,
         NadirUpdate,
         NadirCheck,

@@ -100,7 +100,7 @@ FINE_TO_COARSE_S = 900.0  # seed 000 sec. 2.4: "currently 15 minutes"
 IMU_TIME_LIMIT_S = 10_000.0  # seed 000 sec. 4: the operators' limit since the last Sungaze
 _EPS_S = 1e-6
 
-_DRIVES = (cmd.DriveStraight, cmd.DriveArc, cmd.TurnInPlace)
+_DRIVES = (cmd.DriveStraight, cmd.DriveArc, cmd.TurnInPlace, cmd.DriveTo)
 _ALLOWED_IN_ARTICULATE = (cmd.ArticulateStop, cmd.Wait, cmd.HgaPass)
 _FIXED_S: dict[type[cmd.Command], float] = {
     cmd.Sunfind: SUNFIND_S,
@@ -282,6 +282,9 @@ def estimate_duration_s(command: cmd.Command, gyrocompass_s: float = GYROCOMPASS
         return abs(float(c.radius_m)) * math.radians(c.angle_deg) / DRIVE_SPEED_M_S
     if isinstance(c, cmd.TurnInPlace):
         return abs(float(c.angle_deg)) / TURN_RATE_DEG_S
+    if isinstance(c, cmd.DriveTo):  # the position is not predicted: as if from the origin,
+        # after a half turn (the longest turn it can need)
+        return math.hypot(c.x_m, c.y_m) / DRIVE_SPEED_M_S + 180.0 / TURN_RATE_DEG_S
     if isinstance(c, cmd.NadirUpdate | cmd.NadirCheck):
         return NADIR_WINDOW_S if c.window_s is None else float(c.window_s)
     if isinstance(c, cmd.Gyrocompass):

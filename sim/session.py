@@ -223,6 +223,8 @@ class RoverSession:
         if isinstance(c, cmd.TurnInPlace):
             drive = DriveCommand(DriveKind.TURN_IN_PLACE)
             return self._drive(drive, "turn", math.radians(c.angle_deg))
+        if isinstance(c, cmd.DriveTo):
+            return self._drive_to(c.x_m, c.y_m)
         if isinstance(c, cmd.PlantSite):
             index = nate.plant_site()
             self._site_origins_true.append(self.sim.state.p_s.copy())
@@ -383,6 +385,39 @@ class RoverSession:
         self._frame_now(force=True)
         distance = float(np.sum(np.linalg.norm(np.diff(seg.truth.p_s, axis=0), axis=1)))
         return {"distance_truth_m": distance}
+
+    def _drive_to(self, x_m: float, y_m: float) -> dict[str, Any]:
+        """DRIVE_TO: turn towards the goal and drive to it, both by NATE's estimate. A
+        turn in place slips and creeps, so the aim is taken again after it (twice at
+        most) before the straight drive."""
+        nate = self.nate
+        if nate.mode is not NateMode.IDLE:
+            raise CommandRefusedError(f"DRIVE_TO: refused in mode {nate.mode.value}")
+        turn, distance = self._aim(x_m, y_m)
+        if not 0.01 <= distance <= cmd.MAX_DRIVE_M:
+            raise CommandRefusedError(
+                f"DRIVE_TO: the goal is {distance:.2f} m from the estimated position "
+                f"(0.01-{cmd.MAX_DRIVE_M:g} m)"
+            )
+        details: dict[str, Any] = {"turn_deg": math.degrees(turn), "distance_m": distance}
+        for _ in range(2):
+            if abs(turn) <= math.radians(0.5):  # close enough for the straight drive
+                break
+            self._drive(DriveCommand(DriveKind.TURN_IN_PLACE), "turn", turn)
+            turn, distance = self._aim(x_m, y_m)
+        if distance >= 0.01:
+            out = self._drive(DriveCommand(DriveKind.STRAIGHT), "straight", distance)
+            details["distance_truth_m"] = out["distance_truth_m"]
+        return details
+
+    def _aim(self, x_m: float, y_m: float) -> tuple[float, float]:
+        """Turn (rad, > 0 clockwise) and distance (m) to the goal by the estimate."""
+        nate = self.nate
+        d_n, d_e = x_m - float(nate.p_s[0]), y_m - float(nate.p_s[1])
+        x_ll = Rotation.from_quat(nate.q_b_ll).inv().apply([1.0, 0.0, 0.0])  # body x in LL
+        heading = math.atan2(float(x_ll[1]), float(x_ll[0]))
+        turn = (math.atan2(d_e, d_n) - heading + math.pi) % (2.0 * math.pi) - math.pi
+        return turn, math.hypot(d_n, d_e)
 
     def _step_segment(self, seg: Segment) -> list[NateOutput]:
         wheel = self.sim.encoders.wheel_angle_rad(seg.encoders.wheel_counts)
