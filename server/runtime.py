@@ -293,7 +293,8 @@ class RoverRuntime:
             return
         session = self.session
         first = len(session.frames)
-        session.execute(cmd.Wait(duration_s))
+        session.execute(cmd.Wait(duration_s), label="")  # the clock's own wait: no command
+        del session.reports[:]
         self._publish(session.frames[first:])
 
     def _execute(self, item: QueuedSequence) -> None:
@@ -329,6 +330,7 @@ class RoverRuntime:
                 "rover %s: %s %s: %s", self.spec.name, report.command, report.status, report.reason
             )
         del session.frames[:]  # the frames live on in the play-out, storage and hub
+        del session.reports[:]  # and the report in storage: the checkpoint stays small
 
     def _advance_playout(self, budget_s: float) -> None:
         limit = self._clock_t_s + budget_s

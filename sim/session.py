@@ -187,11 +187,12 @@ class RoverSession:
         """Execute ``commands`` in order (each when the previous completes)."""
         return [self.execute(c) for c in commands]
 
-    def execute(self, command: cmd.Command) -> CommandReport:
-        """Execute one command to completion and report it."""
+    def execute(self, command: cmd.Command, label: str | None = None) -> CommandReport:
+        """Execute one command to completion and report it. ``label`` replaces the
+        command's text in the telemetry frames (``""`` for a wait no operator commanded)."""
         if not isinstance(command, cmd.Command):
             raise InputError("command", f"must be a sequences.commands.Command, got {command!r}")
-        self._command = command.describe()
+        self._command = command.describe() if label is None else label
         report = CommandReport(self._command, "completed", self.sim.t_s, self.sim.t_s)
         first_frame = len(self.frames)
         self._results: list[Any] = []

@@ -75,11 +75,11 @@ def test_sigkill_mid_drive_then_restart_loses_at_most_a_second(
     servers.append(_start(tmp_path, port))
     c = httpx.Client(base_url=base, timeout=10.0)
     _wait(lambda: c.get("/api/rovers").status_code == 200)
-    c.post("/api/rovers/spirit/clock", json={"speed": 40}, headers=AUTH).raise_for_status()
+    c.post("/api/rovers/spirit/clock", json={"speed": 20}, headers=AUTH).raise_for_status()
     r = c.post("/api/rovers/spirit/sequences", content=DRIVE, headers=AUTH)
     assert r.status_code == 201, r.text
     seq_id = r.json()["id"]
-    # mid-drive: the rover has moved but not arrived (20 m take 533 s, 13 s of wall here)
+    # mid-drive: the rover has moved but not arrived (20 m take 533 s, 27 s of wall here)
     _wait(
         lambda: (
             (f := c.get("/api/rovers/spirit/state").json()["frame"])
