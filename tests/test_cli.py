@@ -101,3 +101,18 @@ def test_console_script_reports_errors_without_traceback() -> None:
     )
     assert proc.returncode == 2
     assert "scenario" in proc.stderr and "Traceback" not in proc.stderr
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["serve", "--port", "0"], "--port must be in 1-65535"),
+        (["serve", "--port", "http"], "--port must be an integer"),
+        (["serve", "--operator-token", "short"], "--operator-token"),
+    ],
+)
+def test_serve_refuses_bad_arguments_before_starting(
+    capsys: pytest.CaptureFixture[str], argv: list[str], needle: str
+) -> None:
+    code, _, err = _run(capsys, *argv)
+    assert code == 2 and needle in err and "Traceback" not in err
