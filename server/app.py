@@ -27,6 +27,7 @@ from typing import Annotated, Any, Literal
 from fastapi import Depends, FastAPI, Header, HTTPException, Query, Request, WebSocket
 from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel, ConfigDict, Field
+from starlette.concurrency import run_in_threadpool
 from starlette.websockets import WebSocketDisconnect
 
 from sequences import commands as cmd
@@ -301,17 +302,27 @@ def create_app(config: ServerConfig) -> FastAPI:
         """Validate, store and queue a sequence (text, JSON, or a multipart file)."""
         runtime = server.rover(rover)
         source, fmt = await _read_upload(request)
-        result = validate(source, server.context(runtime))
+        result = await run_in_threadpool(validate, source, server.context(runtime))
         text = source if isinstance(source, str) else json.dumps(source)
         name = (result.sequence.name if result.sequence else None) or "unnamed"
         diags = _diagnostics(result)
         if result.errors or result.sequence is None:
-            seq_id = server.store.add_sequence(
-                rover, name, text, fmt, "rejected", diags["errors"], diags["warnings"], []
-            )
+            seq_id = await run_in_threadpool(
+                server.store.add_sequence,
+                rover, name, text, fmt, "rejected", diags["errors"], diags["warnings"], [],
+            )  # fmt: skip
             return JSONResponse({"id": seq_id, "status": "rejected", **diags}, status_code=422)
-        seq_id = server.store.add_sequence(
-            rover, name, text, fmt, "queued", [], diags["warnings"], _steps_json(result.sequence)
+        steps = _steps_json(result.sequence)
+        seq_id = await run_in_threadpool(
+            server.store.add_sequence,
+            rover,
+            name,
+            text,
+            fmt,
+            "queued",
+            [],
+            diags["warnings"],
+            steps,
         )
         runtime.enqueue(seq_id, result.sequence)
         return JSONResponse({"id": seq_id, "status": "queued", **diags}, status_code=201)
@@ -322,7 +333,7 @@ def create_app(config: ServerConfig) -> FastAPI:
         source, _fmt = await _read_upload(request)
         rover = request.query_params.get("rover")
         context = server.context(server.rover(rover)) if rover else None
-        result = validate(source, context)
+        result = await run_in_threadpool(validate, source, context)
         return {"valid": not result.errors, **_diagnostics(result)}
 
     @app.get("/api/rovers/{rover}/sequences")
@@ -439,13 +450,12 @@ def create_app(config: ServerConfig) -> FastAPI:
         client = server.hub.subscribe(rover)
         period = 1.0 / MAX_RATE_HZ
         try:
-            last = 0.0
+            next_send = 0.0
             while True:
                 message = await next_message(client)
                 await websocket.send_json(message)
-                now = time.monotonic()
-                wait = period - (now - last)
-                last = now
+                next_send = max(next_send + period, time.monotonic())  # sends >= period apart
+                wait = next_send - time.monotonic()
                 if wait > 0:
                     await asyncio.sleep(wait)
         except (WebSocketDisconnect, RuntimeError):

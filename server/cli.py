@@ -157,8 +157,16 @@ def _print_validation(result: dict[str, Any], as_json: bool) -> None:
 
 
 def _cmd_bench(args: argparse.Namespace) -> dict[str, Any]:
-    from sim.bench import run_bench
+    # `server` is dispatched here: sim (sim.bench) must not import server.
+    if args.name == "server":
+        from server.bench_server import bench_server
 
+        return bench_server()
+    from sim.bench import BENCHES, run_bench
+
+    if args.name not in BENCHES:
+        choices = ", ".join([*BENCHES, "server"])
+        raise InputError("name", f"unknown benchmark {args.name!r}; choose one of {choices}")
     return run_bench(args.name)
 
 
@@ -242,7 +250,7 @@ def build_parser() -> argparse.ArgumentParser:
     serve.set_defaults(handler=_cmd_serve, printer=lambda result, as_json: None, json=False)
 
     bench = sub.add_parser("bench", help="run a benchmark and print its figures")
-    bench.add_argument("name", help="benchmark name: sim or sapp")
+    bench.add_argument("name", help="benchmark name: sim, sapp or server")
     bench.add_argument("--json", action="store_true", help="print JSON (one object)")
     bench.set_defaults(handler=_cmd_bench)
     return parser

@@ -6,12 +6,18 @@ never slows the other clients. Each client's sender sends at most ``MAX_RATE_HZ`
 per wall second: it takes the newest frame waiting and carries the events of the frames
 it skipped, so no event is lost to decimation (a client too slow even for that loses
 whole frames, events included, and is told how many in ``dropped``).
+
+Every frame a client receives carries ``published_wall``: the wall-clock time
+(``time.time()``, Unix seconds) at which the hub handed it on, so a client can measure its
+latency (``roverops bench server``). The stamp is on the clients' copies only, never on the
+frames the storage writer keeps.
 """
 
 from __future__ import annotations
 
 import asyncio
 import threading
+import time
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -62,11 +68,16 @@ class TelemetryHub:
             return len(self._clients.get(rover, set()))
 
     def publish(self, rover: str, frames: list[dict[str, Any]]) -> None:
-        """Hand frames to every client of ``rover`` (thread-safe, never blocks)."""
+        """Hand frames to every client of ``rover`` (thread-safe, never blocks), each a
+        copy stamped with ``published_wall``."""
         with self._lock:
             clients = list(self._clients.get(rover, set()))
+        if not clients:
+            return
+        now = time.time()
+        stamped = [{**frame, "published_wall": now} for frame in frames]
         for client in clients:
-            for frame in frames:
+            for frame in stamped:
                 try:
                     client.loop.call_soon_threadsafe(client.put_latest, frame)
                 except RuntimeError:  # the client's loop has closed

@@ -15,6 +15,11 @@ its queue of accepted sequences, and a thread that runs the clock:
   and its frames are then *played out*: published (WebSocket subscribers, storage) as the
   clock reaches their time. So what is stored and shown never runs ahead of the clock.
 - Immediate commands (``POST .../commands``) run before the next queued step.
+- A step that fails (its mode ran and failed, e.g. a Sunfind that saw no sun) is reported
+  and the sequence goes on; a step that is refused (it could not run, e.g. a drive while
+  articulating) stops the sequence, whose later steps assumed it: the sequence ends
+  ``failed``. A sequence that ran to the end is ``completed``, with the failed steps in
+  its ``detail``.
 
 The whole runtime state (session, queue, clock, frames still to play out) is checkpointed
 (pickled, about 10 kB) once per wall second through the storage writer, in the same
@@ -51,6 +56,7 @@ log = logging.getLogger(__name__)
 
 MAX_SPEED = 10_000.0  # largest finite speed factor
 TICK_S = 0.05  # wall seconds between clock ticks
+MAX_TICK_S = 0.25  # wall seconds one tick may account for
 IDLE_CHUNK_S = cmd.MAX_WAIT_S  # simulated seconds advanced at most per idle step
 IDLE_STEP_S = 10.0  # at a finite speed the idle rover is simulated in steps this long
 FRAME_EVERY_S = 1.0  # 8 Hz activity is recorded at most once a simulated second
@@ -84,6 +90,9 @@ class QueuedSequence:
     sequence: Sequence
     next_step: int = 0
     immediate: bool = False
+    wait_left_s: float | None = None  # a WAIT under way in chunks: what is left of it
+    problems: list[str] = field(default_factory=list)  # steps that failed or were refused
+    halted: bool = False  # a refused step stopped the sequence
 
 
 @dataclass
@@ -238,7 +247,9 @@ class RoverRuntime:
             if not self.clock.running:
                 return
             speed = self.clock.speed
-        budget = math.inf if math.isinf(speed) else min(speed * dt_wall, IDLE_CHUNK_S)
+        # A tick that came late (a command took seconds to compute) does not burst: the
+        # clock catches up at most MAX_TICK_S of wall time.
+        budget = math.inf if math.isinf(speed) else speed * min(dt_wall, MAX_TICK_S)
         self._maybe_checkpoint()
         # 1. play out frames of the last command
         if self._playout:
@@ -269,7 +280,9 @@ class RoverRuntime:
                 if item.next_step < len(item.sequence.steps):
                     return item, item.sequence.steps[item.next_step].time_tag
                 self.queue.popleft()
-                self._sequence_status(item.sequence_id, "completed", None)
+                status = "failed" if item.halted else "completed"
+                detail = "; ".join(item.problems) or None
+                self._sequence_status(item.sequence_id, status, detail)
             return None
 
     def _start_time(self, tag: TimeTag) -> float:
@@ -300,24 +313,45 @@ class RoverRuntime:
     def _execute(self, item: QueuedSequence) -> None:
         session = self.session
         step = item.sequence.steps[item.next_step]
-        if item.next_step == 0:
+        if item.next_step == 0 and item.wait_left_s is None:
             self._sequence_status(item.sequence_id, "running", None)
+        command = step.command
         with self.lock:
-            self.executing = step.command.describe()
+            self.executing = command.describe()
+            speed = self.clock.speed
+        if isinstance(command, cmd.Wait) and not math.isinf(speed):
+            # A long WAIT runs a chunk at a time (a second of wall time's worth), so the
+            # play-out and the checkpoints stay small and the queue can be cancelled.
+            left = command.duration_s if item.wait_left_s is None else item.wait_left_s
+            chunk = min(left, max(IDLE_STEP_S, speed))
+            item.wait_left_s = left - chunk
+            command = cmd.Wait(chunk)
         first = len(session.frames)
-        report = session.execute(step.command)
+        report = session.execute(command, label=step.command.describe())
         frames = [f.as_dict() for f in session.frames[first:]]
+        with self.lock:
+            self._playout.extend(frames)
+        del session.frames[:]  # the frames live on in the play-out, storage and hub
+        del session.reports[:]  # and the report in storage: the checkpoint stays small
+        if item.wait_left_s is not None and item.wait_left_s > 1e-9:
+            return  # more of the WAIT to come
+        item.wait_left_s = None
+        index = item.next_step
         self._last_done_t_s = report.end_t_s
+        if report.status != "completed":
+            item.problems.append(f"step {index + 1} {report.status}: {report.reason}")
         with self.lock:
             item.next_step += 1
-            self._playout.extend(frames)
+            if report.status == "refused":  # the rest assumed this step: stop the sequence
+                item.next_step = len(item.sequence.steps)
+                item.halted = True
         if self.on_command is not None:
             self.on_command(
                 self.spec.name,
                 {
                     "sequence_id": item.sequence_id,
-                    "step_index": item.next_step - 1,
-                    "command": report.command,
+                    "step_index": index,
+                    "command": step.command.describe(),
                     "status": report.status,
                     "reason": report.reason,
                     "start_t_s": report.start_t_s,
@@ -326,11 +360,7 @@ class RoverRuntime:
                 },
             )
         if report.status != "completed":
-            log.info(
-                "rover %s: %s %s: %s", self.spec.name, report.command, report.status, report.reason
-            )
-        del session.frames[:]  # the frames live on in the play-out, storage and hub
-        del session.reports[:]  # and the report in storage: the checkpoint stays small
+            log.info("rover %s: %s: %s", self.spec.name, report.status, report.reason)
 
     def _advance_playout(self, budget_s: float) -> None:
         limit = self._clock_t_s + budget_s
@@ -342,8 +372,9 @@ class RoverRuntime:
                 self.executing = ""
         if out:
             self._emit(out)
-        elif not math.isinf(budget_s):
-            self._clock_t_s = min(limit, self._playout[0]["t_s"]) if self._playout else limit
+        if not math.isinf(budget_s):  # the clock moves by the whole budget, not frame to frame
+            ahead = self._playout[0]["t_s"] if self._playout else self.session.sim.t_s
+            self._clock_t_s = max(self._clock_t_s, min(limit, ahead))
 
     def _publish(self, frames: list[Any]) -> None:
         batch = [f.as_dict() for f in frames]

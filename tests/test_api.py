@@ -194,3 +194,17 @@ def test_websocket_streams_frames(client: TestClient) -> None:
         second = ws.receive_json()
     assert {"t_s", "aqf", "nate_mode", "hga_margin_deg", "events", "dropped"} <= set(first)
     assert second["t_s"] > first["t_s"]
+
+
+def test_a_refused_step_stops_its_sequence(client: TestClient) -> None:
+    client.post("/api/rovers/opportunity/clock", json={"speed": "max"}, headers=AUTH)
+    text = "SEQUENCE too_far\nDRIVE_TO x_m=500 y_m=0\nPLANT_SITE\n"
+    r = client.post("/api/rovers/opportunity/sequences", content=text, headers=AUTH)
+    assert r.status_code == 201, r.text
+    seq_id = r.json()["id"]
+    done = _wait(
+        lambda: (s := client.get(f"/api/sequences/{seq_id}").json())["status"] == "failed" and s
+    )
+    assert "step 1 refused" in done["detail"] and "500" in done["detail"]
+    frame = _wait(lambda: client.get("/api/rovers/opportunity/state").json()["frame"])
+    assert frame["site_index"] == 0  # PLANT_SITE never ran

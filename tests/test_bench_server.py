@@ -1,0 +1,93 @@
+"""``roverops bench server`` in a quick version: the same pieces on a small scale (5
+WebSocket clients for 2 s, a 1,000-line validation, a 2 m drive and a 1 min HGA pass),
+checking the output contract of DESIGN.md and that the figures make sense. No speed is
+asserted (TESTING.md: benchmarks measure, tests assert correctness)."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import pytest
+
+from sequences.validate import validate
+from server.bench_server import TARGETS, bench_server, example_blocks, validation_text
+from server.cli import main
+
+UNITS = ("_s", "_ms", "_m", "_x", "_per_s")  # units a float metric's key ends with
+
+
+@pytest.fixture(scope="module")
+def quick() -> dict[str, Any]:
+    return bench_server(
+        ws_clients=5,
+        ws_window_s=2.0,
+        validate_lines=1000,
+        validate_repeats=1,
+        drive_m=2.0,
+        hga_min=1.0,
+    )
+
+
+def test_the_output_contract(quick: dict[str, Any]) -> None:
+    assert json.loads(json.dumps(quick, allow_nan=False)) == quick  # plain JSON
+    assert set(quick) == {"bench", "metrics", "targets", "ok", "machine"}
+    assert quick["bench"] == "server"
+    assert quick["targets"] == TARGETS
+    assert set(TARGETS) == {
+        "sol_sim_wall_s",
+        "ws_clients",
+        "ws_p99_latency_ms",
+        "validate_10k_lines_s",
+    }
+    assert set(quick["targets"]) <= set(quick["metrics"])
+    assert isinstance(quick["ok"], bool)
+    assert quick["ok"] is False  # 5 clients are not the 50 of the target
+    for key, value in quick["metrics"].items():
+        assert isinstance(value, (int, float)), key  # figures only
+        if isinstance(value, float):
+            assert key.endswith(UNITS), f"{key}: no unit in the key"
+
+
+def test_the_sol_ran_through_the_server(quick: dict[str, Any]) -> None:
+    m = quick["metrics"]
+    assert m["sol_sim_wall_s"] > 0.0
+    assert m["sol_sim_commands"] == 3 and m["sol_sim_commands_not_completed"] == 0
+    assert 1.5 < m["sol_sim_distance_m"] < 2.5
+    # GET_FINE_ATTITUDE, the drive (53 s at 3.75 cm/s) and the 60 s pass, simulated
+    assert m["sol_sim_simulated_s"] > 60.0 + 2.0 / 0.0375
+
+
+def test_the_websocket_clients_received_stamped_frames(quick: dict[str, Any]) -> None:
+    m = quick["metrics"]
+    assert m["ws_clients_connected"] == 5
+    assert 0 <= m["ws_clients"] <= 5
+    assert m["ws_messages"] > 0 and m["ws_msgs_per_client_per_s"] > 0.0
+    assert 0.0 <= m["ws_p50_latency_ms"] <= m["ws_p99_latency_ms"] <= m["ws_max_latency_ms"]
+    assert m["ws_rover_speed_seen_x"] > 0.0
+
+
+def test_the_validation_figures(quick: dict[str, Any]) -> None:
+    m = quick["metrics"]
+    assert m["validate_lines"] == 1000 and m["validate_steps"] == 999
+    assert m["validate_errors"] == 0
+    assert m["validate_10k_lines_s"] > 0.0 and m["validate_10k_lines_with_rover_s"] > 0.0
+
+
+def test_the_validation_text_is_the_examples_and_valid() -> None:
+    text = validation_text(300)
+    lines = text.splitlines()
+    assert len(lines) == 300 and lines[0] == "SEQUENCE validate_bench"
+    every_example_line = {line for block in example_blocks() for line in block}
+    assert len(example_blocks()) >= 5
+    # each line is an example's line, its LMST tag moved to a sol of its own
+    for line in lines[1:]:
+        assert line in every_example_line or line.startswith("@ sol "), line
+    result = validate(text)
+    assert result.errors == [] and result.sequence is not None
+
+
+def test_an_unknown_benchmark_names_the_choices(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["bench", "warp", "--json"]) == 2
+    err = capsys.readouterr().err
+    assert "name" in err and "server" in err and "sim" in err
