@@ -44,6 +44,7 @@ from typing import Any
 from sequences import commands as cmd
 from sequences.language import Sequence, TimeTag
 from sim.marsclock import (
+    SOL_S,
     get_mission,
     lmst_h_from_t_s,
     sol_number_t_s,
@@ -57,7 +58,8 @@ log = logging.getLogger(__name__)
 MAX_SPEED = 10_000.0  # largest finite speed factor
 TICK_S = 0.05  # wall seconds between clock ticks
 MAX_TICK_S = 0.25  # wall seconds one tick may account for
-IDLE_CHUNK_S = cmd.MAX_WAIT_S  # simulated seconds advanced at most per idle step
+# Idle time skipped at max speed goes a sol at a time, so every sol has a frame to show.
+IDLE_CHUNK_S = SOL_S
 IDLE_STEP_S = 10.0  # at a finite speed the idle rover is simulated in steps this long
 FRAME_EVERY_S = 1.0  # 8 Hz activity is recorded at most once a simulated second
 CHECKPOINT_EVERY_S = 1.0  # wall seconds between checkpoints
