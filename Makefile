@@ -7,7 +7,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: run test lint typecheck pytest pg bench clean
+.PHONY: run test lint typecheck pytest pg chromium bench clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -27,7 +27,7 @@ lint: $(STAMP)
 typecheck: $(STAMP)
 	$(BIN)/mypy estimation sim server sequences
 
-pytest: $(STAMP) pg
+pytest: $(STAMP) pg chromium
 	$(BIN)/pytest
 
 # PostgreSQL for the storage tests (tests/conftest.py starts a throwaway cluster from its
@@ -40,6 +40,16 @@ pg:
 	  test "$$(id -u)" = 0 || { echo "make pg: PostgreSQL missing; install it as root"; exit 0; }; \
 	  echo "make pg: installing PostgreSQL (Debian package postgresql)"; \
 	  $(PG_INSTALL) 2>/dev/null || { apt-get update -qq && $(PG_INSTALL); }; }
+
+# Debian's Chromium for the browser tests (Playwright drives it; it never downloads one).
+CHROMIUM_INSTALL := DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
+	chromium >/dev/null
+
+chromium:
+	@test -x /usr/bin/chromium || { \
+	  test "$$(id -u)" = 0 || { echo "make chromium: Chromium missing; install it as root"; exit 0; }; \
+	  echo "make chromium: installing Chromium (Debian package chromium)"; \
+	  $(CHROMIUM_INSTALL) 2>/dev/null || { apt-get update -qq && $(CHROMIUM_INSTALL); }; }
 
 bench: $(STAMP)
 	$(BIN)/roverops bench sim --json

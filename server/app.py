@@ -25,7 +25,8 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 from fastapi import Depends, FastAPI, Header, HTTPException, Query, Request, WebSocket
-from fastapi.responses import JSONResponse, Response
+from fastapi.responses import FileResponse, JSONResponse, Response
+from fastapi.staticfiles import StaticFiles
 from pydantic import BaseModel, ConfigDict, Field
 from starlette.concurrency import run_in_threadpool
 from starlette.websockets import WebSocketDisconnect
@@ -41,6 +42,7 @@ from sim.mars_frames import earth_ll_truth, elevation_rad
 from sim.marsclock import t_s_for_sol_lmst
 
 MAX_UPLOAD_BYTES = 1_000_000
+WEB_DIR = Path(__file__).resolve().parent.parent / "web"  # the console, served as is
 
 
 @dataclass
@@ -241,6 +243,13 @@ def create_app(config: ServerConfig) -> FastAPI:
         lifespan=lifespan,
     )
     app.state.server = server
+
+    @app.get("/", include_in_schema=False)
+    def console_page() -> FileResponse:
+        """The operators' console (``web/``)."""
+        return FileResponse(WEB_DIR / "index.html")
+
+    app.mount("/static", StaticFiles(directory=WEB_DIR), name="static")
 
     @app.get("/api/rovers")
     def list_rovers() -> list[dict[str, Any]]:

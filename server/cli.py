@@ -77,7 +77,7 @@ def _cmd_serve(args: argparse.Namespace) -> dict[str, Any]:
     token = args.operator_token or secrets.token_urlsafe(18)
     app = create_app(ServerConfig(database_url=url, operator_token=token))
     shown = "localhost" if args.host in ("127.0.0.1", "0.0.0.0") else args.host
-    print(f"roverops server: http://{shown}:{args.port}/docs (the REST API)", flush=True)
+    print(f"roverops console: http://{shown}:{args.port}/  (REST API: /docs)", flush=True)
     print(f"operator token: {token}", flush=True)
     print(f"database: {url}", flush=True)
     uvicorn.run(app, host=args.host, port=args.port, log_level="warning")

@@ -1,0 +1,109 @@
+"""The console in a real browser (Debian's Chromium driven by Playwright, TESTING.md) against
+the real server on a temporary database: a sequence with errors shows them at their lines
+and queues nothing; with the operator token, the example that runs SUNCHECK_SUNGAZE then a
+drive is uploaded as a file and run at full speed, and the readouts show the AQF badge at
+Fine, the position changed and the HGA margin. Screenshots go to test-artifacts/."""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import httpx
+import pytest
+
+from tests.test_server_restart import _free_port, _wait
+
+CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
+ROOT = Path(__file__).resolve().parent.parent
+ARTIFACTS = ROOT / "test-artifacts"
+TOKEN = "browser-test-token"
+LAUNCH_ARGS = [
+    "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+    "--disable-background-networking", "--disable-component-update", "--disable-sync",
+    "--no-first-run",
+]  # fmt: skip
+BAD = "SEQUENCE broken\nDRIVE_STRAIGHT distance_m=-3\nNADIR_UPDATE\nFLY_AWAY\n"
+
+if not Path(CHROMIUM).exists():
+    if os.environ.get("CI"):
+        raise RuntimeError("Chromium is missing: `make test` installs Debian's chromium")
+    pytest.skip("Chromium not installed (make test installs it)", allow_module_level=True)
+
+from playwright.sync_api import Page, expect, sync_playwright  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    port = _free_port()
+    env = dict(os.environ, ROVEROPS_OPERATOR_TOKEN=TOKEN)
+    data = tmp_path_factory.mktemp("console")
+    cmd = [
+        sys.executable,
+        "-m",
+        "server.cli",
+        "serve",
+        "--port",
+        str(port),
+        "--data-dir",
+        str(data),
+    ]
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    base = f"http://127.0.0.1:{port}"
+    try:
+        _wait(lambda: httpx.get(f"{base}/api/rovers").status_code == 200)
+        yield base
+    finally:
+        proc.kill()
+        proc.wait(timeout=10)
+
+
+@pytest.fixture(scope="module")
+def page(server: str) -> Iterator[Page]:
+    ARTIFACTS.mkdir(exist_ok=True)
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=LAUNCH_ARGS)
+        pg = browser.new_page(viewport={"width": 1400, "height": 900})
+        pg.goto(f"{server}/?rover=spirit")
+        try:
+            yield pg
+        finally:
+            pg.screenshot(path=str(ARTIFACTS / "console.png"), full_page=True)
+            browser.close()
+
+
+def test_errors_show_at_their_lines_and_nothing_is_queued(page: Page, server: str) -> None:
+    expect(page.get_by_test_id("sol-clock")).to_contain_text("LMST")
+    page.fill("#editor", BAD)
+    errors = page.get_by_test_id("validation-errors")
+    expect(errors).to_contain_text("line 2:")
+    expect(errors).to_contain_text("line 4:")
+    page.click("#upload-text")  # no token yet
+    expect(page.get_by_test_id("sequence-status")).to_contain_text("operator token")
+    page.fill("[data-testid=token]", TOKEN)
+    page.click("#upload-text")
+    expect(page.get_by_test_id("sequence-status")).to_contain_text("Rejected: 2 error(s)")
+    assert httpx.get(f"{server}/api/rovers/spirit/state").json()["queue"] == []
+
+
+def test_fine_attitude_then_drive_runs_and_the_readouts_follow(page: Page, server: str) -> None:
+    page.fill("[data-testid=token]", TOKEN)
+    page.set_input_files(
+        "[data-testid=file-input]", str(ROOT / "sequences/examples/fine_attitude_then_drive.seq")
+    )
+    page.click("#upload-file")
+    expect(page.get_by_test_id("sequence-status")).to_contain_text("queued")
+    page.select_option("#speed", "max")
+    expect(page.get_by_test_id("clock-speed")).to_contain_text("max", timeout=10_000)
+    expect(page.get_by_test_id("aqf")).to_have_text("Fine", timeout=60_000)
+    expect(page.get_by_test_id("imu-time")).to_have_text(re.compile(r"^\d+ s$"))
+    expect(page.get_by_test_id("position")).to_contain_text(
+        re.compile(r"est \((?:[1-9]|-?\d\.\d*[1-9])"), timeout=60_000
+    )
+    expect(page.get_by_test_id("hga-margin")).to_contain_text(re.compile(r"°|horizon"))
+    page.screenshot(path=str(ARTIFACTS / "console_after_drive.png"), full_page=True)

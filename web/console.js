@@ -1,0 +1,190 @@
+// roverops console: readouts from the live telemetry WebSocket, commanding over REST.
+// Everything comes from the server (a reload loses nothing); the token is kept in this
+// browser's sessionStorage only.
+"use strict";
+
+const $ = (id) => document.getElementById(id);
+const state = { rover: null, ws: null, validateTimer: null, seqTimer: null };
+const IMU_WARN_S = 10000; // seed 000 sec. 4: MER reacquired attitude at about this IMU time
+
+function token() { return $("token").value.trim(); }
+function authHeaders() { const t = token(); return t ? { Authorization: `Bearer ${t}` } : {}; }
+
+async function api(path, options = {}) {
+  const response = await fetch(path, options);
+  let body = null;
+  try { body = await response.json(); } catch (_) { body = null; }
+  return { ok: response.ok, status: response.status, body };
+}
+
+function lmst(h) {
+  const total = Math.floor(h * 3600);
+  const hh = String(Math.floor(total / 3600)).padStart(2, "0");
+  const mm = String(Math.floor((total % 3600) / 60)).padStart(2, "0");
+  const ss = String(total % 60).padStart(2, "0");
+  return `${hh}:${mm}:${ss}`;
+}
+
+function showFrame(f) {
+  if (!f) return;
+  $("sol-clock").textContent = `Sol ${f.sol}  ${lmst(f.lmst_h)} LMST`;
+  $("nate-mode").textContent = f.nate_mode;
+  const badge = $("aqf");
+  badge.textContent = f.aqf;
+  badge.className = `badge aqf-${f.aqf}`;
+  const imu = $("imu-time");
+  imu.textContent = `${Math.round(f.imu_integration_s)} s`;
+  imu.className = f.imu_integration_s > IMU_WARN_S ? "warn" : "";
+  const hga = $("hga-margin");
+  if (f.earth_up && f.hga_margin_deg !== null) {
+    hga.textContent = `${f.hga_margin_deg.toFixed(2)}° (error ${f.hga_error_deg.toFixed(2)}°)`;
+    hga.className = f.hga_margin_deg < 0 ? "bad" : "good";
+  } else {
+    hga.textContent = "Earth below the horizon";
+    hga.className = "warn";
+  }
+  const e = f.p_s_est, t = f.p_s_true;
+  const diff = Math.hypot(e[0] - t[0], e[1] - t[1]);
+  $("position").textContent =
+    `Site ${f.site_index}: est (${e[0].toFixed(2)}, ${e[1].toFixed(2)}) m, ` +
+    `true (${t[0].toFixed(2)}, ${t[1].toFixed(2)}) m, diff ${diff.toFixed(2)} m`;
+  for (const text of f.events || []) {
+    const li = document.createElement("li");
+    li.textContent = `${lmst(f.lmst_h)} ${text}`;
+    $("events").prepend(li);
+  }
+}
+
+async function refreshState() {
+  if (!state.rover) return;
+  const r = await api(`/api/rovers/${state.rover}/state`);
+  if (!r.ok) return;
+  const s = r.body;
+  if (s.frame) showFrame({ ...s.frame, events: [] });
+  else $("sol-clock").textContent = `Sol ${s.sol}  ${lmst(s.lmst_h)} LMST`;
+  $("executing").textContent = s.executing || "—";
+  $("queue").textContent = s.queue.length
+    ? s.queue.map((q) => `#${q.sequence_id} ${q.name || ""} (${q.next_step}/${q.steps})`).join(", ")
+    : "empty";
+  const head = s.queue[0];
+  $("progress-bar").style.width = head ? `${(100 * head.next_step) / Math.max(1, head.steps)}%` : "0";
+  $("speed-now").textContent = `${s.clock.running ? "running" : "paused"} at ${s.clock.speed === "max" ? "max" : s.clock.speed + "×"}`;
+}
+
+async function refreshSequences() {
+  if (!state.rover) return;
+  const r = await api(`/api/rovers/${state.rover}/sequences`);
+  if (!r.ok) return;
+  const body = $("sequences").querySelector("tbody");
+  body.replaceChildren(...r.body.slice(0, 12).map((s) => {
+    const tr = document.createElement("tr");
+    for (const v of [s.id, s.name, s.status, s.detail || ""]) {
+      const td = document.createElement("td");
+      td.textContent = v;
+      tr.appendChild(td);
+    }
+    return tr;
+  }));
+}
+
+function connect() {
+  if (state.ws) state.ws.close();
+  const scheme = location.protocol === "https:" ? "wss" : "ws";
+  const ws = new WebSocket(`${scheme}://${location.host}/ws/rovers/${state.rover}/telemetry`);
+  ws.onmessage = (m) => showFrame(JSON.parse(m.data));
+  ws.onclose = () => { if (state.ws === ws) setTimeout(connect, 1000); };
+  state.ws = ws;
+}
+
+function showDiagnostics(result) {
+  const list = $("validation");
+  const items = [...(result.errors || []).map((d) => ["error", d]), ...(result.warnings || []).map((d) => ["warning", d])];
+  list.replaceChildren(...items.map(([kind, d]) => {
+    const li = document.createElement("li");
+    li.className = kind;
+    li.textContent = `line ${d.line}:${d.column} ${kind} ${d.code}: ${d.message}`;
+    return li;
+  }));
+}
+
+async function validateEditor() {
+  const text = $("editor").value;
+  if (!text.trim()) { $("validation").replaceChildren(); return; }
+  const r = await api(`/api/sequences/validate?rover=${state.rover}`, {
+    method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify({ text }),
+  });
+  if (r.body) showDiagnostics(r.body);
+}
+
+function uploaded(r) {
+  const status = $("sequence-status");
+  if (r.status === 401 || r.status === 403) {
+    status.textContent = "Enter the operator token to upload.";
+  } else if (r.body && r.body.status === "queued") {
+    status.textContent = `Sequence #${r.body.id} queued`;
+    showDiagnostics(r.body);
+  } else if (r.body && r.body.errors) {
+    status.textContent = `Rejected: ${r.body.errors.length} error(s), nothing queued`;
+    showDiagnostics(r.body);
+  } else {
+    status.textContent = `Upload failed (${r.status}): ${JSON.stringify(r.body && r.body.detail)}`;
+  }
+  refreshSequences();
+}
+
+async function uploadText() {
+  const r = await api(`/api/rovers/${state.rover}/sequences`, {
+    method: "POST", headers: { ...authHeaders(), "Content-Type": "application/json" },
+    body: JSON.stringify({ text: $("editor").value }),
+  });
+  uploaded(r);
+}
+
+async function uploadFile() {
+  const file = $("file").files[0];
+  if (!file) return;
+  const form = new FormData();
+  form.append("file", file);
+  uploaded(await api(`/api/rovers/${state.rover}/sequences`, { method: "POST", headers: authHeaders(), body: form }));
+}
+
+async function clock(body) {
+  const r = await api(`/api/rovers/${state.rover}/clock`, {
+    method: "POST", headers: { ...authHeaders(), "Content-Type": "application/json" }, body: JSON.stringify(body),
+  });
+  if (!r.ok) $("sequence-status").textContent = r.status === 422 ? "Bad clock setting" : "Enter the operator token to control the clock.";
+  refreshState();
+}
+
+async function init() {
+  $("token").value = sessionStorage.getItem("roverops-token") || "";
+  $("token").addEventListener("change", () => sessionStorage.setItem("roverops-token", token()));
+  const rovers = (await api("/api/rovers")).body || [];
+  $("rover").replaceChildren(...rovers.map((r) => new Option(`${r.rover} (${r.site})`, r.rover)));
+  state.rover = new URLSearchParams(location.search).get("rover") || (rovers[0] && rovers[0].rover);
+  $("rover").value = state.rover;
+  $("rover").addEventListener("change", () => {
+    state.rover = $("rover").value;
+    $("events").replaceChildren();
+    connect(); refreshState(); refreshSequences();
+  });
+  $("pause").addEventListener("click", () => clock({ action: "pause" }));
+  $("resume").addEventListener("click", () => clock({ action: "resume" }));
+  $("speed").addEventListener("change", () => {
+    const v = $("speed").value;
+    clock({ speed: v === "max" ? "max" : Number(v) });
+  });
+  $("editor").addEventListener("input", () => {
+    clearTimeout(state.validateTimer);
+    state.validateTimer = setTimeout(validateEditor, 300);
+  });
+  $("upload-text").addEventListener("click", uploadText);
+  $("upload-file").addEventListener("click", uploadFile);
+  connect();
+  refreshState();
+  refreshSequences();
+  setInterval(refreshState, 1000);
+  setInterval(refreshSequences, 3000);
+}
+
+init();
