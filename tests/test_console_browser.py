@@ -107,3 +107,18 @@ def test_fine_attitude_then_drive_runs_and_the_readouts_follow(page: Page, serve
     )
     expect(page.get_by_test_id("hga-margin")).to_contain_text(re.compile(r"°|horizon"))
     page.screenshot(path=str(ARTIFACTS / "console_after_drive.png"), full_page=True)
+
+
+def test_an_immediate_command_from_the_dictionary_form(page: Page, server: str) -> None:
+    page.fill("[data-testid=token]", TOKEN)
+    page.select_option("[data-testid=command-picker]", "DRIVE_STRAIGHT")
+    page.fill("#args input[name=distance_m]", "-2")
+    page.click("#send")
+    expect(page.get_by_test_id("sequence-status")).to_contain_text(
+        re.compile(r"Command refused: .*distance_m: must be in \(0, 100\]")
+    )
+    page.fill("#args input[name=distance_m]", "1.5")
+    page.click("#send")
+    expect(page.get_by_test_id("sequence-status")).to_contain_text("Command DRIVE_STRAIGHT queued")
+    names = [s["name"] for s in httpx.get(f"{server}/api/rovers/spirit/sequences").json()]
+    assert "immediate_DRIVE_STRAIGHT" in names

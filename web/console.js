@@ -4,7 +4,7 @@
 "use strict";
 
 const $ = (id) => document.getElementById(id);
-const state = { rover: null, ws: null, validateTimer: null, seqTimer: null };
+const state = { rover: null, ws: null, validateTimer: null, dictionary: [] };
 const IMU_WARN_S = 10000; // seed 000 sec. 4: MER reacquired attitude at about this IMU time
 
 function token() { return $("token").value.trim(); }
@@ -156,7 +156,51 @@ async function clock(body) {
   refreshState();
 }
 
+// The immediate-command form, built from the command dictionary the server publishes.
+function renderArgs() {
+  const entry = state.dictionary.find((c) => c.command === $("command").value);
+  $("command-doc").textContent = entry ? entry.doc.replaceAll("``", "") : "";
+  $("args").replaceChildren(...(entry ? entry.args : []).map((a) => {
+    const input = document.createElement("input");
+    input.name = a.name;
+    input.placeholder = a.default === null || a.default === undefined ? a.name : `${a.name} (${a.default})`;
+    input.title = `${a.name}: ${a.type}`;
+    return input;
+  }));
+}
+
+function argValue(text) {
+  if (text === "true" || text === "on") return true;
+  if (text === "false" || text === "off") return false;
+  return text !== "" && !Number.isNaN(Number(text)) ? Number(text) : text;
+}
+
+async function sendCommand() {
+  const args = {};
+  for (const input of $("args").querySelectorAll("input")) {
+    if (input.value.trim() !== "") args[input.name] = argValue(input.value.trim());
+  }
+  const r = await api(`/api/rovers/${state.rover}/commands`, {
+    method: "POST", headers: { ...authHeaders(), "Content-Type": "application/json" },
+    body: JSON.stringify({ command: $("command").value, args }),
+  });
+  const status = $("sequence-status");
+  if (r.status === 401 || r.status === 403) status.textContent = "Enter the operator token to send commands.";
+  else if (r.ok) status.textContent = `Command ${$("command").value} queued (#${r.body.id})`;
+  else {
+    const detail = r.body && r.body.detail;
+    const errors = detail && detail.errors ? detail.errors.map((e) => e.message).join("; ") : JSON.stringify(detail);
+    status.textContent = `Command refused: ${errors}`;
+  }
+  refreshSequences();
+}
+
 async function init() {
+  state.dictionary = (await api("/api/commands")).body || [];
+  $("command").replaceChildren(...state.dictionary.map((c) => new Option(c.command, c.command)));
+  $("command").addEventListener("change", renderArgs);
+  $("send").addEventListener("click", sendCommand);
+  renderArgs();
   $("token").value = sessionStorage.getItem("roverops-token") || "";
   $("token").addEventListener("change", () => sessionStorage.setItem("roverops-token", token()));
   const rovers = (await api("/api/rovers")).body || [];
