@@ -29,8 +29,9 @@ def _free_port() -> int:
         return port
 
 
-def _start(data_dir: Path, port: int) -> subprocess.Popen[bytes]:
-    env = dict(os.environ, ROVEROPS_OPERATOR_TOKEN=TOKEN)
+def _start(data_dir: Path, port: int, token: str = TOKEN) -> subprocess.Popen[bytes]:
+    """``roverops serve`` as its own process (the real server, as an operator runs it)."""
+    env = dict(os.environ, ROVEROPS_OPERATOR_TOKEN=token)
     cmd = [
         sys.executable,
         "-m",
