@@ -208,3 +208,13 @@ def test_a_refused_step_stops_its_sequence(client: TestClient) -> None:
     assert "step 1 refused" in done["detail"] and "500" in done["detail"]
     frame = _wait(lambda: client.get("/api/rovers/opportunity/state").json()["frame"])
     assert frame["site_index"] == 0  # PLANT_SITE never ran
+
+
+def test_unknown_sequences_and_rovers_are_404(client: TestClient) -> None:
+    assert client.get("/api/sequences/999999").status_code == 404
+    assert client.delete("/api/sequences/999999", headers=AUTH).status_code == 404
+    assert client.get("/api/rovers/curiosity/sequences").status_code == 404
+    assert client.get("/api/rovers/curiosity/sols").status_code == 404
+    assert client.get("/api/rovers/spirit/sols/99999/timeline").status_code == 404
+    r = client.post("/api/rovers/curiosity/clock", json={"action": "pause"}, headers=AUTH)
+    assert r.status_code == 404
