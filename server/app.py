@@ -16,6 +16,7 @@ import hmac
 import io
 import json
 import math
+import re
 import secrets
 import time
 from collections.abc import AsyncIterator
@@ -313,7 +314,7 @@ def create_app(config: ServerConfig) -> FastAPI:
         source, fmt = await _read_upload(request)
         result = await run_in_threadpool(validate, source, server.context(runtime))
         text = source if isinstance(source, str) else json.dumps(source)
-        name = (result.sequence.name if result.sequence else None) or "unnamed"
+        name = (result.sequence.name if result.sequence else None) or _declared_name(source)
         diags = _diagnostics(result)
         if result.errors or result.sequence is None:
             seq_id = await run_in_threadpool(
@@ -478,6 +479,19 @@ def create_app(config: ServerConfig) -> FastAPI:
 def _default(kind: type[cmd.Command], name: str) -> Any:
     f = kind.__dataclass_fields__[name]
     return None if f.default is dataclasses.MISSING else f.default
+
+
+_SEQUENCE_LINE = re.compile(r"^\s*SEQUENCE\s+([A-Za-z0-9_-]{1,64})\s*(?:#.*)?$", re.MULTILINE)
+
+
+def _declared_name(source: str | dict[str, Any]) -> str:
+    """The name a sequence declares (its SEQUENCE line, or JSON ``name``), even when other
+    lines have errors; ``unnamed`` if it declares none."""
+    if isinstance(source, dict):
+        name = source.get("name")
+        return name if isinstance(name, str) and 0 < len(name) <= 64 else "unnamed"
+    found = _SEQUENCE_LINE.search(source)
+    return found.group(1) if found else "unnamed"
 
 
 def _decode(data: bytes, name: str) -> str:

@@ -91,6 +91,7 @@ def test_a_sequence_with_many_errors_is_rejected_with_all_of_them(client: TestCl
     assert [e["line"] for e in body["errors"]] == [2, 3, 4, 5]
     stored = client.get(f"/api/sequences/{body['id']}").json()
     assert stored["status"] == "rejected" and len(stored["errors"]) == 4
+    assert stored["name"] == "broken"  # its SEQUENCE line, though other lines have errors
     assert client.get("/api/rovers/opportunity/state").json()["queue"] == []
 
 
