@@ -10,45 +10,147 @@ SAPP's commands follow Ali et al. 2005 (seed 000): the NATE primitives (sec. 2.2
 acquisition commands of sec. 2.2.4, and the two lessons of sec. 4-5 (Suncheck then
 Sungaze as one command; gyrocompassing).
 
+Each command declares its arguments once, in ``specs`` (an ``ArgSpec`` per argument: kind,
+unit, range, note); construction checks them and the server publishes them, so the console
+form and the validation cannot disagree. Rules that tie arguments together stay as code in
+``_check_rules`` and are described by the spec's ``note``.
+
 >>> DriveStraight(distance_m=2.0).name
 'DRIVE_STRAIGHT'
 >>> DriveStraight(distance_m=-1.0)
 Traceback (most recent call last):
 ...
 ValueError: distance_m: must be in (0, 100] m, got -1.0
+>>> DriveStraight.specs["distance_m"].range_text()
+'(0, 100] m'
 """
 
 from __future__ import annotations
 
 import math
 import numbers
-from dataclasses import dataclass, fields
-from typing import ClassVar
+from collections.abc import Mapping
+from dataclasses import MISSING, dataclass, fields
+from typing import ClassVar, Literal
 
 MAX_DRIVE_M = 100.0  # one drive command; matches sim.drive.MAX_PATH_M
 MAX_WAIT_S = 2 * 88775.244  # two sols
 MAX_HGA_PASS_MIN = 120.0
+MIN_ARC_RADIUS_M = 0.6  # half the track; sim.drive refuses a tighter arc
 
 
-def _number(name: str, value: object, lo: float, hi: float, unit: str, lo_open: bool) -> float:
+ArgKind = Literal["number", "boolean", "string", "number_or_boolean"]
+
+
+@dataclass(frozen=True)
+class ArgSpec:
+    """One argument as the dictionary publishes it and construction checks it.
+
+    ``number``: a real number in ``[lo, hi] unit`` (``(lo, hi]`` when ``lo_open``).
+    ``boolean``: true or false. ``number_or_boolean``: either; the number finite.
+    ``string``: text whose meaning the command checks in its rules (``note`` says it).
+    ``note``: what the range cannot say (rules across arguments, sign conventions).
+    An argument whose default is ``None`` may be omitted: the rover uses its parameter."""
+
+    kind: ArgKind
+    unit: str = ""
+    lo: float | None = None
+    hi: float | None = None
+    lo_open: bool = False
+    note: str = ""
+
+    def __post_init__(self) -> None:
+        numeric = self.kind == "number"
+        if numeric != (self.lo is not None and self.hi is not None) or (numeric and not self.unit):
+            raise TypeError(f"ArgSpec: a number has lo, hi and a unit; got {self!r}")
+
+    def range_text(self) -> str:
+        """``(lo, hi] unit`` as in the error messages; ``""`` for a non-number."""
+        if self.lo is None or self.hi is None:
+            return ""
+        left = "(" if self.lo_open else "["
+        return f"{left}{self.lo:g}, {self.hi:g}] {self.unit}"
+
+    def contains(self, value: float) -> bool:
+        """Whether ``value`` (finite) lies in the range; ``False`` for a non-number spec."""
+        if self.lo is None or self.hi is None or not math.isfinite(value):
+            return False
+        return (value > self.lo if self.lo_open else value >= self.lo) and value <= self.hi
+
+    def check(self, name: str, value: object) -> None:
+        """Raise ``ValueError`` naming ``name`` unless ``value`` is of this kind and range."""
+        if self.kind == "number":
+            _check_number(name, value, self)
+        elif self.kind == "boolean" and not isinstance(value, bool):
+            raise ValueError(f"{name}: must be true or false, got {value!r}")
+        elif self.kind == "number_or_boolean" and not isinstance(value, bool):
+            _finite_number_or_boolean(name, value)
+
+
+def _check_number(name: str, value: object, spec: ArgSpec) -> None:
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise ValueError(f"{name}: must be a number, got {value!r}")
     try:
         v = float(value)
-    except OverflowError:
+    except OverflowError:  # an int beyond float
         v = math.inf
-    ok = math.isfinite(v) and (v > lo if lo_open else v >= lo) and v <= hi
-    if not ok:
-        left = "(" if lo_open else "["
-        raise ValueError(f"{name}: must be in {left}{lo:g}, {hi:g}] {unit}, got {value!r}")
-    return v
+    if not spec.contains(v):
+        raise ValueError(f"{name}: must be in {spec.range_text()}, got {value!r}")
+
+
+def _finite_number_or_boolean(name: str, value: object) -> None:
+    if not isinstance(value, numbers.Real):
+        raise ValueError(f"{name}: must be a number or true/false, got {value!r}")
+    try:
+        finite = math.isfinite(float(value))
+    except OverflowError:
+        finite = False
+    if not finite:
+        raise ValueError(f"{name}: must be finite, got {value!r}")
+
+
+@dataclass(frozen=True)
+class Argument:
+    """One argument of a command for the dictionary: its spec, and whether it may be
+    omitted (``default``, ``None`` meaning the rover's parameter)."""
+
+    name: str
+    spec: ArgSpec
+    required: bool
+    default: object
 
 
 @dataclass(frozen=True)
 class Command:
-    """Base of every command: ``name`` is the sequence-language keyword."""
+    """Base of every command: ``name`` is the sequence-language keyword; ``specs`` holds an
+    ``ArgSpec`` per argument, in field order."""
 
     name: ClassVar[str] = ""
+    specs: ClassVar[Mapping[str, ArgSpec]] = {}
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if value is None and f.default is None:
+                continue  # omitted: the rover uses its parameter
+            self.specs[f.name].check(f.name, value)
+        self._check_rules()
+
+    def _check_rules(self) -> None:
+        """Rules a range cannot express; the arguments' ``note`` describes them."""
+
+    @classmethod
+    def argument_table(cls) -> tuple[Argument, ...]:
+        """Every argument with its spec, in field order (what ``GET /api/commands`` shows)."""
+        return tuple(
+            Argument(
+                f.name,
+                cls.specs[f.name],
+                required=f.default is MISSING,
+                default=None if f.default is MISSING else f.default,
+            )
+            for f in fields(cls)
+        )
 
     def arguments(self) -> dict[str, object]:
         """The arguments as a plain dict (for telemetry and storage)."""
@@ -60,15 +162,29 @@ class Command:
         return f"{self.name} {args}".strip()
 
 
+# Specs shared by several commands.
+_WINDOW_S = ArgSpec(
+    "number",
+    "s",
+    0.0,
+    600.0,
+    lo_open=True,
+    note="omit: the parameter (10 s); the rover refuses a window holding fewer than "
+    "min_valid_samples 8 Hz samples (5 s by default)",
+)
+_TOLERANCE_DEG = ArgSpec("number", "deg", 0.0, 90.0, lo_open=True, note="omit: the parameter")
+_DRIVE_TO_NOTE = "the goal must be 0.01-100 m from the estimated position when it starts"
+
+
 @dataclass(frozen=True)
 class DriveStraight(Command):
     """Drive ``distance_m`` straight ahead."""
 
     name: ClassVar[str] = "DRIVE_STRAIGHT"
+    specs: ClassVar[Mapping[str, ArgSpec]] = {
+        "distance_m": ArgSpec("number", "m", 0.0, MAX_DRIVE_M, lo_open=True),
+    }
     distance_m: float
-
-    def __post_init__(self) -> None:
-        _number("distance_m", self.distance_m, 0.0, MAX_DRIVE_M, "m", lo_open=True)
 
 
 @dataclass(frozen=True)
@@ -77,14 +193,33 @@ class DriveArc(Command):
     through a heading change of ``angle_deg``."""
 
     name: ClassVar[str] = "DRIVE_ARC"
+    specs: ClassVar[Mapping[str, ArgSpec]] = {
+        "radius_m": ArgSpec(
+            "number",
+            "m",
+            -1e3,
+            1e3,
+            note=f"|radius_m| at least {MIN_ARC_RADIUS_M:g} m (half the track); "
+            "> 0 centre on the right",
+        ),
+        "angle_deg": ArgSpec(
+            "number",
+            "deg",
+            0.0,
+            360.0,
+            lo_open=True,
+            note=f"the arc (|radius_m| × angle) at most {MAX_DRIVE_M:g} m long",
+        ),
+    }
     radius_m: float
     angle_deg: float
 
-    def __post_init__(self) -> None:
-        r = _number("radius_m", self.radius_m, -1e3, 1e3, "m", lo_open=False)
-        if abs(r) < 0.6:
-            raise ValueError(f"radius_m: must be at least 0.6 m (half the track), got {r!r}")
-        a = _number("angle_deg", self.angle_deg, 0.0, 360.0, "deg", lo_open=True)
+    def _check_rules(self) -> None:
+        r, a = float(self.radius_m), float(self.angle_deg)
+        if abs(r) < MIN_ARC_RADIUS_M:
+            raise ValueError(
+                f"radius_m: must be at least {MIN_ARC_RADIUS_M:g} m (half the track), got {r!r}"
+            )
         if abs(r) * math.radians(a) > MAX_DRIVE_M:
             raise ValueError(f"angle_deg: the arc would be longer than {MAX_DRIVE_M:g} m")
 
@@ -94,11 +229,15 @@ class TurnInPlace(Command):
     """Turn in place by ``angle_deg`` (> 0 clockwise seen from above)."""
 
     name: ClassVar[str] = "TURN_IN_PLACE"
+    specs: ClassVar[Mapping[str, ArgSpec]] = {
+        "angle_deg": ArgSpec(
+            "number", "deg", -360.0, 360.0, note="not zero; > 0 clockwise seen from above"
+        ),
+    }
     angle_deg: float
 
-    def __post_init__(self) -> None:
-        a = _number("angle_deg", self.angle_deg, -360.0, 360.0, "deg", lo_open=False)
-        if a == 0.0:
+    def _check_rules(self) -> None:
+        if float(self.angle_deg) == 0.0:
             raise ValueError("angle_deg: must not be zero")
 
 
@@ -110,12 +249,12 @@ class DriveTo(Command):
     0.01-100 m from the rover's estimated position when the command starts."""
 
     name: ClassVar[str] = "DRIVE_TO"
+    specs: ClassVar[Mapping[str, ArgSpec]] = {
+        "x_m": ArgSpec("number", "m", -1000.0, 1000.0, note=f"North in the Site; {_DRIVE_TO_NOTE}"),
+        "y_m": ArgSpec("number", "m", -1000.0, 1000.0, note=f"East in the Site; {_DRIVE_TO_NOTE}"),
+    }
     x_m: float
     y_m: float
-
-    def __post_init__(self) -> None:
-        _number("x_m", self.x_m, -1000.0, 1000.0, "m", lo_open=False)
-        _number("y_m", self.y_m, -1000.0, 1000.0, "m", lo_open=False)
 
 
 @dataclass(frozen=True)
@@ -130,11 +269,8 @@ class NadirUpdate(Command):
     """Nadir Update over ``window_s`` (default: the parameter, 10 s)."""
 
     name: ClassVar[str] = "NADIR_UPDATE"
+    specs: ClassVar[Mapping[str, ArgSpec]] = {"window_s": _WINDOW_S}
     window_s: float | None = None
-
-    def __post_init__(self) -> None:
-        if self.window_s is not None:
-            _number("window_s", self.window_s, 0.0, 600.0, "s", lo_open=True)
 
 
 @dataclass(frozen=True)
@@ -142,14 +278,12 @@ class NadirCheck(Command):
     """Nadir Check with an optional ``tolerance_deg`` and ``window_s``."""
 
     name: ClassVar[str] = "NADIR_CHECK"
+    specs: ClassVar[Mapping[str, ArgSpec]] = {
+        "tolerance_deg": _TOLERANCE_DEG,
+        "window_s": _WINDOW_S,
+    }
     tolerance_deg: float | None = None
     window_s: float | None = None
-
-    def __post_init__(self) -> None:
-        if self.tolerance_deg is not None:
-            _number("tolerance_deg", self.tolerance_deg, 0.0, 90.0, "deg", lo_open=True)
-        if self.window_s is not None:
-            _number("window_s", self.window_s, 0.0, 600.0, "s", lo_open=True)
 
 
 @dataclass(frozen=True)
@@ -164,11 +298,8 @@ class Suncheck(Command):
     """Suncheck with an optional ``tolerance_deg``."""
 
     name: ClassVar[str] = "SUNCHECK"
+    specs: ClassVar[Mapping[str, ArgSpec]] = {"tolerance_deg": _TOLERANCE_DEG}
     tolerance_deg: float | None = None
-
-    def __post_init__(self) -> None:
-        if self.tolerance_deg is not None:
-            _number("tolerance_deg", self.tolerance_deg, 0.0, 90.0, "deg", lo_open=True)
 
 
 @dataclass(frozen=True)
@@ -176,11 +307,12 @@ class Sungaze(Command):
     """Sungaze; ``use_gravity`` selects the variation with the accelerometers."""
 
     name: ClassVar[str] = "SUNGAZE"
+    specs: ClassVar[Mapping[str, ArgSpec]] = {
+        "use_gravity": ArgSpec(
+            "boolean", note="true: the variation with the accelerometers; omit: the parameter"
+        ),
+    }
     use_gravity: bool | None = None
-
-    def __post_init__(self) -> None:
-        if self.use_gravity is not None and not isinstance(self.use_gravity, bool):
-            raise ValueError(f"use_gravity: must be true or false, got {self.use_gravity!r}")
 
 
 @dataclass(frozen=True)
@@ -216,11 +348,12 @@ class Gyrocompass(Command):
     """Gyrocompass at rest for ``duration_s`` (default: the parameter, 1800 s)."""
 
     name: ClassVar[str] = "GYROCOMPASS"
+    specs: ClassVar[Mapping[str, ArgSpec]] = {
+        "duration_s": ArgSpec(
+            "number", "s", 0.0, 6 * 3600.0, lo_open=True, note="omit: the parameter (1800 s)"
+        ),
+    }
     duration_s: float | None = None
-
-    def __post_init__(self) -> None:
-        if self.duration_s is not None:
-            _number("duration_s", self.duration_s, 0.0, 6 * 3600.0, "s", lo_open=True)
 
 
 @dataclass(frozen=True)
@@ -242,10 +375,10 @@ class HgaPass(Command):
     """Point the HGA at Earth for ``duration_min`` minutes (re-pointed every minute)."""
 
     name: ClassVar[str] = "HGA_PASS"
+    specs: ClassVar[Mapping[str, ArgSpec]] = {
+        "duration_min": ArgSpec("number", "min", 0.0, MAX_HGA_PASS_MIN, lo_open=True),
+    }
     duration_min: float = 15.0
-
-    def __post_init__(self) -> None:
-        _number("duration_min", self.duration_min, 0.0, MAX_HGA_PASS_MIN, "min", lo_open=True)
 
 
 @dataclass(frozen=True)
@@ -253,10 +386,12 @@ class Wait(Command):
     """Do nothing for ``duration_s`` (NATE keeps its mode: Articulate keeps propagating)."""
 
     name: ClassVar[str] = "WAIT"
+    specs: ClassVar[Mapping[str, ArgSpec]] = {
+        "duration_s": ArgSpec(
+            "number", "s", 0.0, MAX_WAIT_S, lo_open=True, note="two sols at most"
+        ),
+    }
     duration_s: float
-
-    def __post_init__(self) -> None:
-        _number("duration_s", self.duration_s, 0.0, MAX_WAIT_S, "s", lo_open=True)
 
 
 @dataclass(frozen=True)
@@ -264,21 +399,16 @@ class SetParam(Command):
     """Set a NATE parameter by dotted name (``sungaze.timer_s``), SI units."""
 
     name: ClassVar[str] = "SET_PARAM"
+    specs: ClassVar[Mapping[str, ArgSpec]] = {
+        "param": ArgSpec("string", note="a NATE parameter by dotted name, e.g. sungaze.timer_s"),
+        "value": ArgSpec("number_or_boolean", note="in the parameter's SI unit, or true/false"),
+    }
     param: str
     value: float | bool
 
-    def __post_init__(self) -> None:
+    def _check_rules(self) -> None:
         if not isinstance(self.param, str) or not self.param.strip():
             raise ValueError(f"param: must be a parameter name, got {self.param!r}")
-        if not isinstance(self.value, (bool, numbers.Real)):
-            raise ValueError(f"value: must be a number or true/false, got {self.value!r}")
-        if not isinstance(self.value, bool):
-            try:
-                finite = math.isfinite(float(self.value))
-            except OverflowError:
-                finite = False
-            if not finite:
-                raise ValueError(f"value: must be finite, got {self.value!r}")
 
 
 COMMANDS: dict[str, type[Command]] = {
@@ -306,3 +436,16 @@ COMMANDS: dict[str, type[Command]] = {
         SetParam,
     )
 }
+
+
+def _check_specs_match_arguments() -> None:
+    """Every argument needs its spec (to be checked and published) and every spec its
+    argument: a command that breaks this fails when the module loads, not when an operator
+    first sends it."""
+    for kind in COMMANDS.values():
+        arguments = [f.name for f in fields(kind)]
+        if list(kind.specs) != arguments:
+            raise TypeError(f"{kind.__name__}.specs: {list(kind.specs)}, arguments {arguments}")
+
+
+_check_specs_match_arguments()

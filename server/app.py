@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import asyncio
 import csv
-import dataclasses
 import hmac
 import io
 import json
@@ -266,16 +265,33 @@ def create_app(config: ServerConfig) -> FastAPI:
 
     @app.get("/api/commands")
     def command_dictionary() -> list[dict[str, Any]]:
-        """The command dictionary: every command with its arguments."""
-        out = []
-        for name, kind in cmd.COMMANDS.items():
-            fields = [
-                {"name": f, "type": str(t), "default": _default(kind, f)}
-                for f, t in kind.__annotations__.items()
-                if f != "name"
-            ]
-            out.append({"command": name, "doc": (kind.__doc__ or "").strip(), "args": fields})
-        return out
+        """The command dictionary: every command with its arguments, each from the spec that
+        construction checks (``sequences.commands.ArgSpec``): ``type`` (number, boolean,
+        string, number_or_boolean), ``unit``, ``min``, ``max``, ``min_exclusive``, ``range``
+        (as the error messages write it), ``default``, ``required`` and a ``note`` on what
+        the range cannot say. Absent unit, bounds, range and note are null."""
+        return [
+            {
+                "command": name,
+                "doc": (kind.__doc__ or "").strip(),
+                "args": [
+                    {
+                        "name": a.name,
+                        "type": a.spec.kind,
+                        "unit": a.spec.unit or None,
+                        "min": a.spec.lo,
+                        "max": a.spec.hi,
+                        "min_exclusive": a.spec.lo_open,
+                        "range": a.spec.range_text() or None,
+                        "default": a.default,
+                        "required": a.required,
+                        "note": a.spec.note or None,
+                    }
+                    for a in kind.argument_table()
+                ],
+            }
+            for name, kind in cmd.COMMANDS.items()
+        ]
 
     async def _read_upload(request: Request) -> tuple[str | dict[str, Any], str]:
         size = int(request.headers.get("content-length") or 0)
@@ -474,11 +490,6 @@ def create_app(config: ServerConfig) -> FastAPI:
             server.hub.unsubscribe(rover, client)
 
     return app
-
-
-def _default(kind: type[cmd.Command], name: str) -> Any:
-    f = kind.__dataclass_fields__[name]
-    return None if f.default is dataclasses.MISSING else f.default
 
 
 _SEQUENCE_LINE = re.compile(r"^\s*SEQUENCE\s+([A-Za-z0-9_-]{1,64})\s*(?:#.*)?$", re.MULTILINE)

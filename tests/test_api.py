@@ -59,6 +59,37 @@ def test_the_command_dictionary_lists_every_command(client: TestClient) -> None:
     assert {"DRIVE_STRAIGHT", "GET_FINE_ATTITUDE", "SUNCHECK_SUNGAZE", "HGA_PASS"} <= names
 
 
+def test_the_command_dictionary_publishes_units_ranges_and_notes(client: TestClient) -> None:
+    """Each argument's kind, unit, range, default and note (tests/test_command_specs.py
+    checks every published range against the validation)."""
+    dictionary = client.get("/api/commands").json()
+    published = {c["command"]: {a["name"]: a for a in c["args"]} for c in dictionary}
+    keys = {"name", "type", "unit", "min", "max", "min_exclusive", "range", "default",
+            "required", "note"}  # fmt: skip
+    assert all(set(a) == keys for args in published.values() for a in args.values())
+    assert published["DRIVE_STRAIGHT"]["distance_m"] == {
+        "name": "distance_m", "type": "number", "unit": "m", "min": 0.0, "max": 100.0,
+        "min_exclusive": True, "range": "(0, 100] m", "default": None, "required": True,
+        "note": None,
+    }  # fmt: skip
+    radius = published["DRIVE_ARC"]["radius_m"]
+    assert (radius["min"], radius["max"], radius["min_exclusive"]) == (-1000.0, 1000.0, False)
+    assert "0.6 m" in radius["note"] and "100 m" in published["DRIVE_ARC"]["angle_deg"]["note"]
+    assert "not zero" in published["TURN_IN_PLACE"]["angle_deg"]["note"]
+    hga = published["HGA_PASS"]["duration_min"]
+    assert (hga["unit"], hga["default"], hga["required"]) == ("min", 15.0, False)
+    window = published["NADIR_UPDATE"]["window_s"]
+    assert (window["default"], window["required"], window["unit"]) == (None, False, "s")
+    gravity = published["SUNGAZE"]["use_gravity"]
+    assert (gravity["type"], gravity["unit"], gravity["min"], gravity["range"]) == (
+        "boolean", None, None, None
+    )  # fmt: skip
+    assert published["SET_PARAM"]["param"]["type"] == "string"
+    assert published["SET_PARAM"]["value"]["type"] == "number_or_boolean"
+    assert all(a["required"] for a in published["SET_PARAM"].values())
+    assert published["PLANT_SITE"] == {}
+
+
 @pytest.mark.parametrize(
     ("headers", "status"),
     [({}, 401), ({"Authorization": "Bearer wrong-token"}, 403), ({"X-Operator-Token": "x"}, 403)],

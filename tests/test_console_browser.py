@@ -97,14 +97,40 @@ def test_fine_attitude_then_drive_runs_and_the_readouts_follow(page: Page, serve
 
 def test_an_immediate_command_from_the_dictionary_form(page: Page, server: str) -> None:
     page.fill("[data-testid=token]", TOKEN)
-    page.select_option("[data-testid=command-picker]", "DRIVE_STRAIGHT")
-    page.fill("#args input[name=distance_m]", "-2")
+    # a rule across arguments the form leaves to the server: its 422 message is shown
+    page.select_option("[data-testid=command-picker]", "DRIVE_ARC")
+    page.fill("#args input[name=radius_m]", "0.3")
+    page.fill("#args input[name=angle_deg]", "20")
     page.click("#send")
     expect(page.get_by_test_id("sequence-status")).to_contain_text(
-        re.compile(r"Command refused: .*distance_m: must be in \(0, 100\]")
+        re.compile(r"Command refused: .*radius_m: must be at least 0\.6 m")
     )
+    expect(page.locator("#args input[name=radius_m]")).to_have_class(re.compile("invalid"))
+    page.select_option("[data-testid=command-picker]", "DRIVE_STRAIGHT")
     page.fill("#args input[name=distance_m]", "1.5")
     page.click("#send")
     expect(page.get_by_test_id("sequence-status")).to_contain_text("Command DRIVE_STRAIGHT queued")
     names = [s["name"] for s in httpx.get(f"{server}/api/rovers/spirit/sequences").json()]
     assert "immediate_DRIVE_STRAIGHT" in names
+
+
+def test_an_out_of_range_argument_is_named_with_its_range_and_nothing_is_sent(
+    page: Page, server: str
+) -> None:
+    def sequence_ids() -> list[int]:  # the earlier commands may still be running
+        return [s["id"] for s in httpx.get(f"{server}/api/rovers/spirit/sequences").json()]
+
+    before = sequence_ids()
+    page.fill("[data-testid=token]", TOKEN)
+    page.select_option("[data-testid=command-picker]", "DRIVE_STRAIGHT")
+    distance = page.locator("#args input[name=distance_m]")
+    expect(distance).to_have_attribute("max", "100")
+    expect(distance).to_have_attribute("title", re.compile(r"^distance_m: \(0, 100\] m"))
+    distance.fill("150")
+    page.click("#send")
+    expect(page.get_by_test_id("sequence-status")).to_have_text(
+        "Not sent: distance_m: must be in (0, 100] m, got 150"
+    )
+    expect(distance).to_have_class(re.compile("invalid"))
+    page.screenshot(path=str(ARTIFACTS / "console_command_out_of_range.png"), full_page=True)
+    assert sequence_ids() == before
