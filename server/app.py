@@ -445,6 +445,25 @@ def create_app(config: ServerConfig) -> FastAPI:
             raise HTTPException(404, f"no telemetry on sol {sol}")
         return found
 
+    @app.get("/api/rovers/{rover}/sols/{sol}/telemetry.csv", response_class=Response)
+    def sol_telemetry_csv(
+        rover: str,
+        sol: int,
+        every: Annotated[float, Query(ge=0.0, le=86400.0)] = 0.0,
+    ) -> Response:
+        """One sol's frames as a CSV file to download (one per ``every`` s; frames with
+        events are always kept), named ``{rover}_sol{sol}.csv``."""
+        server.rover(rover)
+        server.writer.flush()
+        span = server.store.sol_range(rover, sol)
+        if span is None:
+            raise HTTPException(404, f"no telemetry on sol {sol} for rover {rover!r}")
+        frames = server.store.frames(rover, span[0], span[1], every)
+        disposition = f'attachment; filename="{rover}_sol{sol}.csv"'
+        return Response(
+            _csv(frames), media_type="text/csv", headers={"Content-Disposition": disposition}
+        )
+
     @app.get("/api/rovers/{rover}/telemetry", response_model=None)
     def telemetry(
         rover: str,

@@ -1,0 +1,181 @@
+"""The sol timeline review in a real browser (Debian's Chromium driven by Playwright,
+TESTING.md) against the real server on a temporary database. The example that runs
+SUNCHECK_SUNGAZE then a drive is run on spirit at full speed; the page then shows the sol
+with both command bars, an AQF band with a Fine segment, the events, three drawn plots on
+the lanes' LMST axis, and a CSV link that downloads the sol's frames. The sol picker
+follows the rover picker. Screenshots at 1280x800 and 1920x1080 go to test-artifacts/."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+from playwright.sync_api import Browser, Page, expect, sync_playwright
+
+from tests.test_console_browser import ARTIFACTS, CHROMIUM, LAUNCH_ARGS, ROOT
+from tests.test_server_restart import _free_port, _start, _wait
+
+TOKEN = "timeline-test-token"
+AUTH = {"Authorization": f"Bearer {TOKEN}"}
+EXAMPLE = ROOT / "sequences/examples/fine_attitude_then_drive.seq"
+PLOTS = {  # container test id -> its series' stroke colour (timeline.js)
+    "plot-position-error": (0x3D, 0x8B, 0xFD),
+    "plot-attitude-error": (0x6B, 0xD4, 0x8A),
+    "plot-hga-margin": (0xF0, 0xB4, 0x29),
+}
+# Pixels of a canvas within 40 of a colour on every channel: the plotted line's own.
+COUNT_COLOUR = """(canvas, rgb) => {
+  const data = canvas.getContext("2d").getImageData(0, 0, canvas.width, canvas.height).data;
+  let n = 0;
+  for (let i = 0; i < data.length; i += 4) {
+    if (data[i + 3] > 200 && Math.abs(data[i] - rgb[0]) < 40 && Math.abs(data[i + 1] - rgb[1]) < 40
+        && Math.abs(data[i + 2] - rgb[2]) < 40) n++;
+  }
+  return n;
+}"""
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    """The real server with the example sequence run to completion on spirit."""
+    port = _free_port()
+    proc = _start(tmp_path_factory.mktemp("timeline"), port, TOKEN)
+    base = f"http://127.0.0.1:{port}"
+    try:
+        _wait(lambda: httpx.get(f"{base}/api/rovers").status_code == 200)
+        with httpx.Client(base_url=base, timeout=10.0) as c:
+            r = c.post("/api/rovers/spirit/sequences", content=EXAMPLE.read_text(), headers=AUTH)
+            assert r.status_code == 201, r.text
+            seq_id = r.json()["id"]
+            c.post("/api/rovers/spirit/clock", json={"speed": "max"}, headers=AUTH)
+            _wait(lambda: c.get(f"/api/sequences/{seq_id}").json()["status"] == "completed")
+            _wait(lambda: not c.get("/api/rovers/spirit/state").json()["executing"])
+        yield base
+    finally:
+        proc.kill()
+        proc.wait(timeout=10)
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[Browser]:
+    ARTIFACTS.mkdir(exist_ok=True)
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=LAUNCH_ARGS)
+        try:
+            yield b
+        finally:
+            b.close()
+
+
+@pytest.fixture
+def page(browser: Browser, server: str) -> Iterator[Page]:
+    context = browser.new_context(viewport={"width": 1280, "height": 800}, accept_downloads=True)
+    pg = context.new_page()
+    pg.goto(f"{server}/?rover=spirit")
+    try:
+        yield pg
+    finally:
+        context.close()
+
+
+def _box(page: Page, selector: str) -> dict[str, float]:
+    box = page.locator(selector).first.bounding_box()
+    assert box is not None, f"{selector} is not on screen"
+    return box
+
+
+def _check_layout(page: Page) -> None:
+    """The panel sits under the console; the lanes' tracks start and end where the plots'
+    plotting areas do (one LMST axis); the plots fit in the panel."""
+    main, panel = _box(page, "main"), _box(page, "#timeline-panel")
+    assert panel["y"] >= main["y"] + main["height"]
+    track = _box(page, "#lane-commands")
+    for test_id in PLOTS:
+        area = _box(page, f"[data-testid={test_id}] .u-over")
+        assert abs(area["x"] - track["x"]) <= 1.5
+        assert abs(area["width"] - track["width"]) <= 1.5
+        assert area["x"] + area["width"] <= panel["x"] + panel["width"]
+
+
+def _check_plots_drawn(page: Page) -> None:
+    for test_id, rgb in PLOTS.items():
+        canvas = page.locator(f"[data-testid={test_id}] canvas")
+        expect(canvas).to_have_count(1)
+        assert canvas.evaluate(COUNT_COLOUR, rgb) > 40, f"{test_id}: no line drawn"
+
+
+def test_the_sol_shows_commands_bands_events_plots_and_a_csv(page: Page, server: str) -> None:
+    sol = httpx.get(f"{server}/api/rovers/spirit/sols").json()[-1]
+    picker = page.get_by_test_id("timeline-sol")
+    expect(picker).to_have_value(str(sol))  # the latest sol by default
+    picker.select_option(str(sol))
+
+    commands = page.get_by_test_id("timeline-command")
+    expect(commands).to_have_count(2)
+    titles = [t or "" for t in commands.evaluate_all("els => els.map(e => e.title)")]
+    assert titles[0].startswith("SUNCHECK_SUNGAZE\ncompleted")
+    assert titles[1].startswith("DRIVE_STRAIGHT distance_m=10\ncompleted")
+    expect(commands.nth(1).locator(".tl-label")).to_be_visible()  # the drive's label fits
+
+    aqf = page.get_by_test_id("timeline-aqf")
+    expect(aqf.and_(page.locator("[data-value=Fine]"))).to_have_count(1)
+    fine_colour = aqf.and_(page.locator("[data-value=Fine]")).evaluate(
+        "e => getComputedStyle(e).backgroundColor"
+    )
+    assert fine_colour == "rgb(31, 107, 53)"  # the badge's .aqf-Fine
+    nate = [v for v in page.get_by_test_id("timeline-nate").evaluate_all(
+        "els => els.map(e => e.dataset.value)"
+    )]  # fmt: skip
+    assert "Sungaze" in nate and "Mobility" in nate
+
+    events = page.get_by_test_id("timeline-event").evaluate_all("els => els.map(e => e.title)")
+    assert any("Sungaze: converged" in t for t in events)
+    assert any("SuncheckSungaze done: AQF Fine" in t for t in events)
+
+    expect(page.get_by_test_id("timeline-summary")).to_contain_text(
+        re.compile(r"2 commands \(0 not completed\).*9\.\d\d m driven")
+    )
+    expect(page.locator("#lane-axis .tl-tick").first).to_have_text(re.compile(r"^\d\d:\d\d$"))
+    _check_plots_drawn(page)
+    _check_layout(page)
+    page.screenshot(path=str(ARTIFACTS / "timeline-1280x800.png"), full_page=True)
+
+    with page.expect_download() as info:
+        page.get_by_test_id("timeline-csv").click()
+    download = info.value
+    assert download.suggested_filename == f"spirit_sol{sol}.csv"
+    lines = Path(download.path()).read_text().splitlines()
+    assert lines[0].startswith("t_s,sol,lmst_h,nate_mode,aqf") and len(lines) > 100
+
+    narrow = page.locator("[data-testid=plot-hga-margin] canvas").bounding_box()
+    page.set_viewport_size({"width": 1920, "height": 1080})
+    page.wait_for_function(
+        "w => document.querySelector('[data-testid=plot-hga-margin] canvas')"
+        ".getBoundingClientRect().width > w + 500",
+        arg=narrow["width"] if narrow else 0,
+    )
+    _check_plots_drawn(page)
+    _check_layout(page)
+    page.screenshot(path=str(ARTIFACTS / "timeline-1920x1080.png"), full_page=True)
+
+
+def test_the_sol_picker_follows_the_rover(page: Page, server: str) -> None:
+    picker = page.get_by_test_id("timeline-sol")
+    spirit: list[Any] = httpx.get(f"{server}/api/rovers/spirit/sols").json()
+    expect(picker).to_have_value(str(spirit[-1]))
+    # opportunity idles at 1x from the start: wait for its first stored frames
+    opportunity = _wait(lambda: httpx.get(f"{server}/api/rovers/opportunity/sols").json())
+    page.select_option("#rover", "opportunity")
+    expect(picker).to_have_value(str(opportunity[-1]))
+    assert opportunity[-1] != spirit[-1]  # the two rovers' sols differ: a real switch
+    expect(page.get_by_test_id("timeline-csv")).to_have_attribute(
+        "href", f"/api/rovers/opportunity/sols/{opportunity[-1]}/telemetry.csv"
+    )
+    expect(page.get_by_test_id("timeline-command")).to_have_count(0)  # opportunity idled
+    page.select_option("#rover", "spirit")
+    expect(picker).to_have_value(str(spirit[-1]))
+    expect(page.get_by_test_id("timeline-command")).to_have_count(2)
