@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 from fastapi import Depends, FastAPI, Header, HTTPException, Query, Request, WebSocket
-from fastapi.responses import FileResponse, JSONResponse, Response
+from fastapi.responses import FileResponse, JSONResponse, RedirectResponse, Response
 from fastapi.staticfiles import StaticFiles
 from pydantic import BaseModel, ConfigDict, Field
 from starlette.concurrency import run_in_threadpool
@@ -36,8 +36,10 @@ from sequences.language import Sequence, SequenceStep
 from sequences.validate import ValidationContext, ValidationResult, validate
 from server.hub import MAX_RATE_HZ, TelemetryHub, next_message
 from server.runtime import MAX_SPEED, ROVERS, RoverRuntime
+from server.scene3d import RoverScene
 from server.storage import BatchWriter, Store
 from server.timeline import sol_timeline
+from server.viser_proxy import fetch, relay
 from sim.mars_frames import earth_ll_truth, elevation_rad
 from sim.marsclock import t_s_for_sol_lmst
 
@@ -54,6 +56,7 @@ class ServerConfig:
     max_upload_bytes: int = MAX_UPLOAD_BYTES
     start_clocks: bool = True
     initial_speed: float = 1.0
+    viewer_3d: bool = False  # a viser 3D view per rover under /viser/{rover}/
 
 
 class ClockBody(BaseModel):
@@ -104,6 +107,9 @@ class Server:
             runtime.on_sequence = self._sequence
             runtime.on_checkpoint = self.writer.checkpoint
             self.rovers[name] = runtime
+        self.scenes: dict[str, RoverScene] = {}
+        if config.viewer_3d:
+            self.scenes = {name: RoverScene(rt, self.store) for name, rt in self.rovers.items()}
 
     def _resume(self, runtime: RoverRuntime) -> None:
         """After a restart: no frame stored twice, and every accepted sequence the
@@ -146,6 +152,8 @@ class Server:
 
     def start(self) -> None:
         self.writer.start()
+        for scene in self.scenes.values():
+            scene.start()
         if self.config.start_clocks:
             for runtime in self.rovers.values():
                 runtime.start()
@@ -153,6 +161,8 @@ class Server:
     def stop(self) -> None:
         for runtime in self.rovers.values():
             runtime.stop()
+        for scene in self.scenes.values():
+            scene.stop()
         self.writer.stop()
         self.store.close()
 
@@ -485,6 +495,37 @@ def create_app(config: ServerConfig) -> FastAPI:
             return Response(_csv(frames), media_type="text/csv")
         return frames
 
+    def scene_port(rover: str) -> int:
+        server.rover(rover)
+        if rover not in server.scenes:
+            raise HTTPException(404, "the 3D view is off (roverops serve starts it)")
+        return server.scenes[rover].port
+
+    @app.get("/viser/{rover}", include_in_schema=False)
+    def viser_root(rover: str) -> RedirectResponse:
+        scene_port(rover)
+        return RedirectResponse(f"/viser/{rover}/")
+
+    @app.get("/viser/{rover}/{path:path}", include_in_schema=False)
+    async def viser_page(rover: str, path: str) -> Response:
+        """The rover's viser client (and anything else viser serves), proxied."""
+        got = await run_in_threadpool(fetch, scene_port(rover), path)
+        return Response(got.body, status_code=got.status, media_type=got.content_type)
+
+    @app.websocket("/viser/{rover}")
+    async def viser_socket(websocket: WebSocket, rover: str) -> None:
+        """The viser client's WebSocket, relayed to the rover's viser server."""
+        if rover not in server.scenes:
+            await websocket.close(code=4404)
+            return
+        await relay(websocket, server.scenes[rover].port)
+
+    @app.get("/api/rovers/{rover}/scene")
+    def scene_state(rover: str) -> dict[str, Any]:
+        """The 3D view: its URL on this origin and how many frames it has drawn."""
+        scene_port(rover)
+        return {"url": f"/viser/{rover}/", "frames_drawn": server.scenes[rover].frames_drawn}
+
     @app.websocket("/ws/rovers/{rover}/telemetry")
     async def live(websocket: WebSocket, rover: str) -> None:
         """Frames as they are played out, at most MAX_RATE_HZ per second of wall time."""
@@ -534,31 +575,30 @@ def _decode(data: bytes, name: str) -> str:
 CSV_COLUMNS = (
     "t_s", "sol", "lmst_h", "nate_mode", "aqf", "site_index", "imu_integration_s",
     "gyro_counter_s", "tilt_est_deg", "tilt_accel_deg", "hga_error_deg", "hga_margin_deg",
-    "attitude_error_deg", "position_error_m", "command",
+    "earth_up", "attitude_error_deg", "position_error_m", "command", "rocker_deg",
 )  # fmt: skip
+CSV_VECTORS = {
+    "q_b_ll_est": 4, "q_b_ll_true": 4, "p_s_est": 3, "p_s_true": 3, "p_mission_est": 3,
+    "p_mission_true": 3, "bogie_deg": 2, "steer_deg": 4, "sun_ll_true": 3,
+    "earth_ll_true": 3, "hga_boresight_ll_true": 3,
+}  # fmt: skip
 
 
 def _csv(frames: list[dict[str, Any]]) -> str:
+    """Frames as CSV, one column per vector component; a figure a frame lacks (NaN, or a
+    field frames stored by an older version do not have) is an empty cell."""
     out = io.StringIO()
     writer = csv.writer(out)
-    vectors = (
-        "q_b_ll_est",
-        "q_b_ll_true",
-        "p_s_est",
-        "p_s_true",
-        "p_mission_est",
-        "p_mission_true",
-    )
     header = list(CSV_COLUMNS)
-    for v in vectors:
-        n = 4 if v.startswith("q_") else 3
+    for v, n in CSV_VECTORS.items():
         header += [f"{v}_{i}" for i in range(n)]
     header.append("events")
     writer.writerow(header)
     for f in frames:
         row = [f.get(c) for c in CSV_COLUMNS]
-        for v in vectors:
-            row += list(f.get(v) or [])
+        for v, n in CSV_VECTORS.items():
+            values = list(f.get(v) or [])
+            row += values + [None] * (n - len(values))
         row.append("; ".join(f.get("events", [])))
         writer.writerow(row)
     return out.getvalue()

@@ -75,9 +75,15 @@ def _cmd_serve(args: argparse.Namespace) -> dict[str, Any]:
     except OSError as exc:
         raise InputError("--data-dir", f"cannot create {args.data_dir}: {exc.strerror}") from None
     token = args.operator_token or secrets.token_urlsafe(18)
-    app = create_app(ServerConfig(database_url=url, operator_token=token))
+    config = ServerConfig(database_url=url, operator_token=token, viewer_3d=not args.no_3d)
+    app = create_app(config)
     shown = "localhost" if args.host in ("127.0.0.1", "0.0.0.0") else args.host
     print(f"roverops console: http://{shown}:{args.port}/  (REST API: /docs)", flush=True)
+    if config.viewer_3d:
+        print(
+            f"3D view: http://{shown}:{args.port}/viser/spirit/  (and /viser/opportunity/)",
+            flush=True,
+        )
     print(f"operator token: {token}", flush=True)
     print(f"database: {url}", flush=True)
     uvicorn.run(app, host=args.host, port=args.port, log_level="warning")
@@ -246,6 +252,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--operator-token",
         default=_env("OPERATOR_TOKEN", ""),
         help="token for uploads, commands and clock control (default: a new one, printed)",
+    )
+    serve.add_argument(
+        "--no-3d",
+        action="store_true",
+        default=_env("NO_3D", "") not in ("", "0"),
+        help="do not start the viser 3D views (/viser/{rover}/)",
     )
     serve.set_defaults(handler=_cmd_serve, printer=lambda result, as_json: None, json=False)
 

@@ -57,7 +57,7 @@ from sim.errors import InputError
 from sim.hga import hga_pointing_truth
 from sim.imu import ImuSamples, Ln200Params
 from sim.local_level import q_ll_b_from_site
-from sim.mars_frames import earth_ll_truth, elevation_rad
+from sim.mars_frames import earth_ll_truth, elevation_rad, sun_ll_truth
 from sim.marsclock import lmst_h_from_t_s, sol_number_t_s
 from sim.rover_sim import RoverSim, Segment
 from sim.truth import CONTROL_DT_S
@@ -75,6 +75,10 @@ class TelemetryFrame:
 
     Angles in degrees at this edge; positions in metres: ``p_s_*`` in the current Site,
     ``p_mission_*`` in the mission frame (the first Site; the chain of Site offsets).
+    ``rocker_deg``, ``bogie_deg`` [left, right] and ``steer_deg`` (``STEERED_WHEELS``
+    order) are the true suspension and steering (``sim.truth``), for drawing the rover.
+    ``sun_ll_true``, ``earth_ll_true`` and ``hga_boresight_ll_true`` are unit vectors in LL
+    (truth): the sun, Earth, and where the dish really points.
     ``hga_error_deg``/``hga_margin_deg`` as the module docstring says; ``earth_up`` whether
     Earth is above the horizon (truth). ``attitude_error_deg``: angle between the estimated
     and true attitude; ``position_error_m``: between estimated and true mission positions.
@@ -102,6 +106,12 @@ class TelemetryFrame:
     attitude_error_deg: float
     position_error_m: float
     command: str
+    rocker_deg: float
+    bogie_deg: list[float]
+    steer_deg: list[float]
+    sun_ll_true: list[float]
+    earth_ll_true: list[float]
+    hga_boresight_ll_true: list[float]
     events: list[str] = field(default_factory=list)
 
     def as_dict(self) -> dict[str, Any]:
@@ -178,8 +188,8 @@ class RoverSession:
         self._events: list[str] = []
         self._last_frame_t = -math.inf
         self._last_mode = ""
-        self._earth_t0 = math.nan  # interpolation node: Earth (IVP, truth) at t0, t0 + node
-        self._earth_nodes = np.zeros((2, 2, 3))
+        self._sky_t0 = math.nan  # interpolation node: Earth (IVP, truth), sun at t0, t0 + node
+        self._sky_nodes = np.zeros((3, 2, 3))
 
     # ---- the sequencer ------------------------------------------------------------
 
@@ -431,22 +441,24 @@ class RoverSession:
 
     # ---- telemetry ----------------------------------------------------------------
 
-    def _earth(self, t_s: float) -> tuple[FloatArray, FloatArray]:
-        """Earth in LL at ``t_s`` from IVP and from the truth (module docstring)."""
-        u = (t_s - self._earth_t0) / EARTH_NODE_S
+    def _sky(self, t_s: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Earth in LL at ``t_s`` from IVP and from the truth, and the true sun in LL
+        (module docstring: interpolated between nodes ``EARTH_NODE_S`` apart)."""
+        u = (t_s - self._sky_t0) / EARTH_NODE_S
         if not 0.0 <= u <= 1.0:
             sim = self.sim
-            self._earth_t0, u = t_s, 0.0
+            self._sky_t0, u = t_s, 0.0
             nodes = np.array([t_s, t_s + EARTH_NODE_S])
-            self._earth_nodes = np.stack(
+            self._sky_nodes = np.stack(
                 [
                     earth_ll(nodes, sim.lat_rad, sim.lon_east_rad),
                     earth_ll_truth(nodes, sim.lat_rad, sim.lon_east_rad),
+                    sun_ll_truth(nodes, sim.lat_rad, sim.lon_east_rad),
                 ]
             )
-        v = (1.0 - u) * self._earth_nodes[:, 0] + u * self._earth_nodes[:, 1]
+        v = (1.0 - u) * self._sky_nodes[:, 0] + u * self._sky_nodes[:, 1]
         v /= np.linalg.norm(v, axis=1, keepdims=True)
-        return v[0], v[1]
+        return v[0], v[1], v[2]
 
     def _keep(self, out: NateOutput, force: bool) -> bool:
         return (
@@ -462,7 +474,9 @@ class RoverSession:
         if not self._keep(out, force):
             return
         sim = self.sim
-        self._append(out, sim.q_ll_b(), sim.state.p_s.copy())
+        state = sim.state
+        joints = (state.rocker_rad, state.bogie_rad, state.steer_rad)
+        self._append(out, sim.q_ll_b(), state.p_s.copy(), joints)
 
     def _frame_now(self, force: bool = False) -> None:
         """A frame of the current state without a NATE cycle (after a command)."""
@@ -487,19 +501,29 @@ class RoverSession:
         q_ll_b = q_ll_b_from_site(traj.q_s_b, traj.p_s, sim.lat_rad, sim.lon_east_rad)
         for k, out in enumerate(outputs):
             if self._keep(out, False):
-                self._append(out, q_ll_b[k + 1], traj.p_s[k + 1])
+                i = k + 1
+                joints = (float(traj.rocker_rad[i]), traj.bogie_rad[i], traj.steer_rad[i])
+                self._append(out, q_ll_b[i], traj.p_s[i], joints)
 
-    def _append(self, out: NateOutput, q_ll_b_true: FloatArray, p_world: FloatArray) -> None:
+    def _append(
+        self,
+        out: NateOutput,
+        q_ll_b_true: FloatArray,
+        p_world: FloatArray,
+        joints: tuple[float, FloatArray, FloatArray],
+    ) -> None:
         """Append a frame; ``p_world`` is the truth position in the simulator's frame, whose
-        offset from the first Site's origin (the start) is the true mission position."""
+        offset from the first Site's origin (the start) is the true mission position;
+        ``joints`` the true (rocker, bogie (2,), steering (4,)) angles, rad."""
         sim, nate = self.sim, self.nate
         p_mission_true = p_world - self._site_origins_true[0]
         t = out.t_s
         q_b_ll_true = Rotation.from_quat(q_ll_b_true).inv()
-        earth_ivp, earth_true = self._earth(t)
-        hga = hga_pointing_truth(
-            point_hga(out.q_b_ll, earth_ivp), q_b_ll_true.as_quat(), earth_true
-        )
+        earth_ivp, earth_true, sun_true = self._sky(t)
+        hga_command = point_hga(out.q_b_ll, earth_ivp)
+        hga = hga_pointing_truth(hga_command, q_b_ll_true.as_quat(), earth_true)
+        boresight_ll = q_b_ll_true.inv().apply(hga_command.boresight_b)
+        rocker_rad, bogie_rad, steer_rad = joints
         p_mission_est = nate.sites.to_mission(out.p_s, out.site_index)
         origin = self._site_origins_true[min(out.site_index, len(self._site_origins_true) - 1)]
         att_err = (Rotation.from_quat(out.q_b_ll) * q_b_ll_true.inv()).magnitude()
@@ -529,6 +553,12 @@ class RoverSession:
                 attitude_error_deg=math.degrees(float(att_err)),
                 position_error_m=float(np.linalg.norm(p_mission_est - p_mission_true)),
                 command=self._command,
+                rocker_deg=math.degrees(rocker_rad),
+                bogie_deg=[math.degrees(float(v)) for v in bogie_rad],
+                steer_deg=[math.degrees(float(v)) for v in steer_rad],
+                sun_ll_true=[float(v) for v in sun_true],
+                earth_ll_true=[float(v) for v in earth_true],
+                hga_boresight_ll_true=[float(v) for v in boresight_ll],
                 events=events,
             )
         )
@@ -536,6 +566,12 @@ class RoverSession:
         self._last_mode = out.mode.value
 
     # ---- truth for benchmarks and tests -------------------------------------------
+
+    @property
+    def mission_origin_world(self) -> FloatArray:
+        """The mission frame's origin (the first Site's, where the rover started) in the
+        simulator's frame (truth; for drawing the terrain in mission coordinates)."""
+        return self._site_origins_true[0].copy()
 
     def attitude_error_rad(self) -> float:
         """Angle between NATE's estimate and the truth now, rad."""

@@ -30,7 +30,9 @@ def _free_port() -> int:
 
 
 def _start(data_dir: Path, port: int, token: str = TOKEN) -> subprocess.Popen[bytes]:
-    """``roverops serve`` as its own process (the real server, as an operator runs it)."""
+    """``roverops serve`` as its own process (the real server, as an operator runs it); its
+    output goes to ``server.log`` in ``data_dir`` (a pipe nobody reads would fill up and
+    stall the server)."""
     env = dict(os.environ, ROVEROPS_OPERATOR_TOKEN=token)
     cmd = [
         sys.executable,
@@ -42,7 +44,8 @@ def _start(data_dir: Path, port: int, token: str = TOKEN) -> subprocess.Popen[by
         "--data-dir",
         str(data_dir),
     ]
-    return subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    with open(data_dir / "server.log", "ab") as log:
+        return subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT)
 
 
 def _wait(predicate: Any, timeout_s: float = 60.0) -> Any:

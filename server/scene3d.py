@@ -1,0 +1,497 @@
+"""The viser 3D view of one rover: what the operator sees of the rover in its terrain.
+
+One ``RoverScene`` per rover runs its own ``viser.ViserServer`` on a loopback port; the
+FastAPI app proxies it under ``/viser/{rover}/`` (``server.viser_proxy``) so the console and
+the 3D view share one origin. The scene shows
+
+- the terrain around the rover (a patch of the simulator's heightmap, re-cut when the
+  rover nears its edge, its faces shaded in bands of the site's albedo);
+- the rover model (body, solar deck, mast and camera head, HGA, six wheels placed on their
+  rocker and bogie angles and steered) at the true pose, and a translucent ghost at
+  SAPP's estimated pose;
+- the true and estimated traverses, the Site frames as labelled axes;
+- the sun and Earth directions from the mast head, and the HGA boresight from the dish;
+- a time slider over the current sol: dragging it scrubs back through the stored frames;
+  "Follow live" returns to the telemetry as it plays out.
+
+Coordinates are the mission frame of the frames' ``p_mission_*`` (the first Site: x North,
+y East, z Down, metres), drawn with -z up. Attitudes come from the frames' ``q_b_ll``: LL
+and Site orientations differ by the curvature of Mars over the traverse (1e-5 rad per
+100 m), far below what a screen shows. Frames arrive from the runtime thread; a scene
+thread draws the newest one at most ``VIEW_RATE_HZ`` times a second, inside
+``server.atomic()`` so the rover, ghost and vectors move together.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import logging
+import math
+import threading
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import viser
+from numpy.typing import ArrayLike, NDArray
+from scipy.spatial.transform import Rotation
+
+from server.runtime import RoverRuntime
+from server.storage import Store
+from sim.rover_geometry import MER_GEOMETRY, STEERED_INDEX, wheel_kinematics
+from sim.sites import make_terrain
+from sim.terrain import Terrain
+
+FloatArray = NDArray[np.float64]
+log = logging.getLogger(__name__)
+
+VIEW_RATE_HZ = 10.0  # the live telemetry rate of the console (server.hub.MAX_RATE_HZ)
+TERRAIN_HALF_M = 16.0  # the patch reaches this far from its centre
+TERRAIN_STEP_M = 0.16  # grid spacing: 201 x 201 vertices, ~2 MB once per re-cut
+TERRAIN_RECUT_M = 8.0  # re-cut when the rover is this far from the patch centre
+ALBEDO_BANDS = 6  # the terrain faces are drawn in this many shades of the albedo
+TRACK_STEP_M = 0.05  # a traverse gets a new vertex after this much motion
+HISTORY_EVERY_S = 5.0  # stored frames are read back at this spacing (traverses, slider)
+ARROW_LENGTH_M = 2.0
+CAMERA_OFFSET_W = np.array([-7.0, -5.0, -5.0])  # behind, to the left of and above the rover
+
+SOIL_RGB = np.array([178.0, 118.0, 82.0])  # Gusev/Meridiani ochre at albedo 0.25
+TRUE_RGB = (230, 230, 225)
+GHOST_RGB = (90, 170, 255)
+SUN_RGB = (255, 205, 60)
+EARTH_RGB = (80, 160, 255)
+HGA_RGB = (90, 230, 120)
+
+
+def wxyz_from_q(q_xyzw: ArrayLike) -> tuple[float, float, float, float]:
+    """viser's scalar-first ``wxyz`` from our scalar-last ``[x, y, z, w]`` (CONVENTIONS.md:
+    the one conversion, at the scene boundary).
+
+    >>> wxyz_from_q([0.0, 0.0, 0.0, 1.0])
+    (1.0, 0.0, 0.0, 0.0)
+    """
+    x, y, z, w = (float(v) for v in np.asarray(q_xyzw, dtype=float))
+    return (w, x, y, z)
+
+
+@dataclass(frozen=True)
+class RoverPose:
+    """What the scene needs of a frame for one rover model: the body origin in the mission
+    frame, ``q_w_b`` (body to mission/LL, ``[x, y, z, w]``) and the suspension, rad."""
+
+    p_w: FloatArray
+    q_w_b: FloatArray
+    rocker_rad: float
+    bogie_rad: FloatArray
+    steer_rad: FloatArray
+
+    @staticmethod
+    def from_frame(frame: dict[str, Any], which: str) -> RoverPose:
+        """The ``"true"`` or ``"est"`` pose of a telemetry frame (the estimate has no
+        suspension of its own: it borrows the true joint angles)."""
+        q_b_w = Rotation.from_quat(np.asarray(frame[f"q_b_ll_{which}"], dtype=float))
+        return RoverPose(
+            p_w=np.asarray(frame[f"p_mission_{which}"], dtype=float),
+            q_w_b=q_b_w.inv().as_quat(),
+            rocker_rad=math.radians(float(frame.get("rocker_deg") or 0.0)),
+            bogie_rad=np.radians(np.asarray(frame.get("bogie_deg") or [0.0, 0.0], float)),
+            steer_rad=np.radians(np.asarray(frame.get("steer_deg") or [0.0] * 4, float)),
+        )
+
+
+def wheel_poses_b(pose: RoverPose) -> list[tuple[FloatArray, FloatArray]]:
+    """Each wheel's ``(centre_b, q_b_wheel)``, WHEEL_NAMES order; the wheel's local z is its
+    axle (viser's cylinders are along z), pitched with its link and steered.
+
+    R_b_wheel = Ry(link) Rz(steer) Rx(-90°): Rx(-90°) takes z to y (the axle at rest),
+    Rz steers it about Down, Ry pitches it with the rocker or bogie (``sim.rover_geometry``).
+    """
+    kin = wheel_kinematics(MER_GEOMETRY, pose.rocker_rad, pose.bogie_rad, pose.steer_rad)
+    steer = np.zeros(6)
+    steer[list(STEERED_INDEX)] = pose.steer_rad
+    out = []
+    for i in range(6):
+        r = Rotation.from_euler("YZX", [kin.link_rad[i], steer[i], -math.pi / 2])
+        out.append((kin.centre_b[i], r.as_quat()))
+    return out
+
+
+def terrain_patch(
+    terrain: Terrain, centre_w: FloatArray, origin_world: FloatArray
+) -> tuple[FloatArray, list[tuple[NDArray[np.uint32], tuple[int, int, int]]]]:
+    """Vertices (mission frame) of the square patch around ``centre_w`` (mission x, y), and
+    its faces grouped in ``ALBEDO_BANDS`` shades of the albedo, each with its colour.
+
+    ``origin_world`` is the mission frame's origin in the simulator's frame; the terrain's
+    heights are elevations (up), the mission frame's z is Down.
+    """
+    n = round(2 * TERRAIN_HALF_M / TERRAIN_STEP_M) + 1
+    offsets = np.linspace(-TERRAIN_HALF_M, TERRAIN_HALF_M, n)
+    gx, gy = np.meshgrid(centre_w[0] + offsets, centre_w[1] + offsets, indexing="ij")
+    xw, yw = gx + origin_world[0], gy + origin_world[1]
+    height = np.asarray(terrain.height_m(xw.ravel(), yw.ravel()), dtype=float)
+    vertices = np.stack([gx.ravel(), gy.ravel(), -height - origin_world[2]], axis=1)
+    idx = np.arange(n * n).reshape(n, n)
+    a, b, c, d = idx[:-1, :-1], idx[1:, :-1], idx[:-1, 1:], idx[1:, 1:]
+    # Both triangles wind so that their normals point up (-z): x North, y East, z Down.
+    faces = np.concatenate(
+        [np.stack([a, c, b], -1).reshape(-1, 3), np.stack([b, c, d], -1).reshape(-1, 3)]
+    ).astype(np.uint32)
+    # A face's shade is the mean albedo of four points inside it: one point would alias
+    # the texture's millimetre grain into a checkerboard.
+    x0 = (gx[:-1, :-1] + origin_world[0]).ravel()
+    y0 = (gy[:-1, :-1] + origin_world[1]).ravel()
+    quarter = (0.25 * TERRAIN_STEP_M, 0.75 * TERRAIN_STEP_M)
+    albedo_face = np.mean(
+        [terrain.albedo(x0 + dx, y0 + dy) for dx in quarter for dy in quarter], axis=0
+    )
+    albedo = np.tile(np.asarray(albedo_face, dtype=float), 2)
+    edges = np.quantile(albedo, np.linspace(0.0, 1.0, ALBEDO_BANDS + 1)[1:-1])
+    band = np.searchsorted(edges, albedo)
+    groups = []
+    for k in range(ALBEDO_BANDS):
+        mask = band == k
+        if not np.any(mask):
+            continue
+        shade = float(np.clip(np.mean(albedo[mask]) / 0.25, 0.4, 1.6))
+        rgb = np.clip(SOIL_RGB * shade, 0, 255).astype(int)
+        groups.append((faces[mask], (int(rgb[0]), int(rgb[1]), int(rgb[2]))))
+    return vertices, groups
+
+
+@dataclass
+class Track:
+    """A traverse as a polyline that grows by ``TRACK_STEP_M`` steps."""
+
+    points: list[FloatArray] = field(default_factory=list)
+
+    def add(self, p: ArrayLike) -> bool:
+        """Append ``p`` if it is far enough from the last vertex; True when it was."""
+        q = np.asarray(p, dtype=float)
+        if self.points and float(np.linalg.norm(q - self.points[-1])) < TRACK_STEP_M:
+            return False
+        self.points.append(q)
+        return True
+
+    def segments(self) -> FloatArray:
+        """(N-1, 2, 3) segments for ``add_line_segments``."""
+        pts = np.asarray(self.points)
+        return np.stack([pts[:-1], pts[1:]], axis=1)
+
+
+class RoverModel:
+    """The rover drawn from boxes and cylinders under one scene node, wheels on joints."""
+
+    def __init__(
+        self, scene: viser.SceneApi, name: str, rgb: tuple[int, int, int], opacity: float | None
+    ) -> None:
+        g = MER_GEOMETRY
+        self.root = scene.add_frame(name, show_axes=False)
+        kw: dict[str, Any] = {"opacity": opacity, "cast_shadow": opacity is None}
+        scene.add_box(f"{name}/body", rgb, (1.3, 0.9, 0.35), position=(0.05, 0, -0.175), **kw)
+        deck_rgb = (40, 55, 90) if opacity is None else rgb
+        scene.add_box(f"{name}/deck", deck_rgb, (1.6, 1.9, 0.03), position=(0, 0, -0.37), **kw)
+        scene.add_cylinder(
+            f"{name}/mast", 0.04, 0.9, rgb, position=(0.45, -0.3, -0.82), **kw
+        )  # cylinder axis is z: the mast stands along -z from the deck
+        scene.add_box(f"{name}/pancam", rgb, (0.12, 0.3, 0.1), position=self.mast_head_b(), **kw)
+        scene.add_cylinder(f"{name}/hga", 0.14, 0.03, rgb, position=self.hga_b(), **kw)
+        self.wheels = [
+            scene.add_cylinder(
+                f"{name}/wheel_{i}", g.wheel_radius_m, g.wheel_width_m, (60, 60, 60), **kw
+            )
+            for i in range(6)
+        ]
+
+    @staticmethod
+    def mast_head_b() -> tuple[float, float, float]:
+        """The Pancam head on the mast, body frame (about 1.5 m above the ground)."""
+        return (0.45, -0.3, -1.3)
+
+    @staticmethod
+    def hga_b() -> tuple[float, float, float]:
+        """The HGA dish on the deck, body frame."""
+        return (-0.35, 0.45, -0.5)
+
+    def show(self, pose: RoverPose) -> None:
+        self.root.position = tuple(pose.p_w)
+        self.root.wxyz = wxyz_from_q(pose.q_w_b)
+        for handle, (centre_b, q_b_wheel) in zip(self.wheels, wheel_poses_b(pose), strict=True):
+            handle.position = tuple(centre_b)
+            handle.wxyz = wxyz_from_q(q_b_wheel)
+
+
+def _points_w(pose: RoverPose, p_b: Sequence[float]) -> FloatArray:
+    return np.asarray(pose.p_w + Rotation.from_quat(pose.q_w_b).apply(np.asarray(p_b, float)))
+
+
+class RoverScene:
+    """One rover's 3D view (module docstring): listens to the runtime's played-out frames."""
+
+    def __init__(self, runtime: RoverRuntime, store: Store) -> None:
+        self.runtime = runtime
+        self.store = store
+        self.rover = runtime.spec.name
+        # The scene's own terrain (same site and seed: the same ground); the simulator's
+        # tile cache belongs to the runtime thread.
+        self.terrain = make_terrain(runtime.spec.site, runtime.spec.seed)
+        self.origin_world = np.asarray(runtime.session.mission_origin_world, dtype=float)
+        self.server: viser.ViserServer | None = None
+        self._lock = threading.Lock()
+        self._latest: dict[str, Any] | None = None
+        self._dirty = threading.Event()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._tracks = {"true": Track(), "est": Track()}
+        self._sites: dict[int, FloatArray] = {}
+        self._new_sites: list[int] = []
+        self._terrain_centre: FloatArray | None = None
+        self._sol_frames: list[dict[str, Any]] = []  # the current sol, for the slider
+        self._follow = True
+        self._shown_p: FloatArray | None = None  # the rover's position last drawn
+        self.frames_drawn = 0
+
+    @property
+    def port(self) -> int:
+        if self.server is None:
+            raise RuntimeError("the 3D view is not started")
+        return self.server.get_port()
+
+    # ---- life cycle ------------------------------------------------------------------
+
+    def start(self) -> None:
+        """Start viser on a free loopback port, draw the stored history, then follow."""
+        # viser prints a banner with its loopback port whatever ``verbose`` says; operators
+        # use the proxied /viser/{rover}/ instead, so the banner would only mislead.
+        with contextlib.redirect_stdout(io.StringIO()):
+            server = viser.ViserServer(host="127.0.0.1", port=0, label=self.rover, verbose=False)
+        self.server = server
+        server.scene.set_up_direction("-z")
+        # viser's default shadows come from a light that is not the sun: they would mislead
+        # (and cost SwiftShader dearly); the sun arrow shows where the sun is.
+        server.scene.configure_default_lights(enabled=True, cast_shadow=False)
+        self.model = RoverModel(server.scene, "/rover", TRUE_RGB, None)
+        self.ghost = RoverModel(server.scene, "/ghost", GHOST_RGB, 0.35)
+        self._build_gui(server)
+        for frame in self._history():
+            self._take(frame)
+        if self._latest is not None:
+            self._draw(self._latest, live=True)
+        self.runtime.listeners.append(self.on_frames)
+        self._thread = threading.Thread(target=self._run, name=f"scene-{self.rover}", daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._dirty.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5)
+        if self.on_frames in self.runtime.listeners:
+            self.runtime.listeners.remove(self.on_frames)
+        if self.server is not None:
+            self.server.stop()
+
+    def _history(self) -> list[dict[str, Any]]:
+        """Stored frames, decimated, for the traverses and the slider after a restart, and
+        the last one stored (decimation may have passed it over)."""
+        frames = self.store.frames(self.rover, -math.inf, math.inf, HISTORY_EVERY_S)
+        last = self.store.last_frame(self.rover)
+        if last is not None and (not frames or last["t_s"] > frames[-1]["t_s"]):
+            frames.append(last)
+        return frames
+
+    # ---- frames in (runtime thread) ----------------------------------------------------
+
+    def on_frames(self, rover: str, frames: list[dict[str, Any]]) -> None:
+        """Listener of ``RoverRuntime``: keep the traverses and the newest frame."""
+        with self._lock:
+            for f in frames:
+                self._take(f)
+        self._dirty.set()
+
+    def _take(self, f: dict[str, Any]) -> None:
+        self._latest = f
+        self._tracks["true"].add(f["p_mission_true"])
+        self._tracks["est"].add(f["p_mission_est"])
+        site = int(f["site_index"])
+        if site not in self._sites:
+            # The Site's origin as the flight software defines it: where the estimate was
+            # when it was planted (mission position minus position in the Site).
+            self._sites[site] = np.asarray(f["p_mission_est"], float) - np.asarray(
+                f["p_s_est"], float
+            )
+            self._new_sites.append(site)
+        if self._sol_frames and int(f["sol"]) != int(self._sol_frames[-1]["sol"]):
+            self._sol_frames = []
+        if not self._sol_frames or f["t_s"] - self._sol_frames[-1]["t_s"] >= HISTORY_EVERY_S:
+            self._sol_frames.append(f)
+
+    # ---- drawing (scene thread) --------------------------------------------------------
+
+    def _run(self) -> None:
+        period = 1.0 / VIEW_RATE_HZ
+        while not self._stop.is_set():
+            self._dirty.wait()
+            if self._stop.is_set():
+                return
+            self._dirty.clear()
+            with self._lock:
+                latest = self._latest
+            if latest is not None and self._follow:
+                try:
+                    self._draw(latest, live=True)
+                except Exception:  # a drawing error must not end the view
+                    log.exception("3D view of %s: drawing failed", self.rover)
+            self._stop.wait(period)
+
+    def _draw(self, frame: dict[str, Any], live: bool) -> None:
+        server = self.server
+        assert server is not None
+        true_pose = RoverPose.from_frame(frame, "true")
+        est_pose = RoverPose.from_frame(frame, "est")
+        with self._lock:
+            tracks = {k: t.segments() for k, t in self._tracks.items() if len(t.points) > 1}
+            new_sites = [(i, self._sites[i]) for i in self._new_sites]
+            self._new_sites = []
+            slider_span = self._slider_span()
+        self._recut_terrain(true_pose.p_w)
+        with server.atomic():
+            self._chase(true_pose.p_w)
+            self.model.show(true_pose)
+            self.ghost.show(est_pose)
+            self._vectors(frame, true_pose)
+            for which, segs in tracks.items():
+                rgb = TRUE_RGB if which == "true" else GHOST_RGB
+                server.scene.add_line_segments(f"/traverse_{which}", segs, rgb, thickness=0.03)
+            for index, origin in new_sites:
+                server.scene.add_frame(
+                    f"/site_{index}", axes_length=1.0, axes_radius=0.02, position=tuple(origin)
+                )
+                server.scene.add_label(
+                    f"/site_{index}/label", f"Site {index}", position=(0.0, 0.0, -0.3)
+                )
+            self._status.content = self._status_text(frame, live)
+            if live and slider_span is not None:
+                lo, hi = slider_span
+                self._slider.min = math.floor(lo * 100.0) / 100.0
+                self._slider.max = max(math.ceil(hi * 100.0) / 100.0, self._slider.min + 0.01)
+                self._slider.value = hi  # type: ignore[misc]  # viser's props mask the setter
+        self.frames_drawn += 1
+
+    def _chase(self, p_w: FloatArray) -> None:
+        """Carry every viewer's camera along with the rover (their own orbit and zoom
+        kept: camera and look-at point move by the rover's displacement)."""
+        last, self._shown_p = self._shown_p, p_w
+        if last is None or not self._chase_box.value:
+            return
+        delta = p_w - last
+        if float(np.linalg.norm(delta)) < 1e-3:
+            return
+        assert self.server is not None
+        for client in self.server.get_clients().values():
+            try:
+                position = client.camera.position
+            except AssertionError:  # the client has not reported its camera yet
+                continue
+            client.camera.position = position + delta  # viser moves look_at with it
+
+    def _vectors(self, frame: dict[str, Any], pose: RoverPose) -> None:
+        """Sun and Earth from the mast head, the HGA boresight from the dish (truth, LL)."""
+        scene = self.server.scene if self.server is not None else None
+        assert scene is not None
+        head = _points_w(pose, RoverModel.mast_head_b())
+        dish = _points_w(pose, RoverModel.hga_b())
+        for name, key, start, rgb in (
+            ("sun", "sun_ll_true", head, SUN_RGB),
+            ("earth", "earth_ll_true", head, EARTH_RGB),
+            ("hga", "hga_boresight_ll_true", dish, HGA_RGB),
+        ):
+            v = frame.get(key)
+            if not v:
+                continue
+            end = start + ARROW_LENGTH_M * np.asarray(v, dtype=float)
+            scene.add_arrows(
+                f"/{name}", np.array([[start, end]]), rgb, shaft_radius=0.015, head_radius=0.05
+            )
+
+    def _recut_terrain(self, p_w: FloatArray) -> None:
+        centre = self._terrain_centre
+        if centre is not None and float(np.linalg.norm(p_w[:2] - centre)) < TERRAIN_RECUT_M:
+            return
+        assert self.server is not None
+        centre = np.round(p_w[:2] / TERRAIN_STEP_M) * TERRAIN_STEP_M  # keep vertices on a grid
+        vertices, groups = terrain_patch(self.terrain, centre, self.origin_world)
+        with self.server.atomic():
+            for k in range(ALBEDO_BANDS):
+                self.server.scene.remove_by_name(f"/terrain/band_{k}")
+            for k, (faces, rgb) in enumerate(groups):
+                self.server.scene.add_mesh_simple(
+                    f"/terrain/band_{k}", vertices, faces, color=rgb, side="double"
+                )
+        self._terrain_centre = centre
+        # New viewers start behind and above the rover, looking at it (-z is up).
+        self.server.initial_camera.look_at = tuple(p_w)
+        self.server.initial_camera.position = tuple(p_w + CAMERA_OFFSET_W)
+
+    # ---- the sol slider ----------------------------------------------------------------
+
+    def _build_gui(self, server: viser.ViserServer) -> None:
+        self._status = server.gui.add_markdown(f"**{self.rover}**")
+        self._follow_box = server.gui.add_checkbox("Follow live", True)
+        self._chase_box = server.gui.add_checkbox(
+            "Camera follows the rover", True, hint="keep your view's angle as the rover moves"
+        )
+
+        @server.on_client_connect
+        def _(client: viser.ClientHandle) -> None:
+            if self._shown_p is not None:  # start looking at the rover where it is now
+                client.camera.position = tuple(self._shown_p + CAMERA_OFFSET_W)
+                client.camera.look_at = tuple(self._shown_p)
+
+        self._slider = server.gui.add_slider(
+            "Sol time (LMST h)", min=0.0, max=24.0, step=0.01, initial_value=0.0
+        )
+
+        @self._follow_box.on_update
+        def _(event: viser.GuiEvent[Any]) -> None:
+            if event.client is None:
+                return
+            self._follow = bool(self._follow_box.value)
+            self._dirty.set()
+
+        @self._slider.on_update
+        def _(event: viser.GuiEvent[Any]) -> None:
+            if event.client is None:  # our own update while following
+                return
+            self._follow = False
+            self._follow_box.value = False  # type: ignore[misc]  # as above
+            self.scrub(float(self._slider.value))
+
+    def _slider_span(self) -> tuple[float, float] | None:
+        if not self._sol_frames or self._latest is None:
+            return None
+        return float(self._sol_frames[0]["lmst_h"]), float(self._latest["lmst_h"])
+
+    def scrub(self, lmst_h: float) -> dict[str, Any] | None:
+        """Show the rover as it was at ``lmst_h`` of the current sol (the nearest stored
+        frame); returns that frame."""
+        with self._lock:
+            frames = list(self._sol_frames)
+        if not frames:
+            return None
+        times = np.array([f["lmst_h"] for f in frames])
+        frame = frames[int(np.argmin(np.abs(times - lmst_h)))]
+        self._draw(frame, live=False)
+        return frame
+
+    @staticmethod
+    def _status_text(frame: dict[str, Any], live: bool) -> str:
+        h = float(frame["lmst_h"])
+        clock = f"{int(h):02d}:{int(h * 60) % 60:02d}"
+        mode = "live" if live else "replay"
+        return (
+            f"Sol {frame['sol']} {clock} LMST ({mode}) · {frame['nate_mode']} · "
+            f"AQF {frame['aqf']} · position error {frame['position_error_m']:.2f} m"
+        )

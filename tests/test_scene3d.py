@@ -1,0 +1,160 @@
+"""The viser 3D view: the one quaternion conversion against viser's own rotation code, the
+wheels on the suspension's forward kinematics, the terrain patch against the terrain, the
+scene following a real rover's frames (and scrubbing back), and the same-origin proxy of
+viser's page and WebSocket."""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+import pytest
+import viser
+import viser.transforms as vtf
+from fastapi.testclient import TestClient
+from scipy.spatial.transform import Rotation
+
+from sequences import commands as cmd
+from server.app import ServerConfig, create_app, data_dir_url
+from server.runtime import ROVERS, RoverRuntime
+from server.scene3d import (
+    TERRAIN_HALF_M,
+    TERRAIN_STEP_M,
+    RoverPose,
+    RoverScene,
+    Track,
+    terrain_patch,
+    wheel_poses_b,
+    wxyz_from_q,
+)
+from server.storage import Store
+from sim.rover_geometry import MER_GEOMETRY, wheel_kinematics
+from sim.sites import make_terrain
+
+
+def _wait(predicate: Any, timeout_s: float = 30.0) -> Any:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(0.05)
+    raise AssertionError("timed out")
+
+
+def test_a_yaw_of_90_deg_about_down_is_w_first_for_viser() -> None:
+    q = Rotation.from_euler("z", 90.0, degrees=True).as_quat()  # [0, 0, s, c]
+    assert wxyz_from_q(q) == pytest.approx((math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5)))
+
+
+def test_wxyz_rotates_vectors_as_viser_does() -> None:
+    rng = np.random.default_rng(4)
+    for q in Rotation.random(20, random_state=rng).as_quat():
+        v = rng.normal(size=3)
+        viser_rotated = vtf.SO3(np.asarray(wxyz_from_q(q))).apply(v)
+        np.testing.assert_allclose(viser_rotated, Rotation.from_quat(q).apply(v), atol=1e-12)
+
+
+def test_each_wheel_sits_on_the_kinematics_with_its_axle_along_local_z() -> None:
+    pose = RoverPose(
+        p_w=np.zeros(3),
+        q_w_b=np.array([0.0, 0.0, 0.0, 1.0]),
+        rocker_rad=0.2,
+        bogie_rad=np.array([-0.3, 0.1]),
+        steer_rad=np.radians([20.0, -15.0, 10.0, -5.0]),
+    )
+    kin = wheel_kinematics(MER_GEOMETRY, pose.rocker_rad, pose.bogie_rad, pose.steer_rad)
+    for i, (centre_b, q_b_wheel) in enumerate(wheel_poses_b(pose)):
+        np.testing.assert_allclose(centre_b, kin.centre_b[i], atol=1e-12)
+        local_z_b = Rotation.from_quat(q_b_wheel).apply([0.0, 0.0, 1.0])
+        np.testing.assert_allclose(local_z_b, kin.axle_b[i], atol=1e-12)
+
+
+def test_the_terrain_patch_follows_the_ground_with_faces_up() -> None:
+    terrain = make_terrain("gusev", 1)
+    origin_world = np.array([3.0, -2.0, -0.3])
+    vertices, groups = terrain_patch(terrain, np.array([1.0, 2.0]), origin_world)
+    n = round(2 * TERRAIN_HALF_M / TERRAIN_STEP_M) + 1
+    assert vertices.shape == (n * n, 3)
+    expected_z = -terrain.height_m(vertices[:, 0] + 3.0, vertices[:, 1] - 2.0) + 0.3
+    np.testing.assert_allclose(vertices[:, 2], expected_z, atol=1e-9)
+    faces = np.concatenate([f for f, _ in groups])
+    assert len(faces) == 2 * (n - 1) ** 2
+    assert len(np.unique(np.sort(faces, axis=1), axis=0)) == len(faces)  # each face once
+    a, b, c = (vertices[faces[:, k]] for k in range(3))
+    normals = np.cross(b - a, c - a)
+    assert np.all(normals[:, 2] < 0.0)  # z is Down: every face looks up
+    shades = [sum(rgb) for _, rgb in groups]
+    assert shades == sorted(shades)  # darker bands for darker albedo
+
+
+def test_a_track_grows_only_with_motion() -> None:
+    track = Track()
+    assert track.add([0.0, 0.0, 0.0])
+    assert not track.add([0.01, 0.0, 0.0])
+    assert track.add([0.2, 0.0, 0.0])
+    assert track.segments().shape == (1, 2, 3)
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[RoverScene, RoverRuntime]]:
+    store = Store(data_dir_url(tmp_path_factory.mktemp("scene")))
+    runtime = RoverRuntime(ROVERS["spirit"])
+    rover_scene = RoverScene(runtime, store)
+    rover_scene.start()
+    try:
+        yield rover_scene, runtime
+    finally:
+        rover_scene.stop()
+        store.close()
+
+
+def test_the_scene_follows_the_frames_and_scrubs_back(
+    scene: tuple[RoverScene, RoverRuntime],
+) -> None:
+    rover_scene, runtime = scene
+    session = runtime.session
+    session.execute(cmd.DriveStraight(distance_m=2.0))
+    frames = [f.as_dict() for f in session.frames]
+    assert len(frames) > 3
+    rover_scene.on_frames("spirit", frames)
+    last = frames[-1]
+    _wait(lambda: np.allclose(rover_scene.model.root.position, last["p_mission_true"]))
+    np.testing.assert_allclose(rover_scene.ghost.root.position, last["p_mission_est"])
+    q_w_b_true = Rotation.from_quat(last["q_b_ll_true"]).inv().as_quat()
+    assert abs(np.dot(rover_scene.model.root.wxyz, wxyz_from_q(q_w_b_true))) == pytest.approx(1)
+    moved = np.linalg.norm(np.subtract(last["p_mission_true"], frames[0]["p_mission_true"]))
+    assert moved > 1.5
+
+    first = rover_scene.scrub(frames[0]["lmst_h"])
+    assert first is not None and first["t_s"] == frames[0]["t_s"]
+    np.testing.assert_allclose(rover_scene.model.root.position, frames[0]["p_mission_true"])
+
+
+def test_viser_is_served_and_relayed_on_the_console_origin(
+    tmp_path_factory: pytest.TempPathFactory,
+) -> None:
+    url = data_dir_url(tmp_path_factory.mktemp("proxy"))
+    config = ServerConfig(database_url=url, operator_token="proxy-token", viewer_3d=True)
+    with TestClient(create_app(config)) as client:
+        page = client.get("/viser/spirit/")
+        assert page.status_code == 200 and "<html" in page.text.lower()
+        moved = client.get("/viser/spirit", follow_redirects=False)
+        assert moved.status_code == 307 and moved.headers["location"] == "/viser/spirit/"
+        assert client.get("/viser/curiosity/").status_code == 404
+        assert client.get("/api/rovers/spirit/scene").json()["url"] == "/viser/spirit/"
+        protocol = f"viser-v{viser.__version__}"
+        with client.websocket_connect("/viser/spirit", subprotocols=[protocol]) as ws:
+            assert ws.accepted_subprotocol == protocol
+            first = ws.receive_bytes()  # viser's scene, msgpack
+            assert len(first) > 0
+
+
+def test_without_the_3d_view_its_routes_say_so(tmp_path_factory: pytest.TempPathFactory) -> None:
+    url = data_dir_url(tmp_path_factory.mktemp("no3d"))
+    with TestClient(create_app(ServerConfig(database_url=url))) as client:
+        answer = client.get("/viser/spirit/")
+        assert answer.status_code == 404 and "3D view is off" in answer.json()["detail"]
