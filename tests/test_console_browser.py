@@ -160,6 +160,24 @@ def test_the_3d_view_loads_and_its_rover_node_moves(page: Page, server: str) -> 
     view.screenshot(path=str(ARTIFACTS / "view3d.png"))
 
 
+def test_a_reload_loses_nothing_and_every_view_follows_the_rover(page: Page) -> None:
+    page.reload()
+    expect(page.get_by_test_id("aqf")).to_have_text("Fine")
+    expect(page.locator("#sequences")).to_contain_text("fine_attitude_then_drive")
+    timeline = page.get_by_test_id("timeline-command")
+    expect(timeline.filter(has_text="SUNCHECK_SUNGAZE")).to_have_count(1)
+    view = page.get_by_test_id("view3d")
+    expect(view).to_have_attribute("src", "/viser/spirit/")
+
+    page.select_option("#rover", "opportunity")
+    expect(view).to_have_attribute("src", "/viser/opportunity/")
+    expect(page.get_by_test_id("aqf")).to_have_text("Unknown")  # never commanded
+    expect(timeline.filter(has_text="SUNCHECK_SUNGAZE")).to_have_count(0)
+    page.select_option("#rover", "spirit")
+    expect(view).to_have_attribute("src", "/viser/spirit/")
+    expect(page.get_by_test_id("aqf")).to_have_text("Fine")
+
+
 def _overlaps(page: Page) -> list[str]:
     """Pairs of the page's panels whose boxes intersect, and a sideways scroll if any."""
     boxes = page.evaluate(
