@@ -1,0 +1,1 @@
+"""MER stereo visual odometry (Maimone, Cheng and Matthies 2007, seed 002, section 2)."""
