@@ -746,6 +746,20 @@ class Nate:
             raise ValueError(f"aqf: must be an AttitudeQuality, got {aqf!r}")
         self._set_attitude(q, aqf)
 
+    def visual_odometry_update(self, p_s: ArrayLike, q_b_ll: ArrayLike | None = None) -> None:
+        """Adopt a visual odometry position in the current Site, and the attitude when
+        given (Idle only, between drive steps: seed 002 sec. 4, where VO corrected the
+        pose SAPP propagated from the wheels and gyros). The flag and counters stay: VO
+        measures the motion since the previous image pair, so an attitude it updates is
+        no better known in absolute terms than the one it started from."""
+        self._require("visual_odometry_update", NateMode.IDLE)
+        p = np.asarray(p_s, dtype=np.float64)
+        if p.shape != (3,) or not np.all(np.isfinite(p)):
+            raise ValueError(f"p_s: must be a finite 3-vector, got {p_s!r}")
+        if q_b_ll is not None:
+            self._q_b_ll = _unit_q(q_b_ll, "q_b_ll")
+        self._p_s = p.copy()
+
     def _set_attitude(self, q_b_ll: FloatArray, aqf: AttitudeQuality) -> None:
         """The one place an acquisition's result is adopted."""
         self._q_b_ll, self._aqf = q_b_ll, aqf

@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from estimation.aqf import AttitudeQuality as Aqf
 from estimation.nate import DriveCommand, ImuSample, NateMode
@@ -71,3 +72,24 @@ def test_a_drive_the_simulator_refuses_leaves_nate_untouched() -> None:
     assert (nate.mast, nate.q_b_ll.tolist(), nate.aqf, nate.mode, session.sim.t_s) == before
     assert session.execute(cmd.Sungaze()).status == "completed"  # the mast is still on the sun
     assert nate.aqf is Aqf.FINE
+
+
+def test_a_visual_odometry_update_is_adopted_at_rest_and_keeps_the_flag() -> None:
+    sim, nate = rover(imu=Ln200Params.noise_free())
+    q0 = q_true(sim)
+    nate.load_attitude(q0, Aqf.COARSE)
+    q_new = (Rotation.from_euler("z", 2.0, degrees=True) * Rotation.from_quat(q0)).as_quat()
+    nate.visual_odometry_update([1.0, -2.0, 0.1], q_new)
+    assert nate.p_s.tolist() == [1.0, -2.0, 0.1]
+    assert abs(float(np.dot(nate.q_b_ll, q_new))) == pytest.approx(1.0)
+    assert nate.aqf is Aqf.COARSE
+    nate.visual_odometry_update([1.5, -2.0, 0.1])  # position only: the attitude stays
+    assert abs(float(np.dot(nate.q_b_ll, q_new))) == pytest.approx(1.0)
+    with pytest.raises(ValueError, match="p_s"):
+        nate.visual_odometry_update([1.0, math.nan, 0.0])
+    with pytest.raises(ValueError, match="q_b_ll"):
+        nate.visual_odometry_update([1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 2.0])
+    nate.mobility()
+    with pytest.raises(ValueError, match="visual_odometry_update"):
+        nate.visual_odometry_update([0.0, 0.0, 0.0])
+    assert nate.p_s.tolist() == [1.5, -2.0, 0.1]
