@@ -45,7 +45,7 @@ import tempfile
 import time
 import urllib.error
 import urllib.request
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -150,16 +150,20 @@ class RunningServer:
 
 @contextlib.contextmanager
 def running_server(
-    data_dir: Path, token: str | None = None, buffer_bytes: int = 0
+    data_dir: Path,
+    token: str | None = None,
+    buffer_bytes: int = 0,
+    env: Mapping[str, str] | None = None,
 ) -> Iterator[RunningServer]:
     """``roverops serve`` on a free port with its SQLite database in ``data_dir``, ready
     (``GET /api/rovers`` answers) when entered; stopped (SIGTERM, then SIGKILL) on exit.
     ``buffer_bytes``: run it instead through ``serve_with_small_buffers`` (the same app
-    and uvicorn, each WebSocket's send buffers that small)."""
+    and uvicorn, each WebSocket's send buffers that small). ``env``: environment variables
+    for the server over this process's own, e.g. ``{"ROVEROPS_NO_3D": "1"}``."""
     token = token or secrets.token_urlsafe(18)
     port = free_port()
     log_path = data_dir / "server.log"
-    env = dict(os.environ, ROVEROPS_OPERATOR_TOKEN=token)
+    process_env = {**os.environ, **(env or {}), "ROVEROPS_OPERATOR_TOKEN": token}
     command = [
         sys.executable, "-m", "server.cli", "serve", "--host", "127.0.0.1",
         "--port", str(port), "--data-dir", str(data_dir),
@@ -170,7 +174,7 @@ def running_server(
             "--data-dir", str(data_dir), "--buffer-bytes", str(buffer_bytes),
         ]  # fmt: skip
     with log_path.open("wb") as log:
-        process = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=log)
+        process = subprocess.Popen(command, env=process_env, stdout=subprocess.DEVNULL, stderr=log)
     server = RunningServer(port, token, process, log_path)
     try:
         deadline = time.monotonic() + START_TIMEOUT_S

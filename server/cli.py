@@ -163,15 +163,19 @@ def _print_validation(result: dict[str, Any], as_json: bool) -> None:
 
 
 def _cmd_bench(args: argparse.Namespace) -> dict[str, Any]:
-    # `server` is dispatched here: sim (sim.bench) must not import server.
+    # `server` and `view3d` are dispatched here: sim (sim.bench) must not import server.
     if args.name == "server":
         from server.bench_server import bench_server
 
         return bench_server()
+    if args.name == "view3d":
+        from server.bench_view3d import bench_view3d
+
+        return bench_view3d()
     from sim.bench import BENCHES, run_bench
 
     if args.name not in BENCHES:
-        choices = ", ".join([*BENCHES, "server"])
+        choices = ", ".join([*BENCHES, "server", "view3d"])
         raise InputError("name", f"unknown benchmark {args.name!r}; choose one of {choices}")
     return run_bench(args.name)
 
@@ -262,7 +266,7 @@ def build_parser() -> argparse.ArgumentParser:
     serve.set_defaults(handler=_cmd_serve, printer=lambda result, as_json: None, json=False)
 
     bench = sub.add_parser("bench", help="run a benchmark and print its figures")
-    bench.add_argument("name", help="benchmark name: sim, sapp or server")
+    bench.add_argument("name", help="benchmark name: sim, sapp, server or view3d")
     bench.add_argument("--json", action="store_true", help="print JSON (one object)")
     bench.set_defaults(handler=_cmd_bench)
     return parser

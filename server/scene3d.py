@@ -53,6 +53,7 @@ TERRAIN_STEP_M = 0.16  # grid spacing: 201 x 201 vertices, ~2 MB once per re-cut
 TERRAIN_RECUT_M = 8.0  # re-cut when the rover is this far from the patch centre
 ALBEDO_BANDS = 6  # the terrain faces are drawn in this many shades of the albedo
 TRACK_STEP_M = 0.05  # a traverse gets a new vertex after this much motion
+TRACK_CHUNK = 200  # vertices per traverse node (10 m): a draw re-sends one chunk
 HISTORY_EVERY_S = 5.0  # stored frames are read back at this spacing (traverses, slider)
 ARROW_LENGTH_M = 2.0
 CAMERA_OFFSET_W = np.array([-7.0, -5.0, -5.0])  # behind, to the left of and above the rover
@@ -161,11 +162,23 @@ def terrain_patch(
     return vertices, groups
 
 
+def compact(
+    vertices: FloatArray, faces: NDArray[np.uint32]
+) -> tuple[FloatArray, NDArray[np.uint32]]:
+    """The vertices ``faces`` use and the faces re-indexed to them: each albedo band is
+    sent with its own vertices only, not the whole patch's."""
+    used, index = np.unique(faces, return_inverse=True)
+    return vertices[used], index.reshape(faces.shape).astype(np.uint32)
+
+
 @dataclass
 class Track:
-    """A traverse as a polyline that grows by ``TRACK_STEP_M`` steps."""
+    """A traverse as a polyline that grows by ``TRACK_STEP_M`` steps, kept in chunks of
+    ``TRACK_CHUNK`` vertices so that a draw re-sends only the chunk still growing (a
+    chunk's last vertex is the next one's first: the line stays joined)."""
 
     points: list[FloatArray] = field(default_factory=list)
+    dirty: set[int] = field(default_factory=set)  # chunks changed since the last draw
 
     def add(self, p: ArrayLike) -> bool:
         """Append ``p`` if it is far enough from the last vertex; True when it was."""
@@ -173,12 +186,20 @@ class Track:
         if self.points and float(np.linalg.norm(q - self.points[-1])) < TRACK_STEP_M:
             return False
         self.points.append(q)
+        if len(self.points) > 1:
+            self.dirty.add((len(self.points) - 2) // TRACK_CHUNK)
         return True
 
-    def segments(self) -> FloatArray:
-        """(N-1, 2, 3) segments for ``add_line_segments``."""
-        pts = np.asarray(self.points)
+    def segments(self, chunk: int) -> FloatArray:
+        """The (n, 2, 3) segments of ``chunk`` for ``add_line_segments``."""
+        pts = np.asarray(self.points[chunk * TRACK_CHUNK : (chunk + 1) * TRACK_CHUNK + 1])
         return np.stack([pts[:-1], pts[1:]], axis=1)
+
+    def take_dirty(self) -> dict[int, FloatArray]:
+        """The segments of every chunk changed since the last call."""
+        out = {c: self.segments(c) for c in sorted(self.dirty)}
+        self.dirty.clear()
+        return out
 
 
 class RoverModel:
@@ -352,7 +373,7 @@ class RoverScene:
         true_pose = RoverPose.from_frame(frame, "true")
         est_pose = RoverPose.from_frame(frame, "est")
         with self._lock:
-            tracks = {k: t.segments() for k, t in self._tracks.items() if len(t.points) > 1}
+            tracks = {k: t.take_dirty() for k, t in self._tracks.items()}
             new_sites = [(i, self._sites[i]) for i in self._new_sites]
             self._new_sites = []
             slider_span = self._slider_span()
@@ -362,9 +383,12 @@ class RoverScene:
             self.model.show(true_pose)
             self.ghost.show(est_pose)
             self._vectors(frame, true_pose)
-            for which, segs in tracks.items():
+            for which, chunks in tracks.items():
                 rgb = TRUE_RGB if which == "true" else GHOST_RGB
-                server.scene.add_line_segments(f"/traverse_{which}", segs, rgb, thickness=0.03)
+                for chunk, segs in chunks.items():
+                    server.scene.add_line_segments(
+                        f"/traverse_{which}/{chunk}", segs, rgb, thickness=0.03
+                    )
             for index, origin in new_sites:
                 server.scene.add_frame(
                     f"/site_{index}", axes_length=1.0, axes_radius=0.02, position=tuple(origin)
@@ -378,6 +402,7 @@ class RoverScene:
                 self._slider.min = math.floor(lo * 100.0) / 100.0
                 self._slider.max = max(math.ceil(hi * 100.0) / 100.0, self._slider.min + 0.01)
                 self._slider.value = hi  # type: ignore[misc]  # viser's props mask the setter
+        server.flush()  # send now rather than at viser's next 1/60 s window
         self.frames_drawn += 1
 
     def _chase(self, p_w: FloatArray) -> None:
@@ -427,8 +452,9 @@ class RoverScene:
             for k in range(ALBEDO_BANDS):
                 self.server.scene.remove_by_name(f"/terrain/band_{k}")
             for k, (faces, rgb) in enumerate(groups):
+                band_vertices, band_faces = compact(vertices, faces)
                 self.server.scene.add_mesh_simple(
-                    f"/terrain/band_{k}", vertices, faces, color=rgb, side="double"
+                    f"/terrain/band_{k}", band_vertices, band_faces, color=rgb, side="double"
                 )
         self._terrain_centre = centre
         # New viewers start behind and above the rover, looking at it (-z is up).

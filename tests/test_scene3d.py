@@ -23,9 +23,11 @@ from server.runtime import ROVERS, RoverRuntime
 from server.scene3d import (
     TERRAIN_HALF_M,
     TERRAIN_STEP_M,
+    TRACK_CHUNK,
     RoverPose,
     RoverScene,
     Track,
+    compact,
     terrain_patch,
     wheel_poses_b,
     wxyz_from_q,
@@ -91,12 +93,29 @@ def test_the_terrain_patch_follows_the_ground_with_faces_up() -> None:
     assert shades == sorted(shades)  # darker bands for darker albedo
 
 
-def test_a_track_grows_only_with_motion() -> None:
+def test_a_track_grows_only_with_motion_and_resends_only_its_last_chunk() -> None:
     track = Track()
     assert track.add([0.0, 0.0, 0.0])
     assert not track.add([0.01, 0.0, 0.0])
     assert track.add([0.2, 0.0, 0.0])
-    assert track.segments().shape == (1, 2, 3)
+    assert {c: s.shape for c, s in track.take_dirty().items()} == {0: (1, 2, 3)}
+    assert track.take_dirty() == {}
+    for i in range(2, TRACK_CHUNK + 3):
+        track.add([0.1 * i, 0.0, 0.0])
+    chunks = track.take_dirty()
+    assert sorted(chunks) == [0, 1]
+    assert chunks[0].shape == (TRACK_CHUNK, 2, 3)
+    np.testing.assert_allclose(chunks[1][0, 0], chunks[0][-1, 1])  # the chunks join
+    track.add([1e3, 0.0, 0.0])
+    assert sorted(track.take_dirty()) == [1]
+
+
+def test_a_band_carries_only_its_own_vertices() -> None:
+    vertices = np.arange(30.0).reshape(10, 3)
+    faces = np.array([[7, 2, 9], [9, 2, 4]], dtype=np.uint32)
+    own, reindexed = compact(vertices, faces)
+    assert len(own) == 4
+    np.testing.assert_array_equal(own[reindexed], vertices[faces])
 
 
 @pytest.fixture(scope="module")
