@@ -1,0 +1,335 @@
+"""The visual-odometry front: one call per stereo pair, MER's algorithm end to end.
+
+Seed 002 (Maimone, Cheng and Matthies 2007), sec. 2: detect features in the new left image
+(``features``), match and triangulate them in the new pair (``stereo``, eqs. 1-11) for the
+next step; track the previous pair's features into the new pair with the wheel-odometry
+prediction (``tracking``); estimate the motion by closed-form least squares inside RANSAC
+(``motion``, eqs. 12-14) and refine it by maximum likelihood (``ml_motion``, eqs. 15-17);
+check the update against the February 2005 constraints (``sanity``). "If any internal
+consistency check fails, too few feature points are tracked, or the estimation fails to
+converge, then no motion estimate update will be produced and the initial estimate
+(nominally based on wheel odometry and the IMU) will be maintained" (sec. 1).
+
+Whatever the outcome, the new pair becomes the reference for the next step (after a
+failure VO re-initialises on the pair it has, as MER did after too large a motion).
+
+Frames (CONVENTIONS.md): ``b0`` the body at the previous pair, ``b1`` at the new one;
+``R_b0_b1`` takes ``b1`` coordinates to ``b0`` (the new attitude relative to the old);
+``p_b1_b0`` is the new body origin in ``b0``, m. ``R_s_b0`` is the estimated attitude in the
+Site frame at the previous pair (for the sanity constraints only). Mast angles as in
+``estimation.vo.stereo_rig``. Flight software: numpy, scipy, OpenCV.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.spatial.transform import Rotation
+
+from estimation.camera_model import check_rotation_matrix
+from estimation.vo.features import detect_features
+from estimation.vo.geometry import PointedPair
+from estimation.vo.ml_motion import refine_ml, skew
+from estimation.vo.motion import GapFunction, RansacMotion, motion_weights, ransac_motion
+from estimation.vo.params import VoParams
+from estimation.vo.sanity import Update, update_of, violation
+from estimation.vo.search import PaddedImage
+from estimation.vo.stereo import stereo_points
+from estimation.vo.stereo_rig import StereoRig
+from estimation.vo.tracking import Tracked, build_pyramid, pyramid_levels, track_features
+
+FloatArray = NDArray[np.float64]
+
+
+class VoStatus(enum.Enum):
+    """Outcome of one step; only ``CONVERGED`` carries a motion."""
+
+    INITIALISED = "initialised"  # first pair (or after reset): nothing to compare with
+    CONVERGED = "converged"
+    TOO_FEW_FEATURES = "too few features"
+    TOO_FEW_INLIERS = "too few inliers"
+    NO_CONVERGENCE = "no convergence"
+    INSANE_UPDATE = "update violates a sanity constraint"
+
+
+@dataclass(frozen=True)
+class VoMotion:
+    """The body motion between two pairs, from VO.
+
+    ``R_b0_b1`` (3, 3) the new attitude relative to the previous (``v_b0 = R_b0_b1 v_b1``);
+    ``p_b1_b0`` (3,) the new body origin in the previous body frame, m; ``covariance`` (6, 6)
+    of ``(θ, δp)``: ``θ`` (rad) the rotation error on the left in ``b0``
+    (``R_true = exp([θ]×) R_b0_b1``), ``δp`` (m) the position error in ``b0``.
+    """
+
+    R_b0_b1: FloatArray
+    p_b1_b0: FloatArray
+    covariance: FloatArray
+
+    @property
+    def q_b0_b1(self) -> FloatArray:
+        """``R_b0_b1`` as an ``[x, y, z, w]`` quaternion (CONVENTIONS.md)."""
+        out: FloatArray = Rotation.from_matrix(self.R_b0_b1).as_quat()
+        return out
+
+
+@dataclass(frozen=True)
+class VoResult:
+    """One step's outcome: ``status`` and a human ``reason``; ``motion`` only when
+    converged; ``update`` (the change VO makes to wheel odometry) once a motion was
+    estimated, even if the sanity check refused it; the counts: features stereo-matched in
+    the new pair, previous features tracked into it, RANSAC inliers, ML iterations."""
+
+    status: VoStatus
+    reason: str
+    motion: VoMotion | None
+    update: Update | None
+    n_features: int
+    n_tracked: int
+    n_inliers: int
+    ml_iterations: int
+
+    @property
+    def converged(self) -> bool:
+        return self.status is VoStatus.CONVERGED
+
+
+@dataclass(frozen=True)
+class _Frame:
+    """What a step keeps of its pair for the next: the left pyramid and the features'
+    integer left pixels (M, 2), body-frame points (M, 3) and covariances (M, 3, 3)."""
+
+    left_pyramid: list[PaddedImage]
+    uv_px: FloatArray
+    p_b: FloatArray
+    cov_b: FloatArray
+
+
+class VisualOdometry:
+    """MER visual odometry for one stereo rig (module docstring).
+
+    ``params`` must suit the rig's image width (``VoParams().for_width(w)``); ``rng`` drives
+    the RANSAC samples (a fixed default seed keeps runs repeatable).
+    """
+
+    def __init__(
+        self,
+        rig: StereoRig,
+        params: VoParams | None = None,
+        rng: np.random.Generator | None = None,
+    ) -> None:
+        self.rig = rig
+        self.params = params if params is not None else VoParams().for_width(rig.camera.width_px)
+        if not isinstance(self.params, VoParams):
+            raise ValueError(f"params: must be a VoParams, got {params!r}")
+        self.rng = rng if rng is not None else np.random.default_rng(0)
+        p = self.params
+        self.levels = pyramid_levels(
+            p.track_search_radius_px, p.track_coarse_radius_px, p.track_max_levels
+        )
+        # Pad enough for any window the searches gather near an edge.
+        self.pad_px = int(
+            p.window_px + 2 + max(p.max_disparity_px, p.track_coarse_radius_px, p.row_slack_px)
+            + p.track_search_radius_px / 2**self.levels + p.track_refine_radius_px
+        )  # fmt: skip
+        self._previous: _Frame | None = None
+
+    def reset(self) -> None:
+        """Forget the previous pair: the next step initialises."""
+        self._previous = None
+
+    def step(
+        self,
+        left: ArrayLike,
+        right: ArrayLike,
+        *,
+        R_b0_b1_predicted: ArrayLike,
+        p_b1_b0_predicted: ArrayLike,
+        R_s_b0: ArrayLike,
+        mast_az_rad: float,
+        mast_el_rad: float,
+    ) -> VoResult:
+        """Process a new stereo pair (rectified ``left``, ``right``, (H, W) images of the
+        rig's size) taken after the body moved by the predicted (wheel-odometry) motion
+        ``R_b0_b1_predicted``, ``p_b1_b0_predicted`` since the previous pair; ``R_s_b0`` the
+        estimated attitude at the previous pair; the mast pointing of the new pair.
+        """
+        p = self.params
+        left_img = self._image(left, "left")
+        right_img = self._image(right, "right")
+        R_pred = check_rotation_matrix(R_b0_b1_predicted, "R_b0_b1_predicted")
+        t_pred = np.asarray(p_b1_b0_predicted, dtype=np.float64)
+        if t_pred.shape != (3,) or not np.all(np.isfinite(t_pred)):
+            raise ValueError(f"p_b1_b0_predicted: must be a finite 3-vector, got {t_pred!r}")
+        R_s = check_rotation_matrix(R_s_b0, "R_s_b0")
+        for name, angle in (("mast_az_rad", mast_az_rad), ("mast_el_rad", mast_el_rad)):
+            if not (isinstance(angle, int | float | np.floating) and math.isfinite(angle)):
+                raise ValueError(f"{name}: must be a finite angle in radians, got {angle!r}")
+        pair = PointedPair.from_rig(self.rig, mast_az_rad, mast_el_rad)
+
+        left_pyramid = build_pyramid(left_img, self.levels, self.pad_px)
+        right_padded = PaddedImage(right_img, self.pad_px)
+        new_frame = self._stereo_features(pair, left_pyramid, right_padded)
+        previous, self._previous = self._previous, new_frame
+        n_new = len(new_frame.uv_px)
+        if previous is None:
+            return _result(VoStatus.INITIALISED, "first pair", n_features=n_new)
+        if len(previous.uv_px) < p.min_features:
+            reason = f"{len(previous.uv_px)} stereo features in the previous pair"
+            return _result(VoStatus.TOO_FEW_FEATURES, f"{reason}, need {p.min_features}",
+                           n_features=n_new)  # fmt: skip
+        tracked = self._track(previous, new_frame, right_padded, pair, R_pred, t_pred)
+        n_tracked = len(tracked.index)
+        if n_tracked < p.min_features:
+            reason = f"{n_tracked} features tracked, need {p.min_features}"
+            return _result(VoStatus.TOO_FEW_FEATURES, reason, n_features=n_new,
+                           n_tracked=n_tracked)  # fmt: skip
+        ransac = self._ransac(pair, tracked)
+        n_inliers = ransac.score
+        if n_inliers < p.min_inliers:
+            reason = f"{n_inliers} RANSAC inliers of {n_tracked}, need {p.min_inliers}"
+            return _result(VoStatus.TOO_FEW_INLIERS, reason, n_features=n_new,
+                           n_tracked=n_tracked, n_inliers=n_inliers)  # fmt: skip
+
+        inl = ransac.inliers
+        ml = refine_ml(
+            tracked.p_b0[inl], tracked.p_b1[inl], tracked.cov_b0[inl], tracked.cov_b1[inl],
+            ransac.R, ransac.T, max_iterations=p.ml_max_iterations, tol_rad=p.ml_tol_rad,
+            tol_m=p.ml_tol_m,
+        )  # fmt: skip
+        if not ml.converged:
+            reason = f"maximum-likelihood refinement did not converge in {ml.iterations} steps"
+            return _result(VoStatus.NO_CONVERGENCE, reason, n_features=n_new,
+                           n_tracked=n_tracked, n_inliers=n_inliers,
+                           ml_iterations=ml.iterations)  # fmt: skip
+
+        motion = body_motion(ml.R, ml.T, ml.covariance)
+        update = update_of(motion.R_b0_b1, motion.p_b1_b0, R_pred, t_pred, R_s)
+        problem = violation(update, p.sanity)
+        status = VoStatus.CONVERGED if problem is None else VoStatus.INSANE_UPDATE
+        return VoResult(
+            status, problem or f"{n_inliers} inliers of {n_tracked} tracked features",
+            motion if problem is None else None, update, n_features=n_new,
+            n_tracked=n_tracked, n_inliers=n_inliers, ml_iterations=ml.iterations,
+        )  # fmt: skip
+
+    def _track(
+        self,
+        previous: _Frame,
+        new: _Frame,
+        right: PaddedImage,
+        pair: PointedPair,
+        R_b0_b1_predicted: FloatArray,
+        p_b1_b0_predicted: FloatArray,
+    ) -> Tracked:
+        """The previous pair's features tracked into the new pair (``tracking``)."""
+        p = self.params
+        return track_features(
+            previous_left=previous.left_pyramid, new_left=new.left_pyramid, new_right=right,
+            new_pair=pair, uv_previous_px=previous.uv_px, p_b0=previous.p_b,
+            cov_b0=previous.cov_b, R_b0_b1=R_b0_b1_predicted, p_b1_b0=p_b1_b0_predicted,
+            window_px=p.window_px, search_radius_px=p.track_search_radius_px,
+            refine_radius_px=p.track_refine_radius_px, row_slack_px=p.row_slack_px,
+            min_disparity_px=p.min_disparity_px, max_disparity_px=p.max_disparity_px,
+            min_score=p.min_score, track_min_score=p.track_min_score,
+            cov_scale=p.peak_cov_scale, min_sigma_px=p.min_sigma_px,
+            max_gap_m=p.max_gap_m, max_range_m=p.max_range_m, max_error_m=p.track_max_error_m,
+            max_rotation_error_rad=p.track_max_rotation_error_rad,
+        )  # fmt: skip
+
+    def _ransac(self, pair: PointedPair, tracked: Tracked) -> RansacMotion:
+        """RANSAC over the closed-form fit (``motion``, eqs. 12-14)."""
+        p = self.params
+        return ransac_motion(
+            tracked.p_b0, tracked.p_b1, motion_weights(tracked.cov_b0, tracked.cov_b1),
+            _reprojection_gaps(pair, tracked), iterations=p.ransac_iterations,
+            sample_size=p.ransac_sample_size, threshold_px=p.ransac_threshold_px, rng=self.rng,
+        )  # fmt: skip
+
+    def _image(self, image: ArrayLike, name: str) -> NDArray[np.float32]:
+        arr = np.asarray(image)
+        cam = self.rig.camera
+        if arr.shape != (cam.height_px, cam.width_px):
+            raise ValueError(
+                f"{name}: must be ({cam.height_px}, {cam.width_px}) like the rig, got {arr.shape}"
+            )
+        if not np.issubdtype(arr.dtype, np.number) or np.iscomplexobj(arr):
+            raise ValueError(f"{name}: must be a real-valued image, got dtype {arr.dtype}")
+        out = np.asarray(arr, dtype=np.float32)
+        if not np.all(np.isfinite(out)):
+            raise ValueError(f"{name}: has non-finite pixels")
+        return out
+
+    def _stereo_features(
+        self, pair: PointedPair, left_pyramid: list[PaddedImage], right: PaddedImage
+    ) -> _Frame:
+        """Detect, match and triangulate the new pair's features (kept for the next step)."""
+        p = self.params
+        left = left_pyramid[0]
+        uv, _ = detect_features(
+            left.image, n_features=p.n_features, cell_px=p.grid_cell_px,
+            min_separation_px=p.min_separation_px,
+            border_px=p.window_px // 2 + p.track_refine_radius_px + 1,
+            block_px=p.harris_block_px, aperture_px=p.harris_aperture_px, harris_k=p.harris_k,
+        )  # fmt: skip
+        stereo = stereo_points(
+            pair, left, right, uv.astype(np.float64), p.min_disparity_px, p.max_disparity_px,
+            window_px=p.window_px, row_slack_px=p.row_slack_px, min_score=p.min_score,
+            cov_scale=p.peak_cov_scale, min_sigma_px=p.min_sigma_px, max_gap_m=p.max_gap_m,
+            max_range_m=p.max_range_m,
+        )  # fmt: skip
+        ok = stereo.ok
+        return _Frame(left_pyramid, uv[ok].astype(np.float64), stereo.p_b[ok], stereo.cov_b[ok])
+
+
+def _reprojection_gaps(pair: PointedPair, tracked: Tracked) -> GapFunction:
+    """RANSAC step 2's gap: reproject the previous points ``p_b0`` under each hypothesis
+    ``P_c = R P_p + T`` into the new pair and take the worse of the two eyes' pixel gaps to
+    the tracked pixels (the right eye sees depth errors as disparity)."""
+
+    def gap_px(R: FloatArray, T: FloatArray) -> FloatArray:
+        moved_b1 = np.einsum("kij,nj->kni", R, tracked.p_b0) + T[:, None, :]
+        uv_l, uv_r = pair.project_many(moved_b1)
+        gap_l = np.linalg.norm(uv_l - tracked.uv_left_px, axis=-1)
+        gap_r = np.linalg.norm(uv_r - tracked.uv_right_px, axis=-1)
+        out: FloatArray = np.maximum(gap_l, gap_r)
+        return out
+
+    return gap_px
+
+
+def body_motion(R_b1_b0: ArrayLike, T_b1: ArrayLike, covariance_phi_T: ArrayLike) -> VoMotion:
+    """Convert the estimator's ``P_c = R P_p + T`` (``R = R_b1_b0``, ``T`` the ``b0`` origin in
+    ``b1``) and the covariance of ``(φ, T)`` (``φ`` left rotation error in ``b1``) to the body
+    motion ``R_b0_b1 = Rᵀ``, ``p_b1_b0 = -Rᵀ T`` and the covariance of ``(θ, δp)`` in ``b0``.
+
+    To first order ``θ = -Rᵀ φ`` and ``δp = -Rᵀ δT - Rᵀ [T]× φ``.
+    """
+    R = check_rotation_matrix(R_b1_b0, "R_b1_b0")
+    T = np.asarray(T_b1, dtype=np.float64).reshape(3)
+    cov = np.asarray(covariance_phi_T, dtype=np.float64)
+    if cov.shape != (6, 6):
+        raise ValueError(f"covariance_phi_T: must be (6, 6), got {cov.shape}")
+    J = np.zeros((6, 6))
+    J[:3, :3] = -R.T
+    J[3:, :3] = -R.T @ skew(T)
+    J[3:, 3:] = -R.T
+    return VoMotion(R.T.copy(), -R.T @ T, J @ cov @ J.T)
+
+
+def _result(
+    status: VoStatus,
+    reason: str,
+    *,
+    update: Update | None = None,
+    n_features: int = 0,
+    n_tracked: int = 0,
+    n_inliers: int = 0,
+    ml_iterations: int = 0,
+) -> VoResult:
+    """A step without a motion (initialisation or a failure)."""
+    return VoResult(status, reason, None, update, n_features, n_tracked, n_inliers, ml_iterations)
