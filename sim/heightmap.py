@@ -125,6 +125,12 @@ class HeightmapTerrain:
         self._lock = threading.Lock()
 
     @property
+    def texture(self) -> AlbedoField:
+        """The reflectance texture ``albedo`` evaluates: a renderer can ask it for detail
+        band-limited to its pixels (``sim.albedo.AlbedoTexture.evaluate``)."""
+        return self._albedo
+
+    @property
     def tile_size_m(self) -> float:
         return self.tile_cells * self.resolution_m
 

@@ -22,6 +22,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, fields
 from datetime import datetime
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -39,6 +40,9 @@ from sim.rover_geometry import MER_GEOMETRY
 from sim.sites import Site, make_terrain, site
 from sim.slip import SlipModel
 from sim.truth import CONTROL_DT_S, TruthTrajectory
+
+if TYPE_CHECKING:  # sim.navcam (numba) is imported when a pair is first rendered
+    from sim.navcam import NavcamPair
 
 FloatArray = NDArray[np.float64]
 
@@ -180,6 +184,38 @@ class RoverSim:
         az_true = az_rad + float(self.mast_bias_rad[0])
         el_true = el_rad + float(self.mast_bias_rad[1])
         return render_sun_image(sun_b, az_true, el_true, self._rng_cam)
+
+    def navcam_pair(
+        self, az_rad: float = 0.0, el_rad: float | None = None, **options: Any
+    ) -> NavcamPair:
+        """A Navcam stereo pair now (``sim.navcam.render_navcam_pair``) from the truth pose
+        and the true Sun, the mast commanded to ``(az_rad, el_rad)`` (default elevation:
+        the renderer's, 35 deg down). The Navcams share the Pancam mast head, so the mast's
+        pointing bias applies to them too; ``pair.az_rad``, ``pair.el_rad`` are the true
+        pointing. ``options`` go to the renderer (``rig``, ``shadows``, ``rover_shadow``,
+        ``noise``, ...); the noise draws from the simulator's camera generator unless an
+        ``rng`` is given. The Sun's LL direction is used as Site axes (they differ by the
+        rover's distance over the Mars radius, ~1e-5 rad here).
+        """
+        from sim.navcam import DEFAULT_EL_RAD, render_navcam_pair
+
+        el_cmd = DEFAULT_EL_RAD if el_rad is None else el_rad
+        if not math.isfinite(az_rad):
+            raise InputError("az_rad", f"must be finite, got {az_rad}")
+        if not (math.isfinite(el_cmd) and abs(el_cmd) <= 0.5 * math.pi):
+            raise InputError("el_rad", f"must be in [-pi/2, pi/2], got {el_cmd}")
+        az_true = az_rad + float(self.mast_bias_rad[0])
+        el_true = min(max(el_cmd + float(self.mast_bias_rad[1]), -0.5 * math.pi), 0.5 * math.pi)
+        kwargs: dict[str, Any] = {"rng": self._rng_cam, **options}
+        return render_navcam_pair(
+            self.terrain,
+            self.state.p_s,
+            self.state.q_s_b,
+            self.sun_ll(),
+            az_rad=az_true,
+            el_rad=el_true,
+            **kwargs,
+        )
 
     def wheel_angle_rad_now(self) -> FloatArray:
         """The wheel encoders' angles now (6,), rad since power-on, as the flight
