@@ -176,6 +176,37 @@ _TOLERANCE_DEG = ArgSpec("number", "deg", 0.0, 90.0, lo_open=True, note="omit: t
 _DRIVE_TO_NOTE = "the goal must be 0.01-100 m from the estimated position when it starts"
 
 
+VO_STEP_MAX_M = 0.75  # seed 002 sec. 4: at most 75 cm per step
+VO_STEP_MAX_DEG = 18.0  # and at most 18 deg of turn, for 60 % overlap between pairs
+VO_SPECS: Mapping[str, ArgSpec] = {
+    "vo": ArgSpec(
+        "boolean",
+        note=f"visual odometry: steps of at most {VO_STEP_MAX_M:g} m and "
+        f"{VO_STEP_MAX_DEG:g} deg, a Navcam pair after each, SAPP's position updated",
+    ),
+    "vo_attitude": ArgSpec("boolean", note="with vo=on: VO updates the attitude too"),
+}
+
+
+VO_PROCESSING_S = 150.0  # onboard time per VO step, the rover standing (MER: 2-3 min)
+
+
+def vo_step_count(length_m: float, turn_deg: float) -> int:
+    """Steps a ``vo=on`` drive of path ``length_m`` turning ``turn_deg`` is split into.
+
+    >>> vo_step_count(2.0, 0.0), vo_step_count(0.0, -90.0), vo_step_count(0.5, 40.0)
+    (3, 5, 3)
+    """
+    by_length = math.ceil(abs(length_m) / VO_STEP_MAX_M - 1e-9)
+    by_turn = math.ceil(abs(turn_deg) / VO_STEP_MAX_DEG - 1e-9)
+    return max(1, by_length, by_turn)
+
+
+def _check_vo(command: Command) -> None:
+    if getattr(command, "vo_attitude", False) and not getattr(command, "vo", False):
+        raise ValueError("vo_attitude: needs vo=on")
+
+
 @dataclass(frozen=True)
 class DriveStraight(Command):
     """Drive ``distance_m`` straight ahead."""
@@ -183,8 +214,14 @@ class DriveStraight(Command):
     name: ClassVar[str] = "DRIVE_STRAIGHT"
     specs: ClassVar[Mapping[str, ArgSpec]] = {
         "distance_m": ArgSpec("number", "m", 0.0, MAX_DRIVE_M, lo_open=True),
+        **VO_SPECS,
     }
     distance_m: float
+    vo: bool | None = None  # None: off
+    vo_attitude: bool | None = None
+
+    def _check_rules(self) -> None:
+        _check_vo(self)
 
 
 @dataclass(frozen=True)
@@ -210,11 +247,15 @@ class DriveArc(Command):
             lo_open=True,
             note=f"the arc (|radius_m| × angle) at most {MAX_DRIVE_M:g} m long",
         ),
+        **VO_SPECS,
     }
     radius_m: float
     angle_deg: float
+    vo: bool | None = None  # None: off
+    vo_attitude: bool | None = None
 
     def _check_rules(self) -> None:
+        _check_vo(self)
         r, a = float(self.radius_m), float(self.angle_deg)
         if abs(r) < MIN_ARC_RADIUS_M:
             raise ValueError(
@@ -233,10 +274,14 @@ class TurnInPlace(Command):
         "angle_deg": ArgSpec(
             "number", "deg", -360.0, 360.0, note="not zero; > 0 clockwise seen from above"
         ),
+        **VO_SPECS,
     }
     angle_deg: float
+    vo: bool | None = None  # None: off
+    vo_attitude: bool | None = None
 
     def _check_rules(self) -> None:
+        _check_vo(self)
         if float(self.angle_deg) == 0.0:
             raise ValueError("angle_deg: must not be zero")
 
@@ -252,9 +297,15 @@ class DriveTo(Command):
     specs: ClassVar[Mapping[str, ArgSpec]] = {
         "x_m": ArgSpec("number", "m", -1000.0, 1000.0, note=f"North in the Site; {_DRIVE_TO_NOTE}"),
         "y_m": ArgSpec("number", "m", -1000.0, 1000.0, note=f"East in the Site; {_DRIVE_TO_NOTE}"),
+        **VO_SPECS,
     }
     x_m: float
     y_m: float
+    vo: bool | None = None  # None: off
+    vo_attitude: bool | None = None
+
+    def _check_rules(self) -> None:
+        _check_vo(self)
 
 
 @dataclass(frozen=True)

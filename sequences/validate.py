@@ -276,15 +276,8 @@ def estimate_duration_s(command: cmd.Command, gyrocompass_s: float = GYROCOMPASS
     900.0
     """
     c = command
-    if isinstance(c, cmd.DriveStraight):
-        return float(c.distance_m) / DRIVE_SPEED_M_S
-    if isinstance(c, cmd.DriveArc):
-        return abs(float(c.radius_m)) * math.radians(c.angle_deg) / DRIVE_SPEED_M_S
-    if isinstance(c, cmd.TurnInPlace):
-        return abs(float(c.angle_deg)) / TURN_RATE_DEG_S
-    if isinstance(c, cmd.DriveTo):  # the position is not predicted: as if from the origin,
-        # after a half turn (the longest turn it can need)
-        return math.hypot(c.x_m, c.y_m) / DRIVE_SPEED_M_S + 180.0 / TURN_RATE_DEG_S
+    if isinstance(c, _DRIVES):
+        return _drive_duration_s(c)
     if isinstance(c, cmd.NadirUpdate | cmd.NadirCheck):
         return NADIR_WINDOW_S if c.window_s is None else float(c.window_s)
     if isinstance(c, cmd.Gyrocompass):
@@ -294,6 +287,31 @@ def estimate_duration_s(command: cmd.Command, gyrocompass_s: float = GYROCOMPASS
     if isinstance(c, cmd.Wait):
         return float(c.duration_s)
     return _FIXED_S.get(type(c), 0.0)
+
+
+def _drive_duration_s(c: cmd.DriveStraight | cmd.DriveArc | cmd.TurnInPlace | cmd.DriveTo) -> float:
+    """Driving time, plus ``VO_PROCESSING_S`` per visual odometry step with ``vo=on``.
+
+    >>> _drive_duration_s(cmd.DriveStraight(distance_m=1.5, vo=True))  # 40 s + 2 steps
+    340.0
+    """
+    steps = 0
+    if isinstance(c, cmd.DriveStraight):
+        moving_s = float(c.distance_m) / DRIVE_SPEED_M_S
+        steps = cmd.vo_step_count(c.distance_m, 0.0)
+    elif isinstance(c, cmd.DriveArc):
+        length = abs(float(c.radius_m)) * math.radians(c.angle_deg)
+        moving_s = length / DRIVE_SPEED_M_S
+        steps = cmd.vo_step_count(length, c.angle_deg)
+    elif isinstance(c, cmd.TurnInPlace):
+        moving_s = abs(float(c.angle_deg)) / TURN_RATE_DEG_S
+        steps = cmd.vo_step_count(0.0, c.angle_deg)
+    else:  # DRIVE_TO: the position is not predicted: as if from the origin, after a half
+        # turn (the longest turn it can need)
+        distance = math.hypot(c.x_m, c.y_m)
+        moving_s = distance / DRIVE_SPEED_M_S + 180.0 / TURN_RATE_DEG_S
+        steps = cmd.vo_step_count(distance, 0.0) + cmd.vo_step_count(0.0, 180.0)
+    return moving_s + (steps * cmd.VO_PROCESSING_S if c.vo else 0.0)
 
 
 class _Prediction:

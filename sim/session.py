@@ -51,6 +51,7 @@ from estimation.nate import (
     NateOutput,
     NateParams,
 )
+from estimation.vo.odometry import VisualOdometry
 from estimation.wheel_odometry import DriveKind, steer_six
 from sequences import commands as cmd
 from sim.errors import InputError
@@ -61,8 +62,19 @@ from sim.mars_frames import earth_ll_truth, elevation_rad, sun_ll_truth
 from sim.marsclock import lmst_h_from_t_s, sol_number_t_s
 from sim.rover_sim import RoverSim, Segment
 from sim.truth import CONTROL_DT_S
+from sim.vo_drive import (
+    VO_MAST_AZ_RAD,
+    VO_MAST_EL_RAD,
+    VO_RIG,
+    EstimatedPose,
+    corrected_pose,
+    predicted_motion,
+    split_drive,
+    update_text,
+)
 
 FloatArray = NDArray[np.float64]
+VoDrive = cmd.DriveStraight | cmd.DriveArc | cmd.TurnInPlace | cmd.DriveTo
 
 EARTH_NODE_S = 60.0  # see the module docstring
 HGA_FRAME_S = 60.0  # one frame a minute during an Idle HGA pass
@@ -186,6 +198,7 @@ class RoverSession:
         self._site_origins_true: list[FloatArray] = [sim.state.p_s.copy()]  # mission frame
         self._command = ""
         self._events: list[str] = []
+        self._vo: VisualOdometry | None = None  # made at the first vo=on drive
         self._last_frame_t = -math.inf
         self._last_mode = ""
         self._sky_t0 = math.nan  # interpolation node: Earth (IVP, truth), sun at t0, t0 + node
@@ -227,15 +240,15 @@ class RoverSession:
     def _dispatch(self, c: cmd.Command) -> dict[str, Any]:
         nate = self.nate
         if isinstance(c, cmd.DriveStraight):
-            return self._drive(DriveCommand(DriveKind.STRAIGHT), "straight", c.distance_m)
+            return self._move(DriveCommand(DriveKind.STRAIGHT), "straight", (c.distance_m,), c)
         if isinstance(c, cmd.DriveArc):
-            angle = math.radians(c.angle_deg)
-            return self._drive(DriveCommand(DriveKind.ARC, c.radius_m), "arc", c.radius_m, angle)
+            arc = (c.radius_m, math.radians(c.angle_deg))
+            return self._move(DriveCommand(DriveKind.ARC, c.radius_m), "arc", arc, c)
         if isinstance(c, cmd.TurnInPlace):
             drive = DriveCommand(DriveKind.TURN_IN_PLACE)
-            return self._drive(drive, "turn", math.radians(c.angle_deg))
+            return self._move(drive, "turn", (math.radians(c.angle_deg),), c)
         if isinstance(c, cmd.DriveTo):
-            return self._drive_to(c.x_m, c.y_m)
+            return self._drive_to(c)
         if isinstance(c, cmd.PlantSite):
             index = nate.plant_site()
             self._site_origins_true.append(self.sim.state.p_s.copy())
@@ -397,10 +410,98 @@ class RoverSession:
         distance = float(np.sum(np.linalg.norm(np.diff(seg.truth.p_s, axis=0), axis=1)))
         return {"distance_truth_m": distance}
 
-    def _drive_to(self, x_m: float, y_m: float) -> dict[str, Any]:
+    def _move(
+        self, drive: DriveCommand, kind: str, args: tuple[float, ...], c: VoDrive
+    ) -> dict[str, Any]:
+        """A drive primitive, stepped with visual odometry when the command says ``vo``."""
+        if c.vo:
+            return self._drive_vo(drive, kind, args, attitude=bool(c.vo_attitude))
+        return self._drive(drive, kind, *args)
+
+    def _drive_vo(
+        self, drive: DriveCommand, kind: str, args: tuple[float, ...], attitude: bool
+    ) -> dict[str, Any]:
+        """A drive in VO steps (``sim.vo_drive``): a Navcam pair before the first step and
+        after each, SAPP's pose updated from each converged VO step."""
+        nate = self.nate
+        if nate.mode is not NateMode.IDLE:  # checked before the rover moves
+            raise CommandRefusedError(f"mobility: refused in mode {nate.mode.value}")
+        steps = split_drive(kind, args)
+        vo = self._visual_odometry()
+        vo.reset()
+        before = self._estimate()
+        self._vo_step(vo, before, before, 0, len(steps), attitude)  # the first pair
+        distance = 0.0
+        updates = 0
+        for i, step in enumerate(steps, start=1):
+            distance += self._drive(drive, kind, *step)["distance_truth_m"]
+            after = self._estimate()
+            updates += self._vo_step(vo, before, after, i, len(steps), attitude)
+            self._wait(cmd.VO_PROCESSING_S)  # the rover stands while VO computes
+            self._frame_now(force=True)
+            before = self._estimate()
+        vo.reset()  # the last pair's images are not needed again (and checkpoints stay small)
+        return {
+            "distance_truth_m": distance,
+            "vo_steps": len(steps),
+            "vo_updates": updates,
+            "vo_failures": len(steps) - updates,
+        }
+
+    def _vo_step(
+        self,
+        vo: VisualOdometry,
+        before: EstimatedPose,
+        after: EstimatedPose,
+        step: int,
+        steps: int,
+        attitude: bool,
+    ) -> int:
+        """Take a pair and run VO on it; adopt a converged update. 1 if adopted."""
+        R_pred, p_pred = predicted_motion(before, after)
+        try:
+            pair = self.sim.navcam_pair(VO_MAST_AZ_RAD, VO_MAST_EL_RAD, rig=VO_RIG)
+            result = vo.step(
+                pair.left,
+                pair.right,
+                R_b0_b1_predicted=R_pred,
+                p_b1_b0_predicted=p_pred,
+                R_s_b0=before.R_s_b,
+                mast_az_rad=VO_MAST_AZ_RAD,
+                mast_el_rad=VO_MAST_EL_RAD,
+            )
+        except (InputError, ValueError) as exc:  # e.g. the mast looking at nothing
+            vo.reset()
+            self._events.append(f"VO step {step}/{steps} failed: {exc}; wheel odometry kept")
+            return 0
+        if step == 0:
+            return 0  # the first pair: nothing to compare with yet
+        if not result.converged or result.motion is None:
+            self._events.append(
+                f"VO step {step}/{steps} failed: {result.reason}; wheel odometry kept"
+            )
+            return 0
+        p_s, q_b_ll = corrected_pose(before, result.motion)
+        self.nate.visual_odometry_update(p_s, q_b_ll if attitude else None)
+        self._events.append(
+            update_text(step, steps, p_s - after.p_s, result.n_inliers, result.n_tracked)
+        )
+        return 1
+
+    def _visual_odometry(self) -> VisualOdometry:
+        vo: VisualOdometry | None = getattr(self, "_vo", None)  # None also in a session
+        if vo is None:  # checkpointed before VO existed
+            vo = self._vo = VisualOdometry(VO_RIG)
+        return vo
+
+    def _estimate(self) -> EstimatedPose:
+        return EstimatedPose(self.nate.p_s, self.nate.q_b_ll)
+
+    def _drive_to(self, c: cmd.DriveTo) -> dict[str, Any]:
         """DRIVE_TO: turn towards the goal and drive to it, both by NATE's estimate. A
         turn in place slips and creeps, so the aim is taken again after it (twice at
         most) before the straight drive."""
+        x_m, y_m = c.x_m, c.y_m
         nate = self.nate
         if nate.mode is not NateMode.IDLE:
             raise CommandRefusedError(f"DRIVE_TO: refused in mode {nate.mode.value}")
@@ -414,10 +515,10 @@ class RoverSession:
         for _ in range(2):
             if abs(turn) <= math.radians(0.5):  # close enough for the straight drive
                 break
-            self._drive(DriveCommand(DriveKind.TURN_IN_PLACE), "turn", turn)
+            self._move(DriveCommand(DriveKind.TURN_IN_PLACE), "turn", (turn,), c)
             turn, distance = self._aim(x_m, y_m)
         if distance >= 0.01:
-            out = self._drive(DriveCommand(DriveKind.STRAIGHT), "straight", distance)
+            out = self._move(DriveCommand(DriveKind.STRAIGHT), "straight", (distance,), c)
             details["distance_truth_m"] = out["distance_truth_m"]
         return details
 

@@ -136,7 +136,7 @@
     link.setAttribute("aria-disabled", "true");
     byId("timeline-panel").classList.add("empty");
     byId("timeline-summary").replaceChildren();
-    for (const id of ["lane-commands", "lane-nate", "lane-aqf", "lane-events", "lane-axis"]) {
+    for (const id of ["lane-commands", "lane-nate", "lane-aqf", "lane-events", "lane-vo", "lane-axis"]) {
       byId(id).replaceChildren();
     }
     destroyPlots();
@@ -237,6 +237,22 @@
     });
   }
 
+  // Visual odometry steps get their own lane: a green mark per update, red per failure.
+  const VO_EVENT = /^VO step \d+\/\d+/;
+
+  function voMarks(events) {
+    return events.filter((e) => VO_EVENT.test(e.text)).map((e) => {
+      const failed = e.text.includes("failed");
+      const mark = document.createElement("div");
+      mark.className = `tl-vo ${failed ? "vo-failure" : "vo-update"}`;
+      mark.dataset.testid = "timeline-vo";
+      mark.dataset.value = failed ? "failure" : "update";
+      mark.style.left = `${Math.max(0, Math.min(100, percent(e.lmst_h)))}%`;
+      mark.title = `${hhmmss(e.lmst_h)} LMST\n${e.text}`;
+      return mark;
+    });
+  }
+
   function drawAxis() {
     const track = byId("lane-axis");
     if (!view.span) { track.replaceChildren(); return; }
@@ -264,7 +280,9 @@
     byId("lane-commands").replaceChildren(...timeline.commands.map(commandBar));
     byId("lane-nate").replaceChildren(...timeline.nate_modes.map((i) => band("nate", "timeline-nate", i)));
     byId("lane-aqf").replaceChildren(...timeline.aqf.map((i) => band("aqf", "timeline-aqf", i)));
-    byId("lane-events").replaceChildren(...eventMarks(timeline.events));
+    byId("lane-events").replaceChildren(
+      ...eventMarks(timeline.events.filter((e) => !VO_EVENT.test(e.text))));
+    byId("lane-vo").replaceChildren(...voMarks(timeline.events));
     drawAxis();
     fitLabels();
   }
