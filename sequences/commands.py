@@ -158,7 +158,11 @@ class Command:
 
     def describe(self) -> str:
         """``NAME arg=value ...`` as in a sequence file."""
-        args = " ".join(f"{k}={v}" for k, v in self.arguments().items() if v is not None)
+        args = " ".join(
+            f"{k}={str(v).lower() if isinstance(v, bool) else v}"  # on/off as the language
+            for k, v in self.arguments().items()
+            if v is not None
+        )
         return f"{self.name} {args}".strip()
 
 
@@ -191,14 +195,26 @@ VO_SPECS: Mapping[str, ArgSpec] = {
 VO_PROCESSING_S = 150.0  # onboard time per VO step, the rover standing (MER: 2-3 min)
 
 
-def vo_step_count(length_m: float, turn_deg: float) -> int:
-    """Steps a ``vo=on`` drive of path ``length_m`` turning ``turn_deg`` is split into.
+def vo_step_count(
+    length_m: float,
+    turn_deg: float,
+    max_step_m: float = VO_STEP_MAX_M,
+    max_step_deg: float = VO_STEP_MAX_DEG,
+) -> int:
+    """Steps a ``vo=on`` drive of path ``length_m`` turning ``turn_deg`` is split into,
+    each at most ``max_step_m`` and ``max_step_deg`` (MER's limits unless told).
 
     >>> vo_step_count(2.0, 0.0), vo_step_count(0.0, -90.0), vo_step_count(0.5, 40.0)
     (3, 5, 3)
+    >>> vo_step_count(2.45, 0.0, max_step_m=0.35)  # seed 002's rock course
+    7
     """
-    by_length = math.ceil(abs(length_m) / VO_STEP_MAX_M - 1e-9)
-    by_turn = math.ceil(abs(turn_deg) / VO_STEP_MAX_DEG - 1e-9)
+    if not (math.isfinite(max_step_m) and max_step_m > 0.0):
+        raise ValueError(f"max_step_m: must be positive, got {max_step_m}")
+    if not (math.isfinite(max_step_deg) and max_step_deg > 0.0):
+        raise ValueError(f"max_step_deg: must be positive, got {max_step_deg}")
+    by_length = math.ceil(abs(length_m) / max_step_m - 1e-9)
+    by_turn = math.ceil(abs(turn_deg) / max_step_deg - 1e-9)
     return max(1, by_length, by_turn)
 
 

@@ -76,7 +76,7 @@ def test_optional_arguments_default_to_the_parameter() -> None:
 
 def test_sungaze_use_gravity_takes_only_a_bool() -> None:
     assert cmd.Sungaze(use_gravity=True).use_gravity is True
-    assert cmd.Sungaze(use_gravity=False).describe() == "SUNGAZE use_gravity=False"
+    assert cmd.Sungaze(use_gravity=False).describe() == "SUNGAZE use_gravity=false"
     for value in (1, 0, "yes", "true", 1.0, math.nan):
         with pytest.raises(ValueError, match=r"^use_gravity: "):
             cmd.Sungaze(use_gravity=value)  # type: ignore[arg-type]

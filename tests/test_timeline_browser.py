@@ -179,3 +179,26 @@ def test_the_sol_picker_follows_the_rover(page: Page, server: str) -> None:
     page.select_option("#rover", "spirit")
     expect(picker).to_have_value(str(spirit[-1]))
     expect(page.get_by_test_id("timeline-command")).to_have_count(2)
+
+
+def test_each_vo_step_is_a_mark_on_the_vo_lane(page: Page, server: str) -> None:
+    """A vo=on drive (two steps): each step's update or failure on the VO lane, its text
+    as the tooltip, and not among the other events."""
+    with httpx.Client(base_url=server, timeout=10.0) as c:
+        body = {"command": "DRIVE_STRAIGHT", "args": {"distance_m": 1.0, "vo": True}}
+        r = c.post("/api/rovers/spirit/commands", json=body, headers=AUTH)
+        assert r.status_code == 201, r.text
+        seq_id = r.json()["id"]
+        _wait(lambda: c.get(f"/api/sequences/{seq_id}").json()["status"] == "completed")
+        _wait(lambda: not c.get("/api/rovers/spirit/state").json()["executing"])
+    page.click("#timeline-refresh")
+    marks = page.get_by_test_id("timeline-vo")
+    expect(marks).to_have_count(2)
+    titles = marks.evaluate_all("els => els.map(e => e.title)")
+    values = marks.evaluate_all("els => els.map(e => e.dataset.value)")
+    for title, value in zip(titles, values, strict=True):
+        assert re.search(r"VO step [12]/2", title)
+        assert value == ("failure" if "failed" in title else "update")
+    others = page.get_by_test_id("timeline-event").evaluate_all("els => els.map(e => e.title)")
+    assert not any("VO step" in t for t in others)
+    page.get_by_test_id("timeline-panel").screenshot(path=str(ARTIFACTS / "timeline-vo.png"))
