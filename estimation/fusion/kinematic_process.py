@@ -1,0 +1,135 @@
+"""Process model of Balaram's kinematic EKF: state layout, ``f``, ``F`` and ``Q``.
+
+Seed 001 sec. 2.2. The filter state is ``X = (θ, ω_p, x, v_p, ξ[, b])`` (sec. 3):
+
+- ``θ`` (3) the small-angle attitude error of eq. 5, ``q_s_b = q0_s_b ⊗ [θ/2; 1]``: a
+  rotation in *body* axes multiplying the reference quaternion on the right, re-absorbed
+  into it after each step (eq. 21), so every Jacobian is taken at ``θ = 0``;
+- ``ω_p`` (3) the perturbation angular velocity, body axes, rad/s (eq. 2);
+- ``x`` (3) the body origin in the Site frame (the paper's inertial frame), m (eq. 1);
+- ``v_p`` (3) the perturbation velocity, body axes, m/s (eq. 1);
+- ``ξ`` (6) the contact angles on the wheels' equators, rad (eq. 8);
+- ``b`` (1 or 3) the gyro bias, rad/s, only when estimated (eq. 9, optional as in the
+  paper, which averages it out at stops instead).
+
+Continuous model with the commanded body velocity ``v_c`` and rate ``ω_c`` as inputs
+(``ω = ω_c + ω_p``, ``v = v_c + v_p``)::
+
+    θ̇   = ω - ½ ω× θ                    (eq. 7, from eqs. 2, 3, 5)
+    ω̇_p = A_ω ω_p + n_ω                 (eq. 2)
+    ẋ   = R(q0)(I + θ×)(v_c + v_p)      (eq. 1, R(q) = R(q0 ⊗ δq(θ)) to first order in θ)
+    v̇_p = A_v v_p + n_v                 (eq. 1)
+    ξ̇   = A_ξ ξ + n_ξ                   (eq. 8)
+    ḃ   = n_b                           (eq. 9)
+
+The damping matrices are ``-I/τ`` and each noise density is set from the steady-state
+standard deviation of its first-order Gauss-Markov process: ``q = 2 σ² / τ``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+
+
+def skew(v: FloatArray) -> FloatArray:
+    """``v×`` of eqs. 3 and 19: ``skew(a) @ b == cross(a, b)``."""
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Indices of the state blocks; ``n_bias`` is 0 (no bias state), 1 or 3."""
+
+    n_bias: int = 0
+
+    THETA = slice(0, 3)
+    OMEGA_P = slice(3, 6)
+    X = slice(6, 9)
+    V_P = slice(9, 12)
+    XI = slice(12, 18)
+
+    def __post_init__(self) -> None:
+        if self.n_bias not in (0, 1, 3):
+            raise ValueError(f"n_bias must be 0, 1 or 3, got {self.n_bias}")
+
+    @property
+    def bias(self) -> slice:
+        return slice(18, 18 + self.n_bias)
+
+    @property
+    def n(self) -> int:
+        return 18 + self.n_bias
+
+
+@dataclass(frozen=True)
+class ProcessParams:
+    """Time constants (s) and steady-state 1σ of the Gauss-Markov states (units in names).
+
+    Defaults are tuned for a MER-class rover at 3.75 cm/s and 2.1 deg/s on bumpy ground:
+    the body rocks at up to a few deg/s and bobs at a few mm/s over ~1 s, and a contact
+    point wanders by tens of degrees over a wheel's passage over a 0.2 m bump.
+    """
+
+    tau_omega_s: float = 1.0
+    sigma_omega_rad_s: float = 0.02
+    tau_v_s: float = 1.0
+    sigma_v_m_s: float = 0.01
+    tau_xi_s: float = 4.0
+    sigma_xi_rad: float = 0.3
+    bias_rw_rad_s_per_sqrt_s: float = 1e-6  # eq. 9 random walk (LN-200 class: ~0.2 deg/h/h)
+
+    def __post_init__(self) -> None:
+        for name, value in self.__dict__.items():
+            if not (np.isfinite(value) and value > 0.0):
+                raise ValueError(f"{name} must be positive and finite, got {value}")
+
+
+def dynamics(
+    X: FloatArray, R0: FloatArray, v_c_b: FloatArray, omega_c_b: FloatArray, p: ProcessParams
+) -> FloatArray:
+    """``Ẋ = f(X)`` of the module docstring; ``R0 = R_s_b`` of the reference quaternion."""
+    L = Layout(X.shape[0] - 18)
+    theta, omega_p, v_p, xi = X[L.THETA], X[L.OMEGA_P], X[L.V_P], X[L.XI]
+    omega = omega_c_b + omega_p
+    out = np.zeros_like(X)
+    out[L.THETA] = omega - 0.5 * np.cross(omega, theta)  # eq. 7
+    out[L.OMEGA_P] = -omega_p / p.tau_omega_s  # eq. 2
+    out[L.X] = R0 @ ((v_c_b + v_p) + np.cross(theta, v_c_b + v_p))  # eq. 1
+    out[L.V_P] = -v_p / p.tau_v_s  # eq. 1
+    out[L.XI] = -xi / p.tau_xi_s  # eq. 8
+    return out  # the bias block stays zero: eq. 9
+
+
+def jacobian(
+    X: FloatArray, R0: FloatArray, v_c_b: FloatArray, omega_c_b: FloatArray, p: ProcessParams
+) -> FloatArray:
+    """``F = ∂f/∂X`` at ``X`` (n, n)."""
+    L = Layout(X.shape[0] - 18)
+    theta, omega_p, v_p = X[L.THETA], X[L.OMEGA_P], X[L.V_P]
+    omega = omega_c_b + omega_p
+    v = v_c_b + v_p
+    I3 = np.eye(3)
+    F = np.zeros((L.n, L.n))
+    F[L.THETA, L.THETA] = -0.5 * skew(omega)  # eq. 7
+    F[L.THETA, L.OMEGA_P] = I3 + 0.5 * skew(theta)  # eq. 7: -½ ω×θ = ½ θ×ω
+    F[L.OMEGA_P, L.OMEGA_P] = -I3 / p.tau_omega_s  # eq. 2
+    F[L.X, L.THETA] = -R0 @ skew(v)  # eq. 1: θ×v = -v×θ
+    F[L.X, L.V_P] = R0 @ (I3 + skew(theta))  # eq. 1
+    F[L.V_P, L.V_P] = -I3 / p.tau_v_s  # eq. 1
+    F[L.XI, L.XI] = -np.eye(6) / p.tau_xi_s  # eq. 8
+    return F
+
+
+def noise_density(layout: Layout, p: ProcessParams) -> FloatArray:
+    """Spectral density ``Q`` of ``(n_ω, n_v, n_ξ, n_b)`` placed in the state (n, n)."""
+    q = np.zeros(layout.n)
+    q[layout.OMEGA_P] = 2.0 * p.sigma_omega_rad_s**2 / p.tau_omega_s
+    q[layout.V_P] = 2.0 * p.sigma_v_m_s**2 / p.tau_v_s
+    q[layout.XI] = 2.0 * p.sigma_xi_rad**2 / p.tau_xi_s
+    q[layout.bias] = p.bias_rw_rad_s_per_sqrt_s**2
+    return np.diag(q)
