@@ -61,6 +61,18 @@ def _port(text: str) -> int:
     return value
 
 
+def _estimators(text: str) -> tuple[str, ...]:
+    from sim.side_estimators import ESTIMATORS
+
+    names = tuple(n.strip() for n in text.split(",") if n.strip())
+    unknown = [n for n in names if n not in ESTIMATORS]
+    if unknown or "sapp" not in names:
+        raise argparse.ArgumentTypeError(
+            f"--estimators must list sapp and any of {', '.join(ESTIMATORS)}, got {text!r}"
+        )
+    return names
+
+
 def _cmd_serve(args: argparse.Namespace) -> dict[str, Any]:
     import secrets
 
@@ -127,6 +139,7 @@ def _cmd_run(args: argparse.Namespace) -> dict[str, Any]:
         duration_s=args.duration_s,
         distance_m=args.distance_m,
         angle_deg=args.angle_deg,
+        estimators=args.estimators,
     )
 
 
@@ -220,6 +233,12 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--duration-s", type=_finite_float("--duration-s"), help="rest length, s")
     run.add_argument("--distance-m", type=_finite_float("--distance-m"), help="drive length, m")
     run.add_argument("--angle-deg", type=_finite_float("--angle-deg"), help="turn angle, deg")
+    run.add_argument(
+        "--estimators",
+        type=_estimators,
+        default=("sapp",),
+        help="estimators to run, comma-separated: sapp (always) and kinematic_ekf",
+    )
     run.add_argument("--json", action="store_true", help="print JSON")
     run.set_defaults(handler=_cmd_run)
 

@@ -22,6 +22,7 @@ from sim.errors import InputError
 from sim.marsclock import SOL_S, lmst_h_from_t_s, sol_number_t_s, t_s_to_utc
 from sim.rover_sim import RoverSim
 from sim.session import run_commands
+from sim.side_estimators import ESTIMATORS
 from sim.truth import CONTROL_DT_S
 
 DEG_PER_H_PER_RAD_S = math.degrees(1.0) * 3600.0
@@ -104,12 +105,21 @@ def run_scenario(
     duration_s: float | None = None,
     distance_m: float | None = None,
     angle_deg: float | None = None,
+    estimators: tuple[str, ...] = ("sapp",),
 ) -> dict[str, Any]:
     """Run scenario ``name`` with ``seed`` (and optional overrides); its summary as a dict.
 
     Overrides are validated before anything runs: an unknown site, a size out of range or
     one that does not apply to the scenario raise ``InputError`` naming the parameter.
+    ``estimators``: what runs beside SAPP in a scenario with the flight software in the
+    loop (``sim.side_estimators.ESTIMATORS``); the summary gives each one's final errors.
     """
+    if estimators != ("sapp",):
+        unknown = [e for e in estimators if e not in ESTIMATORS]
+        if unknown or "sapp" not in estimators:
+            raise InputError(
+                "estimators", f"must include sapp, from {', '.join(ESTIMATORS)}; got {estimators}"
+            )
     scenario = get_scenario(name)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise InputError("seed", f"must be a non-negative integer, got {seed!r}")
@@ -117,7 +127,9 @@ def run_scenario(
         scenario, {"duration_s": duration_s, "distance_m": distance_m, "angle_deg": angle_deg}
     )
     if scenario.kind == "sapp":
-        return _run_sapp(scenario, amount, seed, site)
+        return _run_sapp(scenario, amount, seed, site, estimators)
+    if estimators != ("sapp",):
+        raise InputError("estimators", f"scenario {name!r} runs no flight software")
     wall_start = time.perf_counter()
     sim = RoverSim(scenario.site if site is None else site, seed, scenario.start_utc)
     t_start = sim.t_s
@@ -182,11 +194,17 @@ def summarize(
     return summary
 
 
-def _run_sapp(scenario: Scenario, distance_m: float, seed: int, site: str | None) -> dict[str, Any]:
+def _run_sapp(
+    scenario: Scenario, distance_m: float, seed: int, site: str | None, estimators: tuple[str, ...]
+) -> dict[str, Any]:
     """A scenario with the flight software in the loop (``sim.session``)."""
     commands = [cmd.GetFineAttitude(), cmd.DriveStraight(distance_m), cmd.HgaPass(15.0)]
     session, reports, wall_s = run_commands(
-        scenario.site if site is None else site, seed, scenario.start_utc, commands
+        scenario.site if site is None else site,
+        seed,
+        scenario.start_utc,
+        commands,
+        estimators=estimators,
     )
     base = summarize(scenario, distance_m, seed, session.sim, reports[0].start_t_s, wall_s)
     last = session.frames[-1]
@@ -209,6 +227,16 @@ def _run_sapp(scenario: Scenario, distance_m: float, seed: int, site: str | None
     base["position_error_pct_of_distance"] = (
         100.0 * last.position_error_m / max(session.sim.totals.distance_truth_m, 1e-9)
     )
+    base["estimators"] = {
+        name: {
+            "position_error_m": e["position_error_m"],
+            "position_error_pct_of_distance": 100.0
+            * e["position_error_m"]
+            / max(session.sim.totals.distance_truth_m, 1e-9),
+            "attitude_error_deg": e["attitude_error_deg"],
+        }
+        for name, e in last.estimators.items()
+    }
     base["imu_integration_s"] = last.imu_integration_s
     base["hga_error_deg"] = last.hga_error_deg
     base["hga_margin_deg"] = last.hga_margin_deg

@@ -61,12 +61,14 @@ from sim.local_level import q_ll_b_from_site
 from sim.mars_frames import earth_ll_truth, elevation_rad, sun_ll_truth
 from sim.marsclock import lmst_h_from_t_s, sol_number_t_s
 from sim.rover_sim import RoverSim, Segment
+from sim.side_estimators import ESTIMATORS, KinematicEkfRunner, SideEstimate
 from sim.truth import CONTROL_DT_S
 from sim.vo_drive import (
     VO_MAST_AZ_RAD,
     VO_MAST_EL_RAD,
     VO_RIG,
     EstimatedPose,
+    VoDriveOptions,
     corrected_pose,
     predicted_motion,
     split_drive,
@@ -125,6 +127,7 @@ class TelemetryFrame:
     earth_ll_true: list[float]
     hga_boresight_ll_true: list[float]
     events: list[str] = field(default_factory=list)
+    estimators: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     def as_dict(self) -> dict[str, Any]:
         """The frame as a JSON-ready dict; a figure that does not exist (NaN, e.g. the
@@ -159,7 +162,8 @@ class RoverSession:
     """A rover at a site with SAPP in the loop. Arguments as ``RoverSim`` (the rover's
     placement, IMU and slip) plus NATE's parameters, and ``frame_every_s``: keep one
     telemetry frame per that many seconds of 8 Hz data (0: every cycle; frames with events
-    or a mode change are always kept)."""
+    or a mode change are always kept); ``vo_options``: the step limits and imaging of
+    ``vo=on`` drives (``sim.vo_drive.VoDriveOptions``; MER's by default)."""
 
     def __init__(
         self,
@@ -175,9 +179,14 @@ class RoverSession:
         mast_bias_sigma_deg: float = 0.05,
         nate_params: NateParams | None = None,
         frame_every_s: float = 0.0,
+        vo_options: VoDriveOptions | None = None,
+        estimators: Sequence[str] = ("sapp",),
     ) -> None:
         if not (math.isfinite(frame_every_s) and frame_every_s >= 0.0):
             raise InputError("frame_every_s", "must be finite and non-negative")
+        if vo_options is not None and not isinstance(vo_options, VoDriveOptions):
+            raise InputError("vo_options", f"must be a VoDriveOptions, got {vo_options!r}")
+        self.vo_options = vo_options if vo_options is not None else VoDriveOptions()
         self.sim = RoverSim(
             site_name,
             seed,
@@ -198,6 +207,15 @@ class RoverSession:
         self._site_origins_true: list[FloatArray] = [sim.state.p_s.copy()]  # mission frame
         self._command = ""
         self._events: list[str] = []
+        unknown = [e for e in estimators if e not in ESTIMATORS]
+        if unknown or "sapp" not in estimators:
+            raise InputError(
+                "estimators", f"must include sapp, from {', '.join(ESTIMATORS)}; got {estimators!r}"
+            )
+        self.side: list[KinematicEkfRunner] = (
+            [KinematicEkfRunner(sim, seed)] if "kinematic_ekf" in estimators else []
+        )
+        self._side_now: dict[str, tuple[FloatArray, FloatArray]] | None = None
         self._vo: VisualOdometry | None = None  # made at the first vo=on drive
         self._last_frame_t = -math.inf
         self._last_mode = ""
@@ -402,10 +420,12 @@ class RoverSession:
             seg = sim.drive_arc(args[0], args[1])
         else:
             seg = sim.turn_in_place(args[0])
+        start = self._mission_estimate()
         nate.mobility(drive, wheel_angle_rad=wheel0)
         outputs = self._step_segment(seg)
         nate.stop()
-        self._segment_frames(seg, outputs)
+        side = self._side_drive(seg, kind, args, start)
+        self._segment_frames(seg, outputs, side)
         self._frame_now(force=True)
         distance = float(np.sum(np.linalg.norm(np.diff(seg.truth.p_s, axis=0), axis=1)))
         return {"distance_truth_m": distance}
@@ -426,7 +446,7 @@ class RoverSession:
         nate = self.nate
         if nate.mode is not NateMode.IDLE:  # checked before the rover moves
             raise CommandRefusedError(f"mobility: refused in mode {nate.mode.value}")
-        steps = split_drive(kind, args)
+        steps = split_drive(kind, args, self._vo_drive_options())
         vo = self._visual_odometry()
         vo.reset()
         before = self._estimate()
@@ -460,7 +480,12 @@ class RoverSession:
         """Take a pair and run VO on it; adopt a converged update. 1 if adopted."""
         R_pred, p_pred = predicted_motion(before, after)
         try:
-            pair = self.sim.navcam_pair(VO_MAST_AZ_RAD, VO_MAST_EL_RAD, rig=VO_RIG)
+            pair = self.sim.navcam_pair(
+                VO_MAST_AZ_RAD,
+                VO_MAST_EL_RAD,
+                rig=VO_RIG,
+                rover_shadow=self._vo_drive_options().rover_shadow,
+            )
             result = vo.step(
                 pair.left,
                 pair.right,
@@ -487,6 +512,17 @@ class RoverSession:
             update_text(step, steps, p_s - after.p_s, result.n_inliers, result.n_tracked)
         )
         return 1
+
+    def set_visual_odometry(self, vo: VisualOdometry) -> None:
+        """Run ``vo=on`` drives with ``vo`` (a benchmark's wrapper that records each step,
+        or other parameters); it must image through ``VO_RIG``."""
+        if not isinstance(vo, VisualOdometry) or vo.rig != VO_RIG:
+            raise InputError("vo", "must be a VisualOdometry on sim.vo_drive.VO_RIG")
+        self._vo = vo
+
+    def _vo_drive_options(self) -> VoDriveOptions:
+        options: VoDriveOptions | None = getattr(self, "vo_options", None)
+        return options if options is not None else VoDriveOptions()  # an older checkpoint
 
     def _visual_odometry(self) -> VisualOdometry:
         vo: VisualOdometry | None = getattr(self, "_vo", None)  # None also in a session
@@ -596,15 +632,35 @@ class RoverSession:
         )
         self._frame(out, force)
 
-    def _segment_frames(self, seg: Segment, outputs: Sequence[NateOutput]) -> None:
+    def _mission_estimate(self) -> tuple[FloatArray, FloatArray]:
+        """SAPP's ``(p_mission, q_b_ll)`` now (where a side estimator starts)."""
+        nate = self.nate
+        p_mission: FloatArray = nate.sites.to_mission(nate.p_s, nate.sites.current.index)
+        return p_mission, nate.q_b_ll
+
+    def _side_drive(
+        self, seg: Segment, kind: str, args: tuple[float, ...], start: tuple[FloatArray, FloatArray]
+    ) -> dict[str, SideEstimate]:
+        """The side estimators through a drive segment (``sim.side_estimators``)."""
+        if not self.side:
+            return {}
+        wheel = self.sim.encoders.wheel_angle_rad(seg.encoders.wheel_counts)
+        steer = seg.encoders.steer_rad
+        return {r.name: r.drive(seg, kind, args, wheel, steer, start) for r in self.side}
+
+    def _segment_frames(
+        self, seg: Segment, outputs: Sequence[NateOutput], side: dict[str, SideEstimate]
+    ) -> None:
         sim = self.sim
         traj = seg.truth
         q_ll_b = q_ll_b_from_site(traj.q_s_b, traj.p_s, sim.lat_rad, sim.lon_east_rad)
         for k, out in enumerate(outputs):
             if self._keep(out, False):
                 i = k + 1
+                self._side_now = {n: (e.p_mission[i], e.q_b_ll[i]) for n, e in side.items()}
                 joints = (float(traj.rocker_rad[i]), traj.bogie_rad[i], traj.steer_rad[i])
                 self._append(out, q_ll_b[i], traj.p_s[i], joints)
+        self._side_now = None
 
     def _append(
         self,
@@ -661,12 +717,30 @@ class RoverSession:
                 earth_ll_true=[float(v) for v in earth_true],
                 hga_boresight_ll_true=[float(v) for v in boresight_ll],
                 events=events,
+                estimators=self._side_estimates(p_mission_true, q_b_ll_true),
             )
         )
         self._last_frame_t = t
         self._last_mode = out.mode.value
 
     # ---- truth for benchmarks and tests -------------------------------------------
+
+    def _side_estimates(self, p_mission_true: FloatArray, q_b_ll_true: Rotation) -> dict[str, Any]:
+        """Each side estimator's pose in this frame and its errors against the truth."""
+        out: dict[str, Any] = {}
+        for runner in self.side:
+            now = self._side_now.get(runner.name) if self._side_now else runner.estimate_now()
+            if now is None:
+                continue  # not started: it starts at the first drive
+            p, q = now
+            att = (Rotation.from_quat(q) * q_b_ll_true.inv()).magnitude()
+            out[runner.name] = {
+                "p_mission": [float(v) for v in p],
+                "q_b_ll": [float(v) for v in q],
+                "position_error_m": float(np.linalg.norm(p - p_mission_true)),
+                "attitude_error_deg": math.degrees(float(att)),
+            }
+        return out
 
     @property
     def mission_origin_world(self) -> FloatArray:

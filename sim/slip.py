@@ -82,6 +82,10 @@ class SlipParams:
     correlation_length_m: float = 0.5  # Gauss-Markov correlation distance (assumption)
     slip_sinkage_gain: float = 1.0  # k_z: sinkage doubles at 100 % slip (assumption)
     max_sinkage_fraction: float = 0.3  # sinkage capped at this fraction of the radius
+    # Commanded slip (benchmarks): ``(lo, hi)`` replaces the longitudinal slip of the model
+    # by one draw, uniform in [lo, hi], per drive primitive (``SlipModel.noise`` call), held
+    # over it; creep and sinkage still follow the model. None: the terramechanics above.
+    slip_range: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         for name in (
@@ -100,6 +104,20 @@ class SlipParams:
                 raise InputError(name, f"must be finite and >= 0, got {value}")
         if self.max_sinkage_fraction >= 1.0:
             raise InputError("max_sinkage_fraction", "must be below 1")
+        if self.slip_range is not None and not _is_slip_range(self.slip_range):
+            raise InputError(
+                "slip_range", f"must be (lo, hi) with 0 <= lo <= hi < 1, got {self.slip_range!r}"
+            )
+
+
+def _is_slip_range(value: object) -> bool:
+    """Whether ``value`` is a pair of numbers ``0 <= lo <= hi < 1``."""
+    if not isinstance(value, tuple) or len(value) != 2:
+        return False
+    if not all(isinstance(v, int | float) and not isinstance(v, bool) for v in value):
+        return False
+    lo, hi = value
+    return bool(0.0 <= lo <= hi < 1.0)
 
 
 @dataclass(frozen=True)
@@ -219,6 +237,8 @@ class SlipModel:
         """Draw the correlated noise for steps that roll ``step_distance_m`` each, (n, 2).
 
         Columns (slip, creep). Advances the internal state; exact for any step lengths.
+        With ``params.slip_range`` the slip column is the commanded slip itself, one uniform
+        draw for the whole call (``drive`` and ``turn`` then use it in place of the model).
         """
         d = np.asarray(step_distance_m, dtype=float).reshape(-1)
         if not np.all(np.isfinite(d)) or np.any(d < 0):
@@ -244,7 +264,16 @@ class SlipModel:
                 out[lo:hi, j] = y
                 state[j] = y[-1]
         self.state = state
+        if p.slip_range is not None:
+            out[:, 0] = self.rng.uniform(*p.slip_range)
         return out
+
+    def _longitudinal(self, modelled: FloatArray, noise: FloatArray) -> FloatArray:
+        """The slip of a step: the model's plus its noise, or the commanded slip."""
+        if self.params.slip_range is not None:
+            out: FloatArray = np.broadcast_to(noise[..., 0], modelled.shape).copy()
+            return out
+        return np.clip(modelled + noise[..., 0], -self.params.slip_max, self.params.slip_max)
 
     def sinkage_m(self, slip: ArrayLike) -> FloatArray:
         """Sinkage (m) of the wheels at slip ``slip``: the soil's static sinkage, deeper
@@ -267,7 +296,7 @@ class SlipModel:
             return SlipSample(zero, zero.copy(), zero.copy())
         s, c = slip_curve(self.soil, a, cross_slope_rad, self.params, self.geometry)
         cap = self.params.slip_max
-        s = np.clip(s + noise[..., 0], -cap, cap)
+        s = self._longitudinal(s, noise)
         c = np.clip(c + noise[..., 1], -cap, cap)
         return SlipSample(s, c, self.sinkage_m(s))
 
@@ -279,6 +308,6 @@ class SlipModel:
             return SlipSample(zero, zero.copy(), zero.copy())
         s, c = turn_slip_curve(self.soil, slope, self.params, self.geometry)
         cap = self.params.slip_max
-        s = np.clip(s + noise[..., 0], -cap, cap)
+        s = self._longitudinal(s, noise)
         c = np.clip(c + noise[..., 1], 0.0, cap)
         return SlipSample(s, c, self.sinkage_m(s))

@@ -26,6 +26,7 @@ from scipy.spatial.transform import Rotation
 from estimation.vo.odometry import VoMotion
 from estimation.vo.stereo_rig import NAVCAM
 from sequences import commands as cmd
+from sim.errors import InputError
 
 FloatArray = NDArray[np.float64]
 
@@ -34,26 +35,54 @@ VO_MAST_AZ_RAD = 0.0  # straight ahead
 VO_MAST_EL_RAD = math.radians(-35.0)  # the ground ahead (sim.navcam.DEFAULT_EL_RAD)
 
 
-def split_drive(kind: str, args: tuple[float, ...]) -> list[tuple[float, ...]]:
+@dataclass(frozen=True)
+class VoDriveOptions:
+    """How a session steps and images its ``vo=on`` drives. ``step_max_m``,
+    ``step_max_deg``: the longest step and the largest turn per step (MER's 0.75 m and
+    18 deg, seed 002 sec. 4; the seed's ground test drove 35 cm steps, sec. 3);
+    ``rover_shadow``: draw the rover's own shadow in the VO pairs (sec. 4.3's false
+    positive; ``sim.navcam``)."""
+
+    step_max_m: float = cmd.VO_STEP_MAX_M
+    step_max_deg: float = cmd.VO_STEP_MAX_DEG
+    rover_shadow: bool = False
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.step_max_m) and 0.0 < self.step_max_m <= cmd.VO_STEP_MAX_M):
+            raise InputError("step_max_m", f"must be in (0, {cmd.VO_STEP_MAX_M:g}] m")
+        if not (math.isfinite(self.step_max_deg) and 0.0 < self.step_max_deg <= 90.0):
+            raise InputError("step_max_deg", "must be in (0, 90] deg")
+        if not isinstance(self.rover_shadow, bool):
+            raise InputError("rover_shadow", f"must be a bool, got {self.rover_shadow!r}")
+
+
+def split_drive(
+    kind: str, args: tuple[float, ...], options: VoDriveOptions | None = None
+) -> list[tuple[float, ...]]:
     """The steps of a ``vo=on`` drive: ``kind`` ``straight`` (distance_m,), ``arc``
-    (radius_m, angle_rad) or ``turn`` (angle_rad,), each step the same kind.
+    (radius_m, angle_rad) or ``turn`` (angle_rad,), each step the same kind, within
+    ``options``' step limits (MER's by default).
 
     >>> split_drive("straight", (2.0,))
     [(0.6666666666666666,), (0.6666666666666666,), (0.6666666666666666,)]
     >>> [round(math.degrees(a), 6) for (a,) in split_drive("turn", (math.radians(-40.0),))]
     [-13.333333, -13.333333, -13.333333]
+    >>> len(split_drive("straight", (2.45,), VoDriveOptions(step_max_m=0.35)))
+    7
     """
+    o = options if options is not None else VoDriveOptions()
+    limits = (o.step_max_m, o.step_max_deg)
     if kind == "straight":
         (distance,) = args
-        n = cmd.vo_step_count(distance, 0.0)
+        n = cmd.vo_step_count(distance, 0.0, *limits)
         return [(distance / n,)] * n
     if kind == "arc":
         radius, angle = args
-        n = cmd.vo_step_count(abs(radius) * angle, math.degrees(angle))
+        n = cmd.vo_step_count(abs(radius) * angle, math.degrees(angle), *limits)
         return [(radius, angle / n)] * n
     if kind == "turn":
         (angle,) = args
-        n = cmd.vo_step_count(0.0, math.degrees(angle))
+        n = cmd.vo_step_count(0.0, math.degrees(angle), *limits)
         return [(angle / n,)] * n
     raise ValueError(f"kind: must be straight, arc or turn, got {kind!r}")
 

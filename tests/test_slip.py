@@ -158,3 +158,28 @@ def test_bad_parameters_are_rejected() -> None:
         SlipModel(GUSEV_SOIL)
     with pytest.raises(InputError, match="step_distance_m"):
         SlipModel(GUSEV_SOIL, np.random.default_rng(0)).noise([0.1, -0.1])
+
+
+def test_a_commanded_slip_range_holds_one_draw_per_drive_within_it() -> None:
+    params = SlipParams(slip_range=(0.3, 0.6))
+    model = SlipModel(GUSEV_SOIL, np.random.default_rng(4), params)
+    held = []
+    for _ in range(200):  # one draw per drive, held over its steps, whatever the slope
+        noise = model.noise(np.full(20, 0.01))
+        sample = model.drive(np.linspace(-0.3, 0.3, 20), np.zeros(20), noise)
+        assert np.all(sample.slip == sample.slip[0])
+        held.append(float(sample.slip[0]))
+        assert np.all(sample.sinkage_m > GUSEV_SOIL.sinkage_m)  # deeper with the slip
+    assert 0.3 <= min(held) < 0.32 and 0.58 < max(held) <= 0.6
+    assert np.mean(held) == pytest.approx(0.45, abs=0.02)  # uniform: the midpoint
+    turn = model.turn(np.full(5, 0.2), model.noise(np.full(5, 0.01)))
+    assert 0.3 <= float(turn.slip[0]) <= 0.6 and np.all(turn.slip == turn.slip[0])
+    # creep still follows the terramechanics: downslope on a cross slope
+    cross = model.drive(np.zeros(3), np.full(3, 0.3), model.noise(np.full(3, 0.01)))
+    assert np.all(cross.creep < 0.0)
+
+
+@pytest.mark.parametrize("bad", [(0.5, 0.4), (-0.1, 0.5), (0.2, 1.0), (0.2,), "0.3-0.6"])
+def test_a_bad_slip_range_is_rejected(bad: object) -> None:
+    with pytest.raises(InputError, match="slip_range"):
+        SlipParams(slip_range=bad)  # type: ignore[arg-type]

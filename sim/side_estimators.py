@@ -1,0 +1,163 @@
+"""Estimators that run beside SAPP in a rover session, on the same drives, so that operators
+can compare them (the fusion issue, item 3).
+
+``KinematicEkfRunner`` runs Balaram's kinematic EKF (``estimation.fusion.kinematic_ekf``,
+seed 001) on every drive segment, sample for sample at 8 Hz, from the sensors the rover
+has: the IMU's gyros (the heading gyro, eqs. 12-13), the wheel and steering encoders and
+the rocker/bogie joint encoders (the slip constraints, eqs. 17-20) and a WASS-like sun
+sensor (eqs. 15-16, with IVP's sun as the reference), and the drive's commanded rates
+(what the driving software commanded: eq. 1's inputs). At rest the rover does not move
+and the filter is left as it is.
+
+It starts from SAPP's estimate at the first drive it sees (it has no attitude acquisition
+of its own) and from then on runs on its own. It works in the mission frame (the first
+Site: x North, y East, z Down), so Site changes do not concern it. Its noise sensors
+(joint encoders, sun sensor) draw from their own generators, seeded from the session's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
+
+from estimation.fusion.encoder_rates import interval_rates
+from estimation.fusion.kinematic_ekf import KinematicEkf
+from estimation.fusion.rover_kinematics import steer_per_wheel
+from estimation.fusion.slip_constraint import JointRates
+from estimation.ivp import mars_rotation_ll, sun_ll
+from sim.drive import DEFAULT_SPEED_M_S, DEFAULT_TURN_RATE_RAD_S
+from sim.joint_encoders import JointEncoderParams, JointEncoders
+from sim.mars_frames import sun_ll_truth
+from sim.rover_sim import RoverSim, Segment
+from sim.sun_sensor import SunSensorParams, WassSunSensor
+
+FloatArray = NDArray[np.float64]
+
+ESTIMATORS = ("sapp", "kinematic_ekf")  # what `--estimators` accepts; SAPP always runs
+
+
+@dataclass(frozen=True)
+class SideEstimate:
+    """An estimator's pose per sample of a segment: mission-frame positions (N, 3), m, and
+    ``q_b_ll`` (N, 4) (``[x, y, z, w]``; LL and mission axes agree to ~1e-5 rad)."""
+
+    p_mission: FloatArray
+    q_b_ll: FloatArray
+
+
+def commanded_rates(
+    kind: str, args: tuple[float, ...], t_s: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """The commanded body velocity (m/s) and rate (rad/s) over each interval of a segment
+    (N-1, 3) each: the drive moves at its speed from the first sample (a turn from the
+    second: the steering takes the first control cycle, ``sim.rover_sim``) until it is done.
+
+    >>> v, w = commanded_rates("straight", (0.075,), np.array([0.0, 1.0, 2.0, 3.0]))
+    >>> v[:, 0].round(4).tolist(), float(abs(w).max())
+    ([0.0375, 0.0375, 0.0], 0.0)
+    """
+    v = np.zeros((t_s.size - 1, 3))
+    w = np.zeros((t_s.size - 1, 3))
+
+    def profile(start: int, amount: float, rate: float) -> FloatArray:
+        elapsed = np.clip(t_s - t_s[min(start, t_s.size - 1)], 0.0, None)
+        done = np.minimum(elapsed * rate, amount)
+        out: FloatArray = np.diff(done) / np.diff(t_s)
+        return out
+
+    if kind == "straight":
+        v[:, 0] = profile(0, args[0], DEFAULT_SPEED_M_S)
+    elif kind == "arc":
+        radius, angle = args
+        speed = profile(0, abs(radius) * angle, DEFAULT_SPEED_M_S)
+        v[:, 0] = speed
+        w[:, 2] = math.copysign(1.0, radius) * speed / abs(radius)  # > 0 centre on the right
+    elif kind == "turn":
+        (angle,) = args
+        w[:, 2] = math.copysign(1.0, angle) * profile(1, abs(angle), DEFAULT_TURN_RATE_RAD_S)
+    else:
+        raise ValueError(f"kind: must be straight, arc or turn, got {kind!r}")
+    return v, w
+
+
+class KinematicEkfRunner:
+    """Balaram's kinematic EKF beside SAPP (module docstring)."""
+
+    name = "kinematic_ekf"
+
+    def __init__(self, sim: RoverSim, seed: int) -> None:
+        rng_joint, rng_sun = np.random.default_rng([seed, 7001]).spawn(2)
+        self.joints = JointEncoders(JointEncoderParams(), rng_joint)
+        self.sun_sensor = WassSunSensor(SunSensorParams(), rng_sun)
+        self.lat_rad, self.lon_east_rad = sim.lat_rad, sim.lon_east_rad
+        self.frame_rate_ll = mars_rotation_ll(sim.lat_rad)
+        self.ekf: KinematicEkf | None = None
+
+    def estimate_now(self) -> tuple[FloatArray, FloatArray] | None:
+        """``(p_mission, q_b_ll)`` now, or ``None`` before the first drive."""
+        if self.ekf is None:
+            return None
+        est = self.ekf.estimate()
+        return est.p_s, est.q_b_s
+
+    def drive(
+        self,
+        seg: Segment,
+        kind: str,
+        args: tuple[float, ...],
+        wheel_rad: FloatArray,
+        steer_rad: FloatArray,
+        start: tuple[FloatArray, FloatArray],
+    ) -> SideEstimate:
+        """Run the filter through ``seg`` (its IMU and sun/joint sensors on its truth);
+        ``wheel_rad`` (N, 6) and ``steer_rad`` (N, 4) the encoders as the flight software
+        read them; ``start`` SAPP's ``(p_mission, q_b_ll)`` for a filter not started yet.
+        Returns the estimate at each sample of the segment (its first = before moving)."""
+        if self.ekf is None:
+            p0, q_b_ll0 = start
+            q_s_b0 = Rotation.from_quat(q_b_ll0).inv().as_quat()
+            self.ekf = KinematicEkf(q_s_b0, p0, gyro="3axis")  # the LN-200 has three axes
+        ekf = self.ekf
+        truth = seg.truth
+        t = truth.t_s
+        joints = self.joints.read(truth)
+        q_s_b = truth.q_s_b
+        sun_ref = sun_ll(t, self.lat_rad, self.lon_east_rad)  # IVP's: the filter's reference
+        sun_true = sun_ll_truth(t, self.lat_rad, self.lon_east_rad)
+        sun = self.sun_sensor.measure(t, q_s_b, sun_true)
+        gamma = np.column_stack([joints.rocker_rad, joints.bogie_rad])
+        gamma_rate = interval_rates(gamma, t)
+        sigma = np.array([steer_per_wheel(s) for s in steer_rad])
+        v_c, w_c = commanded_rates(kind, args, t)
+        dt = np.diff(t)
+        p = np.empty((t.size, 3))
+        q = np.empty((t.size, 4))
+        p[0], q[0] = self._pose()
+        for k in range(dt.size):
+            ekf.set_command(v_c[k], w_c[k])
+            ekf.propagate(0.5 * dt[k])
+            ekf.update_gyro(ekf.B_g @ seg.imu.delta_angle_b[k] / dt[k], self.frame_rate_ll)
+            ekf.update_slip(
+                JointRates(
+                    gamma_rad=0.5 * (gamma[k] + gamma[k + 1]),
+                    gamma_rate_rad_s=gamma_rate[k],
+                    sigma_rad=0.5 * (sigma[k] + sigma[k + 1]),
+                    sigma_rate_rad_s=(sigma[k + 1] - sigma[k]) / dt[k],
+                    psi_rate_rad_s=(wheel_rad[k + 1] - wheel_rad[k]) / dt[k],
+                )
+            )
+            ekf.propagate(0.5 * dt[k])
+            if sun.valid[k + 1]:
+                ekf.update_sun(sun.s_m[k + 1], sun_ref[k + 1])
+            p[k + 1], q[k + 1] = self._pose()
+        ekf.set_command(np.zeros(3), np.zeros(3))  # at rest until the next drive
+        return SideEstimate(p, q)
+
+    def _pose(self) -> tuple[FloatArray, FloatArray]:
+        assert self.ekf is not None
+        est = self.ekf.estimate()
+        return est.p_s, est.q_b_s
