@@ -285,7 +285,7 @@ def build_parser() -> argparse.ArgumentParser:
     serve.set_defaults(handler=_cmd_serve, printer=lambda result, as_json: None, json=False)
 
     bench = sub.add_parser("bench", help="run a benchmark and print its figures")
-    bench.add_argument("name", help="benchmark name: sim, sapp, server or view3d")
+    bench.add_argument("name", help="benchmark name: sim, sapp, vo, fusion, server or view3d")
     bench.add_argument("--json", action="store_true", help="print JSON (one object)")
     bench.set_defaults(handler=_cmd_bench)
     return parser

@@ -127,10 +127,17 @@ def _bench_vo() -> dict[str, Any]:
     return bench_vo()
 
 
+def _bench_fusion() -> dict[str, Any]:
+    from sim.bench_fusion import bench_fusion  # imports this module's _result
+
+    return bench_fusion()
+
+
 BENCHES: dict[str, Callable[[], dict[str, Any]]] = {
     "sim": bench_sim,
     "sapp": _bench_sapp,
     "vo": _bench_vo,
+    "fusion": _bench_fusion,
 }
 
 

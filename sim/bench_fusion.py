@@ -1,0 +1,26 @@
+"""``roverops bench fusion``: both fusion filters' figures in one result (the fusion issue,
+item 4): Balaram's kinematic EKF on surface eq. 22 (``sim.bench_fusion_kinematic``) and
+the radio + terrain-matching EKF's four cases (``sim.bench_fusion_radio``), with
+``filter_consistency_nees`` for each filter. Each part's module says how it measures.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from sim.bench import _result
+
+
+def bench_fusion(kinematic_runs: int = 10, radio_seeds: int = 20) -> dict[str, Any]:
+    """Both parts; smaller counts make a quick run (the targets stay the issue's)."""
+    from sim.bench_fusion_kinematic import bench_fusion_kinematic
+    from sim.bench_fusion_radio import bench_fusion_radio
+
+    kinematic = bench_fusion_kinematic(n_runs=kinematic_runs)
+    radio = bench_fusion_radio(n_seeds=radio_seeds)
+    metrics = {**kinematic["metrics"], **radio["metrics"]}
+    metrics["filter_consistency_nees"] = {
+        "kinematic_ekf": kinematic["metrics"]["kinematic_ekf_nees"],
+        "radio_ekf": radio["metrics"]["radio_ekf_nees"],
+    }
+    return _result("fusion", metrics, {**kinematic["targets"], **radio["targets"]})

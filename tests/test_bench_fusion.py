@@ -1,0 +1,34 @@
+"""``roverops bench fusion`` at its smallest: one run of each part, the output contract of
+DESIGN.md ("Benchmarks") and the issue's keys; figures are checked for sense, never for
+speed."""
+
+from __future__ import annotations
+
+import math
+
+from sim.bench_fusion import bench_fusion
+
+KEYS = (
+    "eq22_straight_odometry_err_pct",
+    "eq22_straight_ekf_err_pct",
+    "eq22_turn_attitude_err_deg_max",
+    "eq22_turn_attitude_err_deg_rms",
+    "radio_case1_err_m",
+    "radio_case2_err_m",
+    "radio_case3_err_m",
+    "radio_case4_err_m",
+)
+
+
+def test_one_run_of_each_part() -> None:
+    result = bench_fusion(kinematic_runs=1, radio_seeds=1)
+    assert result["bench"] == "fusion" and isinstance(result["ok"], bool)
+    metrics, targets = result["metrics"], result["targets"]
+    for key in KEYS:
+        assert math.isfinite(metrics[key]) and metrics[key] >= 0.0, key
+    assert {"eq22_straight_ekf_err_pct", "radio_case4_err_m"} <= set(targets)
+    nees = metrics["filter_consistency_nees"]
+    assert set(nees) == {"kinematic_ekf", "radio_ekf"}
+    assert all(math.isfinite(v) and v > 0.0 for v in nees.values())
+    # the EKF beats averaged wheel odometry on eq. 22 (seed 001: 0.3 % against 2 %)
+    assert metrics["eq22_straight_ekf_err_pct"] < metrics["eq22_straight_odometry_err_pct"]
