@@ -57,6 +57,9 @@ class ServerConfig:
     start_clocks: bool = True
     initial_speed: float = 1.0
     viewer_3d: bool = False  # a viser 3D view per rover under /viser/{rover}/
+    # what runs beside SAPP on a new rover (sim.side_estimators); a rover restored from a
+    # checkpoint keeps the estimators it was started with
+    estimators: tuple[str, ...] = ("sapp",)
 
 
 class ClockBody(BaseModel):
@@ -97,7 +100,11 @@ class Server:
         self.rovers: dict[str, RoverRuntime] = {}
         for name, spec in ROVERS.items():
             saved = self.store.load_checkpoint(name)
-            runtime = RoverRuntime.restore(spec, saved[1]) if saved else RoverRuntime(spec)
+            runtime = (
+                RoverRuntime.restore(spec, saved[1])
+                if saved
+                else RoverRuntime(spec, estimators=config.estimators)
+            )
             if saved is None:
                 runtime.set_clock(speed=config.initial_speed)
             if saved is not None:

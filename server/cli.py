@@ -87,7 +87,12 @@ def _cmd_serve(args: argparse.Namespace) -> dict[str, Any]:
     except OSError as exc:
         raise InputError("--data-dir", f"cannot create {args.data_dir}: {exc.strerror}") from None
     token = args.operator_token or secrets.token_urlsafe(18)
-    config = ServerConfig(database_url=url, operator_token=token, viewer_3d=not args.no_3d)
+    config = ServerConfig(
+        database_url=url,
+        operator_token=token,
+        viewer_3d=not args.no_3d,
+        estimators=args.estimators,
+    )
     app = create_app(config)
     shown = "localhost" if args.host in ("127.0.0.1", "0.0.0.0") else args.host
     print(f"roverops console: http://{shown}:{args.port}/  (REST API: /docs)", flush=True)
@@ -275,6 +280,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--operator-token",
         default=_env("OPERATOR_TOKEN", ""),
         help="token for uploads, commands and clock control (default: a new one, printed)",
+    )
+    serve.add_argument(
+        "--estimators",
+        type=_estimators,
+        default=_env("ESTIMATORS", "sapp"),  # a string default goes through type= too
+        help="estimators on a new rover, comma-separated: sapp (always) and kinematic_ekf",
     )
     serve.add_argument(
         "--no-3d",

@@ -120,10 +120,15 @@ class RoverRuntime:
     batch as it is played out (storage, WebSocket hub); ``on_command`` every command
     report; ``on_sequence`` sequence status changes; ``on_checkpoint`` pickled state."""
 
-    def __init__(self, spec: RoverSpec, session: RoverSession | None = None) -> None:
+    def __init__(
+        self,
+        spec: RoverSpec,
+        session: RoverSession | None = None,
+        estimators: tuple[str, ...] = ("sapp",),
+    ) -> None:
         self.spec = spec
         self.session = session or RoverSession(
-            spec.site, spec.seed, spec.start_utc, frame_every_s=FRAME_EVERY_S
+            spec.site, spec.seed, spec.start_utc, frame_every_s=FRAME_EVERY_S, estimators=estimators
         )
         self.clock = ClockState()
         self.queue: deque[QueuedSequence] = deque()

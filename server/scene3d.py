@@ -64,6 +64,8 @@ GHOST_RGB = (90, 170, 255)
 SUN_RGB = (255, 205, 60)
 EARTH_RGB = (80, 160, 255)
 HGA_RGB = (90, 230, 120)
+SIDE_RGB = (255, 140, 66)  # an estimator run beside SAPP (sim.side_estimators)
+TRACK_RGB = {"true": TRUE_RGB, "est": GHOST_RGB}
 
 
 def wxyz_from_q(q_xyzw: ArrayLike) -> tuple[float, float, float, float]:
@@ -336,6 +338,8 @@ class RoverScene:
         self._latest = f
         self._tracks["true"].add(f["p_mission_true"])
         self._tracks["est"].add(f["p_mission_est"])
+        for name, side in (f.get("estimators") or {}).items():  # roverops serve --estimators
+            self._tracks.setdefault(name, Track()).add(side["p_mission"])
         site = int(f["site_index"])
         if site not in self._sites:
             # The Site's origin as the flight software defines it: where the estimate was
@@ -384,7 +388,7 @@ class RoverScene:
             self.ghost.show(est_pose)
             self._vectors(frame, true_pose)
             for which, chunks in tracks.items():
-                rgb = TRUE_RGB if which == "true" else GHOST_RGB
+                rgb = TRACK_RGB.get(which, SIDE_RGB)
                 for chunk, segs in chunks.items():
                     server.scene.add_line_segments(
                         f"/traverse_{which}/{chunk}", segs, rgb, thickness=0.03

@@ -4,12 +4,17 @@ pose and errors are in every frame after that."""
 
 from __future__ import annotations
 
+import time
 from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
 
 import pytest
+from fastapi.testclient import TestClient
 
 from estimation.aqf import AttitudeQuality
 from sequences import commands as cmd
+from server.app import ServerConfig, create_app, data_dir_url
 from sim.errors import InputError
 from sim.session import RoverSession
 
@@ -39,3 +44,27 @@ def test_only_known_estimators_and_always_sapp() -> None:
         RoverSession("flat", 5, START, estimators=("sapp", "radio"))
     with pytest.raises(InputError, match="estimators"):
         RoverSession("flat", 5, START, estimators=("kinematic_ekf",))
+
+
+def test_the_server_runs_them_and_serves_their_frames(tmp_path: Path) -> None:
+    config = ServerConfig(
+        database_url=data_dir_url(tmp_path),
+        operator_token="side-estimators-token",
+        estimators=("sapp", "kinematic_ekf"),
+    )
+    auth = {"Authorization": "Bearer side-estimators-token"}
+    with TestClient(create_app(config)) as client:
+        body = {"command": "DRIVE_STRAIGHT", "args": {"distance_m": 1.0}}
+        assert client.post("/api/rovers/spirit/commands", json=body, headers=auth).is_success
+        client.post("/api/rovers/spirit/clock", json={"speed": "max"}, headers=auth)
+        deadline = time.monotonic() + 60.0
+        frame: dict[str, Any] = {}
+        while time.monotonic() < deadline:
+            frame = client.get("/api/rovers/spirit/state").json()["frame"] or {}
+            if frame.get("estimators") and frame["command"] == "":
+                break
+            time.sleep(0.2)
+        side = frame["estimators"]["kinematic_ekf"]
+        assert side["p_mission"][0] == pytest.approx(1.0, abs=0.3)
+        stored = client.get("/api/rovers/spirit/telemetry").json()
+        assert any(f.get("estimators") for f in stored)  # stored with the frames

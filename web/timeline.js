@@ -328,7 +328,18 @@
     line.style.left = `${Math.max(0, Math.min(100, percent(u.posToVal(left, "x"))))}%`;
   }
 
-  function plotOptions(container, spec) {
+  // Estimators run beside SAPP (roverops serve --estimators): one more line each on the
+  // error plots, from the frames' "estimators" entries.
+  const SIDE_COLOURS = { kinematic_ekf: "#ff8c42" };
+  const SIDE_KEYS = { "plot-position-error": "position_error_m", "plot-attitude-error": "attitude_error_deg" };
+
+  function sideNames(frames) {
+    const names = new Set();
+    for (const f of frames) for (const name of Object.keys(f.estimators || {})) names.add(name);
+    return [...names].sort();
+  }
+
+  function plotOptions(container, spec, sides = []) {
     const [x0, x1] = view.span;
     const axis = { stroke: PALETTE.dim, grid: { stroke: PALETTE.line, width: 1 }, ticks: { stroke: PALETTE.line, width: 1 } };
     const hooks = { setCursor: [moveHairline] };
@@ -350,6 +361,10 @@
           label: spec.label, stroke: spec.color, width: 1.5,
           value: (_u, v) => (v === null ? "—" : `${v.toFixed(spec.digits)} ${spec.unit}`),
         },
+        ...sides.map((name) => ({
+          label: name, stroke: SIDE_COLOURS[name] || "#d98cff", width: 1.5,
+          value: (_u, v) => (v === null ? "—" : `${v.toFixed(spec.digits)} ${spec.unit}`),
+        })),
       ],
       hooks,
     };
@@ -382,10 +397,18 @@
   function drawPlots(frames) {
     destroyPlots();
     const xs = frames.map((f) => f.lmst_h);
+    const names = sideNames(frames);
     for (const spec of PLOTS) {
       const container = byId(spec.id);
       const ys = frames.map((f) => { const v = spec.value(f); return v === undefined ? null : v; });
-      view.plots.push(new uPlot(plotOptions(container, spec), [xs, ys], container));
+      const key = SIDE_KEYS[spec.id];
+      const sides = key ? names : [];
+      const sideYs = sides.map((name) => frames.map((f) => {
+        const e = (f.estimators || {})[name];
+        return e && e[key] !== undefined ? e[key] : null;
+      }));
+      const data = [xs, ys, ...sideYs];
+      view.plots.push(new uPlot(plotOptions(container, spec, sides), data, container));
     }
   }
 
