@@ -126,7 +126,7 @@ def test_params_for_width_scale_pixels_not_metres() -> None:
     small = full.for_width(256)
     assert small.window_px % 2 == 1 and 7 <= small.window_px < full.window_px
     assert small.max_disparity_px == pytest.approx(full.max_disparity_px / 4)
-    assert small.ransac_threshold_px == pytest.approx(0.5)  # the paper's "e.g. 0.5"
+    assert small.ransac_threshold_px == pytest.approx(full.ransac_threshold_px / 4)
     assert small.grid_cell_px < small.min_separation_px
     assert small.max_gap_m == full.max_gap_m and small.n_features == full.n_features
     assert full.for_width(1024) == full
