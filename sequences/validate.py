@@ -277,7 +277,7 @@ def estimate_duration_s(command: cmd.Command, gyrocompass_s: float = GYROCOMPASS
     """
     c = command
     if isinstance(c, _DRIVES):
-        return _drive_duration_s(c)
+        return sum(_drive_times_s(c))
     if isinstance(c, cmd.NadirUpdate | cmd.NadirCheck):
         return NADIR_WINDOW_S if c.window_s is None else float(c.window_s)
     if isinstance(c, cmd.Gyrocompass):
@@ -289,11 +289,14 @@ def estimate_duration_s(command: cmd.Command, gyrocompass_s: float = GYROCOMPASS
     return _FIXED_S.get(type(c), 0.0)
 
 
-def _drive_duration_s(c: cmd.DriveStraight | cmd.DriveArc | cmd.TurnInPlace | cmd.DriveTo) -> float:
-    """Driving time, plus ``VO_PROCESSING_S`` per visual odometry step with ``vo=on``.
+def _drive_times_s(
+    c: cmd.DriveStraight | cmd.DriveArc | cmd.TurnInPlace | cmd.DriveTo,
+) -> tuple[float, float]:
+    """A drive's time moving, and its time standing: ``VO_PROCESSING_S`` per visual
+    odometry step with ``vo=on`` (NATE is Idle then: no propagation, no gyro counter).
 
-    >>> _drive_duration_s(cmd.DriveStraight(distance_m=1.5, vo=True))  # 40 s + 2 steps
-    340.0
+    >>> _drive_times_s(cmd.DriveStraight(distance_m=1.5, vo=True))  # 40 s + 2 steps
+    (40.0, 300.0)
     """
     steps = 0
     if isinstance(c, cmd.DriveStraight):
@@ -311,7 +314,7 @@ def _drive_duration_s(c: cmd.DriveStraight | cmd.DriveArc | cmd.TurnInPlace | cm
         distance = math.hypot(c.x_m, c.y_m)
         moving_s = distance / DRIVE_SPEED_M_S + 180.0 / TURN_RATE_DEG_S
         steps = cmd.vo_step_count(distance, 0.0) + cmd.vo_step_count(0.0, 180.0)
-    return moving_s + (steps * cmd.VO_PROCESSING_S if c.vo else 0.0)
+    return moving_s, (steps * cmd.VO_PROCESSING_S if c.vo else 0.0)
 
 
 class _Prediction:
@@ -391,6 +394,8 @@ class _Prediction:
         elif after is not None:
             self.aqf = after
         propagating = self.articulating or isinstance(c, _DRIVES)
+        if isinstance(c, _DRIVES) and not self.articulating:
+            duration = _drive_times_s(c)[0]  # a VO drive's standing time does not propagate
         if propagating and duration > 0.0:
             before = self.imu_s
             self.imu_s += duration
@@ -399,8 +404,8 @@ class _Prediction:
                 if isinstance(c, _DRIVES) and before < self.fine_to_coarse_s:
                     text = (
                         f"the AQF drops from Fine to Coarse {self.fine_to_coarse_s - before:.0f} s "
-                        f"into this {duration:.0f} s command ({self.fine_to_coarse_s:g} s of "
-                        "propagation since the last Sungaze)"
+                        f"into this command's {duration:.0f} s of driving "
+                        f"({self.fine_to_coarse_s:g} s of propagation since the last Sungaze)"
                     )
                     self.warn(step, "fine-expires", text)
         if self.imu_s > IMU_TIME_LIMIT_S and not self.imu_warned:

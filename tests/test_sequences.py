@@ -444,7 +444,7 @@ def test_drive_warnings_follow_the_predicted_aqf() -> None:
         (6, "drive-not-fine"),
         (8, "drive-not-fine"),
     ]
-    assert "100 s into this 267 s command" in result.warnings[1].message
+    assert "100 s into this command's 267 s of driving" in result.warnings[1].message
 
 
 def test_hga_warnings_use_the_predicted_start() -> None:

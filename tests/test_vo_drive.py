@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 
 from estimation.vo.odometry import VoMotion
 from sequences import commands as cmd
-from sequences.validate import estimate_duration_s
+from sequences.validate import estimate_duration_s, validate
 from sim.session import RoverSession
 from sim.vo_drive import EstimatedPose, corrected_pose, predicted_motion, split_drive
 
@@ -107,3 +107,19 @@ def test_without_vo_attitude_the_attitude_is_sapps_own() -> None:
     assert report.details["vo_steps"] == 1
     # the same wheels and gyros: the same attitude, whatever VO said about the position
     assert abs(float(np.dot(plain.nate.q_b_ll, with_vo.nate.q_b_ll))) == pytest.approx(1.0)
+
+
+def test_standing_for_vo_does_not_count_towards_fine_expiring() -> None:
+    from tests.test_sequences import _context
+
+    # 10 drives of 1.5 m with VO: 400 s of driving, 3000 s standing: Fine all the way
+    text = "SUNCHECK_SUNGAZE\n" + "DRIVE_STRAIGHT distance_m=1.5 vo=on\n" * 10
+    assert [w.code for w in validate(text, _context()).warnings] == []
+    # 25 such drives: 1000 s of driving expires Fine (after 900 s), in the 23rd drive
+    text = "SUNCHECK_SUNGAZE\n" + "DRIVE_STRAIGHT distance_m=1.5 vo=on\n" * 25
+    warnings = validate(text, _context()).warnings
+    assert [(w.line, w.code) for w in warnings] == [
+        (24, "fine-expires"),
+        (25, "drive-not-fine"),  # the two drives after it start Coarse
+        (26, "drive-not-fine"),
+    ]
