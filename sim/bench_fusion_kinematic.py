@@ -48,18 +48,15 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from estimation.fusion.encoder_rates import interval_rates
 from estimation.fusion.kinematic_ekf import KinematicEkf
-from estimation.fusion.rover_kinematics import steer_per_wheel
-from estimation.fusion.slip_constraint import JointRates
 from estimation.ivp import mars_rotation_ll
 from sim.compliant_wheels import with_compliant_wheels
-from sim.drive import DEFAULT_SPEED_M_S, DEFAULT_TURN_RATE_RAD_S
 from sim.encoders import EncoderParams, MobilityEncoders
 from sim.errors import InputError
 from sim.joint_encoders import JointEncoderParams, JointEncoders
 from sim.rover_geometry import MER_GEOMETRY
 from sim.rover_sim import RoverSim, Segment
+from sim.side_estimators import commanded_rates, kinematic_ekf_intervals
 from sim.sun_sensor import SunSensorParams, WassSunSensor
 
 FloatArray = NDArray[np.float64]
@@ -82,15 +79,6 @@ class RunResult:
     cross_track_max_m: float
     attitude_err_rad: FloatArray
     nees: FloatArray
-
-
-def _commands(truth_t: FloatArray, start: int, amount: float, rate: float) -> FloatArray:
-    """Mean commanded rate over each interval: the primitive moves at ``rate`` from sample
-    ``start`` until ``amount`` is done (what the flight software commanded)."""
-    elapsed = np.clip(truth_t - truth_t[start], 0.0, None)
-    done = np.minimum(elapsed * rate, amount)
-    out: FloatArray = np.diff(done) / np.diff(truth_t)
-    return out
 
 
 def _filter_start(
@@ -139,17 +127,10 @@ def run_once(kind: str, seed: int, **filter_options: Any) -> RunResult:
     joints = JointEncoders(JointEncoderParams(), rng_joint).read(truth)
     sun = WassSunSensor(SunSensorParams(), rng_sun).measure(t, truth.q_s_b, SUN_S)
     gamma = np.column_stack([joints.rocker_rad, joints.bogie_rad])
-    gamma_rate = interval_rates(gamma, t)
-    sigma = np.array([steer_per_wheel(s) for s in enc.steer_rad])
     frame_s = mars_rotation_ll(sim.lat_rad)  # Site axes are the planting LL axes
 
-    dt = np.diff(t)
-    v_c = np.zeros((dt.size, 3))
-    w_c = np.zeros((dt.size, 3))
-    if kind == "straight":
-        v_c[:, 0] = _commands(t, 0, STRAIGHT_M, DEFAULT_SPEED_M_S)
-    else:  # the steering takes the first interval (RoverSim._drive), then the turn
-        w_c[:, 2] = _commands(t, 1, TURN_RAD, DEFAULT_TURN_RATE_RAD_S)
+    amount = (STRAIGHT_M,) if kind == "straight" else (TURN_RAD,)
+    v_c, w_c = commanded_rates(kind, amount, t)  # what the flight software commanded
 
     ekf, err0 = _filter_start(truth.q_s_b[0], truth.p_s[0], rng_init, filter_options)
     p_est0 = ekf.X[ekf.layout.X].copy()
@@ -157,22 +138,12 @@ def run_once(kind: str, seed: int, **filter_options: Any) -> RunResult:
     cross = 0.0
     heading = truth.p_s[-1, :2] - truth.p_s[0, :2]
     across = np.array([-heading[1], heading[0]]) / max(float(np.linalg.norm(heading)), 1e-12)
-    for k in range(dt.size):
-        ekf.set_command(v_c[k], w_c[k])
-        ekf.propagate(0.5 * dt[k])
-        ekf.update_gyro(ekf.B_g @ seg.imu.delta_angle_b[k] / dt[k], frame_s)  # eqs. 12-13
-        ekf.update_slip(
-            JointRates(
-                gamma_rad=0.5 * (gamma[k] + gamma[k + 1]),
-                gamma_rate_rad_s=gamma_rate[k],
-                sigma_rad=0.5 * (sigma[k] + sigma[k + 1]),
-                sigma_rate_rad_s=(sigma[k + 1] - sigma[k]) / dt[k],
-                psi_rate_rad_s=(wheel[k + 1] - wheel[k]) / dt[k],
-            )
-        )
-        ekf.propagate(0.5 * dt[k])
-        if sun.valid[k + 1]:
-            ekf.update_sun(sun.s_m[k + 1], SUN_S)
+    sun_ref = np.broadcast_to(SUN_S, (t.size, 3))
+    steps = kinematic_ekf_intervals(
+        ekf, t, v_c, w_c, seg.imu.delta_angle_b, frame_s, gamma, enc.steer_rad, wheel, sun,
+        sun_ref,
+    )  # fmt: skip
+    for k in steps:
         err = _pose_error(ekf, truth.q_s_b[k + 1], truth.p_s[k + 1])
         att_err.append(float(np.linalg.norm(err[:3])))
         nees.append(_nees(ekf, err))

@@ -18,6 +18,7 @@ Site: x North, y East, z Down), so Site changes do not concern it. Its noise sen
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,7 +34,7 @@ from sim.drive import DEFAULT_SPEED_M_S, DEFAULT_TURN_RATE_RAD_S
 from sim.joint_encoders import JointEncoderParams, JointEncoders
 from sim.mars_frames import sun_ll_truth
 from sim.rover_sim import RoverSim, Segment
-from sim.sun_sensor import SunSensorParams, WassSunSensor
+from sim.sun_sensor import SunSensorParams, SunSensorSamples, WassSunSensor
 
 FloatArray = NDArray[np.float64]
 
@@ -84,6 +85,48 @@ def commanded_rates(
     return v, w
 
 
+def kinematic_ekf_intervals(
+    ekf: KinematicEkf,
+    t_s: FloatArray,
+    v_c_b: FloatArray,
+    omega_c_b: FloatArray,
+    delta_angle_b: FloatArray,
+    frame_rate_s: FloatArray,
+    gamma_rad: FloatArray,
+    steer_rad: FloatArray,
+    wheel_rad: FloatArray,
+    sun: SunSensorSamples,
+    sun_ref_s: FloatArray,
+) -> Iterator[int]:
+    """Step ``ekf`` through the intervals of a drive, yielding each interval's index ``k``
+    once the filter stands at ``t_s[k + 1]``: the command, half the propagation, the gyro
+    (eqs. 12-13) and slip (eqs. 17-20) updates at the interval's middle, the other half, and
+    the sun sensor (eqs. 15-16) when it sees the sun. Per sample (N,): ``t_s``, ``gamma_rad``
+    (N, 3) joint angles, ``steer_rad`` (N, 4) corner steering, ``wheel_rad`` (N, 6),
+    ``sun``, ``sun_ref_s`` (N, 3); per interval (N-1,): the commands (N-1, 3) and the IMU's
+    ``delta_angle_b`` (N-1, 3); ``frame_rate_s`` the Site frame's rate (Mars rotation)."""
+    dt = np.diff(t_s)
+    gamma_rate = interval_rates(gamma_rad, t_s)
+    sigma = np.array([steer_per_wheel(s) for s in steer_rad])
+    for k in range(dt.size):
+        ekf.set_command(v_c_b[k], omega_c_b[k])
+        ekf.propagate(0.5 * dt[k])
+        ekf.update_gyro(ekf.B_g @ delta_angle_b[k] / dt[k], frame_rate_s)
+        ekf.update_slip(
+            JointRates(
+                gamma_rad=0.5 * (gamma_rad[k] + gamma_rad[k + 1]),
+                gamma_rate_rad_s=gamma_rate[k],
+                sigma_rad=0.5 * (sigma[k] + sigma[k + 1]),
+                sigma_rate_rad_s=(sigma[k + 1] - sigma[k]) / dt[k],
+                psi_rate_rad_s=(wheel_rad[k + 1] - wheel_rad[k]) / dt[k],
+            )
+        )
+        ekf.propagate(0.5 * dt[k])
+        if sun.valid[k + 1]:
+            ekf.update_sun(sun.s_m[k + 1], sun_ref_s[k + 1])
+        yield k
+
+
 class KinematicEkfRunner:
     """Balaram's kinematic EKF beside SAPP (module docstring)."""
 
@@ -130,29 +173,15 @@ class KinematicEkfRunner:
         sun_true = sun_ll_truth(t, self.lat_rad, self.lon_east_rad)
         sun = self.sun_sensor.measure(t, q_s_b, sun_true)
         gamma = np.column_stack([joints.rocker_rad, joints.bogie_rad])
-        gamma_rate = interval_rates(gamma, t)
-        sigma = np.array([steer_per_wheel(s) for s in steer_rad])
         v_c, w_c = commanded_rates(kind, args, t)
-        dt = np.diff(t)
         p = np.empty((t.size, 3))
         q = np.empty((t.size, 4))
         p[0], q[0] = self._pose()
-        for k in range(dt.size):
-            ekf.set_command(v_c[k], w_c[k])
-            ekf.propagate(0.5 * dt[k])
-            ekf.update_gyro(ekf.B_g @ seg.imu.delta_angle_b[k] / dt[k], self.frame_rate_ll)
-            ekf.update_slip(
-                JointRates(
-                    gamma_rad=0.5 * (gamma[k] + gamma[k + 1]),
-                    gamma_rate_rad_s=gamma_rate[k],
-                    sigma_rad=0.5 * (sigma[k] + sigma[k + 1]),
-                    sigma_rate_rad_s=(sigma[k + 1] - sigma[k]) / dt[k],
-                    psi_rate_rad_s=(wheel_rad[k + 1] - wheel_rad[k]) / dt[k],
-                )
-            )
-            ekf.propagate(0.5 * dt[k])
-            if sun.valid[k + 1]:
-                ekf.update_sun(sun.s_m[k + 1], sun_ref[k + 1])
+        steps = kinematic_ekf_intervals(
+            ekf, t, v_c, w_c, seg.imu.delta_angle_b, self.frame_rate_ll, gamma, steer_rad,
+            wheel_rad, sun, sun_ref,
+        )  # fmt: skip
+        for k in steps:
             p[k + 1], q[k + 1] = self._pose()
         ekf.set_command(np.zeros(3), np.zeros(3))  # at rest until the next drive
         return SideEstimate(p, q)
