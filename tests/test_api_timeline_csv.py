@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import csv
 import io
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -17,20 +16,11 @@ import pytest
 from fastapi.testclient import TestClient
 
 from server.app import CSV_COLUMNS, ServerConfig, create_app, data_dir_url
+from tests.test_api import _wait
 
 TOKEN = "csv-test-token"
 AUTH = {"Authorization": f"Bearer {TOKEN}"}
 EXAMPLE = Path(__file__).resolve().parent.parent / "sequences/examples/fine_attitude_then_drive.seq"
-
-
-def _wait(predicate: Any, timeout_s: float = 60.0) -> Any:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(0.1)
-    raise AssertionError("timed out")
 
 
 @pytest.fixture(scope="module")
