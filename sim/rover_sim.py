@@ -251,9 +251,11 @@ class RoverSim:
 
     def _sense(self, traj: TruthTrajectory) -> Segment:
         q_ll_b = q_ll_b_from_site(traj.q_s_b, traj.p_s, self.lat_rad, self.lon_east_rad)
-        # Quasi-static truth: the rover's own accelerations (~1e-3 m/s^2 at 3.75 cm/s,
-        # seed 000 uses the accelerometers only at rest) are left out of the IMU input.
-        samples = self.imu.measure(traj.t_s, q_ll_b, self.omega_mars_ll)
+        # The accelerometers sense the rover's own accelerations too (starting and stopping,
+        # climbing over rocks): seed 000 uses them only at rest, but the radio EKF (seed 004,
+        # eq. 2) integrates them. Site and LL axes differ by ~1e-5 rad here: ignored.
+        accel = traj.accel_s_from_rest()
+        samples = self.imu.measure(traj.t_s, q_ll_b, self.omega_mars_ll, accel_ll=accel)
         encoders = self.encoders.read(traj)
         counts = encoders.wheel_counts
         wheel_rad = self.encoders.wheel_angle_rad(counts[-1] - self._encoder_counts)

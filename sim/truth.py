@@ -78,6 +78,23 @@ class TruthTrajectory:
         out: FloatArray = np.gradient(self.p_s, self.t_s, axis=0)
         return out
 
+    def accel_s_from_rest(self) -> FloatArray:
+        """Mean acceleration of the body origin over each interval, Site axes, m/s², (N-1, 3),
+        for a trajectory that starts and ends at rest (a drive primitive).
+
+        The velocity at each inner instant is the mean of its two intervals' velocities and
+        zero at both ends, so the accelerations integrate to no net velocity change and,
+        twice (trapezoidal), to the displacement but for half an interval's travel at each end.
+        """
+        if len(self) < 2:
+            return np.zeros((0, 3))
+        dt = np.diff(self.t_s)
+        u = np.diff(self.p_s, axis=0) / dt[:, None]  # per interval
+        v = np.zeros((len(self), 3))
+        v[1:-1] = 0.5 * (u[:-1] + u[1:])
+        out: FloatArray = np.diff(v, axis=0) / dt[:, None]
+        return out
+
     def omega_b_s_in_b(self) -> FloatArray:
         """Angular rate of the body relative to the Site frame, in body axes, rad/s, (N-1, 3).
 
