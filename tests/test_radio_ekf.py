@@ -169,6 +169,24 @@ def test_propagation_moves_the_rover_by_its_velocity() -> None:
     assert P[0, 0] * M**2 > 100.0  # the 10 m start uncertainty grew with the velocity's
 
 
+def test_zero_velocity_update_is_the_kalman_update_of_a_direct_velocity_measurement() -> None:
+    """The velocity update's gain against the textbook K = P Hᵀ (H P Hᵀ + R)⁻¹ with
+    H = [0 I]; the position moves too, through the covariance propagation built up."""
+    ekf = RadioEkf(LAT, LON, 0.04, -0.03)
+    for _ in range(5):
+        ekf.propagate(1.0, (0.0, 0.0, -3.711), (0.0, 0.0, 0.0), 0.0)
+    x0, P0 = ekf.estimate()
+    H = np.hstack([np.zeros((2, 2)), np.eye(2)])
+    R = 1e-6 * np.eye(2)
+    innovation = ekf.update_velocity((0.0, 0.0), 1e-3)
+    np.testing.assert_allclose(innovation, -x0[2:], atol=1e-15)
+    K = P0 @ H.T @ np.linalg.inv(H @ P0 @ H.T + R)
+    x1, P1 = ekf.estimate()
+    np.testing.assert_allclose(x1, x0 + K @ innovation, rtol=1e-9, atol=1e-18)
+    np.testing.assert_allclose(P1, (np.eye(4) - K @ H) @ P0, rtol=1e-6, atol=1e-20)
+    assert np.all(np.abs(x1[2:]) < 1e-5) and x1[0] != x0[0]
+
+
 def test_landmark_behind_the_camera_is_left_out() -> None:
     ekf = RadioEkf(LAT, LON, 0.0, 0.0)
     landmark_mf, _, _ = _pixel_setup()
@@ -204,6 +222,8 @@ def test_landmark_behind_the_camera_is_left_out() -> None:
         (lambda: RadioEkf(LAT, LON, 0, 0).update_range(1e6, (1e7, 0), 0.0, 1.0), "beacon_mf_m"),
         (lambda: RadioEkf(LAT, LON, 0, 0).update_range(1e6, (1e7, 0, 0), 1e6, 1.0), "height_m"),
         (lambda: RadioEkf(LAT, LON, 0, 0).update_yaw_rate(float("inf")), "yaw_rate_rad_s"),
+        (lambda: RadioEkf(LAT, LON, 0, 0).update_velocity((0.0,), 0.01), "v_ne_m_s"),
+        (lambda: RadioEkf(LAT, LON, 0, 0).update_velocity((0.0, 0.0), 0.0), "sigma_m_s"),
         (
             lambda: RadioEkf(LAT, LON, 0, 0).update_landmarks(
                 [[0.0, 0.0]], [[1e6, 0, 0], [1, 2, 3]], [0.0], (0, 0, 0), 0.0, (0, 0, 0), 1e3, 1, 1

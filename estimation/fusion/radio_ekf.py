@@ -176,6 +176,19 @@ class RadioEkf:
         self._x, self._P = joseph_update(self._x, self._P, np.array([y - predicted]), H, R)
         return True
 
+    def update_velocity(self, v_ne_m_s: ArrayLike, sigma_m_s: float) -> FloatArray:
+        """A direct North/East velocity measurement (m/s, 1σ ``sigma_m_s`` per axis). Not in
+        seed 004: the rover uses it as a zero-velocity update when its wheels have stopped
+        (the driving software knows), so a parked rover's velocity stays known.
+        Returns the innovation (2,)."""
+        v = _array("v_ne_m_s", v_ne_m_s, (2,))
+        sigma = _scalar("sigma_m_s", sigma_m_s, 1e-9, 10.0)
+        H = np.hstack([np.zeros((2, 2)), np.eye(2)])
+        innovation: FloatArray = v - self._x[2:]
+        R = sigma**2 * np.eye(2)
+        self._x, self._P = joseph_update(self._x, self._P, innovation, H, R)
+        return innovation
+
     def update_range(
         self, range_m: float, beacon_mf_m: ArrayLike, height_m: float, sigma_m: float
     ) -> float:
