@@ -242,7 +242,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--estimators",
         type=_estimators,
         default=("sapp",),
-        help="estimators to run, comma-separated: sapp (always) and kinematic_ekf",
+        help="estimators to run, comma-separated: sapp (always), kinematic_ekf, radio_ekf",
     )
     run.add_argument("--json", action="store_true", help="print JSON")
     run.set_defaults(handler=_cmd_run)
@@ -285,7 +285,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--estimators",
         type=_estimators,
         default=_env("ESTIMATORS", "sapp"),  # a string default goes through type= too
-        help="estimators on a new rover, comma-separated: sapp (always) and kinematic_ekf",
+        help="estimators on a new rover, comma-separated: sapp (always), kinematic_ekf, radio_ekf",
     )
     serve.add_argument(
         "--no-3d",

@@ -64,8 +64,13 @@ GHOST_RGB = (90, 170, 255)
 SUN_RGB = (255, 205, 60)
 EARTH_RGB = (80, 160, 255)
 HGA_RGB = (90, 230, 120)
-SIDE_RGB = (255, 140, 66)  # an estimator run beside SAPP (sim.side_estimators)
-TRACK_RGB = {"true": TRUE_RGB, "est": GHOST_RGB}
+SIDE_RGB = (217, 140, 255)  # an estimator run beside SAPP (sim.side_estimators) ...
+TRACK_RGB = {  # ... with its own colour where it has one (the timeline's too: web/timeline.js)
+    "true": TRUE_RGB,
+    "est": GHOST_RGB,
+    "kinematic_ekf": (255, 140, 66),
+    "radio_ekf": (230, 90, 200),
+}
 
 
 def wxyz_from_q(q_xyzw: ArrayLike) -> tuple[float, float, float, float]:

@@ -31,7 +31,6 @@ import dataclasses
 import math
 import os
 from concurrent.futures import ProcessPoolExecutor
-from datetime import UTC, datetime
 from typing import Any
 
 import numpy as np
@@ -40,20 +39,27 @@ from scipy.spatial.transform import Rotation
 
 from estimation.fusion.radio_beacon import OrbitingBeacon
 from estimation.fusion.radio_ekf import RadioEkf, RadioEkfTuning
-from estimation.fusion.radio_models import radii_of_curvature_m
 from sim.bench import _result
 from sim.errors import InputError
 from sim.landmarks import (
     NAVCAM_FOCAL_PX,
     NAVCAM_OFFSET_B_M,
+    PIXEL_SIGMA_PX,
     build_landmark_map,
     choose_pair,
     ground_height_m,
+    matching_geometry,
     navcam_pixels,
 )
 from sim.marsclock import utc_to_t_s
-from sim.radio_scenario import RadioScenario, build_scenario, drive_starts_t_s
-from sim.relay_orbiter import KeplerOrbit, RelayOrbiter
+from sim.radio_scenario import (
+    SCENARIO_TUNING,
+    RadioScenario,
+    build_scenario,
+    drive_starts_t_s,
+    metres_per_radian,
+)
+from sim.relay_orbiter import ORBIT_EPOCH, KeplerOrbit, RelayOrbiter
 from sim.sites import make_terrain
 
 FloatArray = NDArray[np.float64]
@@ -61,15 +67,7 @@ FloatArray = NDArray[np.float64]
 # Table 1 of seed 004: (image resolution m, radio accuracy m); the paper's results (m)
 CASES = {1: (10.0, 10.0), 2: (10.0, 1.0), 3: (0.25, 10.0), 4: (0.25, 1.0)}
 PAPER_ERR_M = {1: 20.0, 2: 5.0, 3: 2.0, 4: 0.35}
-PIXEL_SIGMA_PX = 1.0e-3 * NAVCAM_FOCAL_PX  # R = 1e-6 in focal-length units (sec. 5)
 SETTLE_S = 100.0
-ORBIT_EPOCH = datetime(2004, 3, 1, tzinfo=UTC)  # Opportunity's first months
-
-
-def _site_metres(sc: RadioScenario) -> tuple[float, float]:
-    """Metres per radian of latitude and of longitude at the site (the Site-frame map)."""
-    M, N, _, _ = radii_of_curvature_m(sc.site_lat_rad)
-    return M, N * math.cos(sc.site_lat_rad)
 
 
 # The filter's Q: the paper's (25 m², 4 (m/s)² per 1 s step), and one matched to this
@@ -77,10 +75,7 @@ def _site_metres(sc: RadioScenario) -> tuple[float, float]:
 # the attitude drift leaks from gravity (~5e-6 rad/s of gyro bias and 3e-4 rad/√s of
 # angle random walk make ~0.01-0.03 m/s² by 1000 s) and the rover's start-stop motion
 # between 1 s samples. The NEES checks it (module docstring).
-TUNINGS = {
-    "scenario_q": RadioEkfTuning(q_position_m2_per_s=1.0e-3, q_velocity_m2_s2_per_s=1.0e-2),
-    "paper_q": RadioEkfTuning(),
-}
+TUNINGS = {"scenario_q": SCENARIO_TUNING, "paper_q": RadioEkfTuning()}
 
 
 def run_case(sc: RadioScenario, case: int, tuning: RadioEkfTuning) -> dict[str, Any]:
@@ -88,10 +83,7 @@ def run_case(sc: RadioScenario, case: int, tuning: RadioEkfTuning) -> dict[str, 
     resolution_m, radio_m = CASES[case]
     rng = np.random.default_rng([sc.seed, case, 7])
     terrain = make_terrain("meridiani", sc.seed)
-    # Features a map of this resolution resolves are ~4 cells apart; matching one is
-    # worth it where its error subtends a modest angle: 5 to 20 resolutions away.
-    spacing_m = max(8.0, 4.0 * resolution_m)
-    min_range_m, max_range_m = max(8.0, 5.0 * resolution_m), max(40.0, 20.0 * resolution_m)
+    spacing_m, min_range_m, max_range_m = matching_geometry(resolution_m)
     landmarks = build_landmark_map(
         terrain, resolution_m, rng, extent_m=100.0 + max_range_m, spacing_m=spacing_m
     )
@@ -101,7 +93,7 @@ def run_case(sc: RadioScenario, case: int, tuning: RadioEkfTuning) -> dict[str, 
     )
     r0, v0 = sc.orbiter.state_j2000(float(sc.t_s[0]))
     beacon = OrbitingBeacon(r0, v0, float(sc.t_s[0]))
-    m_per_lat, m_per_lon = _site_metres(sc)
+    m_per_lat, m_per_lon = metres_per_radian(sc.site_lat_rad)
     truth = np.column_stack(
         [
             sc.site_lat_rad + sc.p_s[:, 0] / m_per_lat,

@@ -37,6 +37,7 @@ IntArray = NDArray[np.int64]
 
 NAVCAM_OFFSET_B_M = (0.45, -0.30, -1.30)  # body axes (x fwd, y right, z down): mast head
 NAVCAM_FOCAL_PX = 512.0 / math.tan(math.radians(22.5))  # 1024 px over 45° (MER Navcam)
+PIXEL_SIGMA_PX = 1.0e-3 * NAVCAM_FOCAL_PX  # R = 1e-6 in focal-length units (seed 004 sec. 5)
 
 
 @dataclass(frozen=True)
@@ -57,6 +58,18 @@ class LandmarkMap:
         return out
 
 
+def matching_geometry(resolution_m: float) -> tuple[float, float, float]:
+    """``(spacing_m, min_range_m, max_range_m)`` for a map of ``resolution_m``: features it
+    resolves are ~4 resolutions apart (at least 8 m: one per Navcam-sized patch), and
+    matching one is worth it where its error subtends a modest angle, 5 to 20 resolutions
+    away (at least 8 to 40 m, where Navcam sees the ground well)."""
+    return (
+        max(8.0, 4.0 * resolution_m),
+        max(8.0, 5.0 * resolution_m),
+        max(40.0, 20.0 * resolution_m),
+    )
+
+
 def ground_height_m(terrain: Terrain, x_m: FloatArray, y_m: FloatArray) -> FloatArray:
     """Height (m) of the ground without rocks: what an orbital elevation model resolves,
     and where albedo landmarks lie. Analytic terrains have no rocks."""
@@ -73,8 +86,10 @@ def build_landmark_map(
     rng: np.random.Generator,
     extent_m: float = 100.0,
     spacing_m: float = 8.0,
+    centre_m: tuple[float, float] = (0.0, 0.0),
 ) -> LandmarkMap:
-    """One landmark per ``spacing_m`` cell over ``[-extent_m, extent_m]²`` of the Site frame."""
+    """One landmark per ``spacing_m`` cell over ``centre_m + [-extent_m, extent_m]²`` of the
+    Site frame (North, East)."""
     if not (math.isfinite(resolution_m) and 0.0 < resolution_m <= 100.0):
         raise InputError("resolution_m", f"must be in (0, 100] m, got {resolution_m}")
     if not (math.isfinite(spacing_m) and 1.0 <= spacing_m <= 100.0):
@@ -87,6 +102,7 @@ def build_landmark_map(
     offsets = (np.arange(k) + 0.5) * (spacing_m / k)
     x = (corner[:, None, None, None] + offsets[None, None, :, None]) * np.ones((1, cells, k, k))
     y = (corner[None, :, None, None] + offsets[None, None, None, :]) * np.ones((cells, 1, k, k))
+    x, y = x + centre_m[0], y + centre_m[1]
     albedo = np.asarray(terrain.albedo(x, y), dtype=np.float64).reshape(cells, cells, k * k)
     score = np.abs(albedo - albedo.mean(axis=-1, keepdims=True))
     best = np.argmax(score, axis=-1)[..., None]
@@ -150,3 +166,100 @@ def navcam_pixels(
         out[i] = focal_px * c[:2] / c[2]  # eq. 10
     noisy: FloatArray = out + sigma_px * rng.standard_normal(out.shape)  # eq. 11
     return noisy
+
+
+class LandmarkTiles:
+    """A site's orbital landmark map for a rover that may drive anywhere: square tiles of
+    ``tile_cells`` landmark cells, each built (``build_landmark_map``) the first time the
+    rover comes within reach of it, from its own seed, so that a tile's landmarks and map
+    errors are the same however often it is built. The built tiles are a cache: they are
+    left out of a pickle (a session's checkpoint) and rebuilt on demand."""
+
+    def __init__(
+        self,
+        terrain: Terrain,
+        resolution_m: float,
+        seed: int,
+        spacing_m: float = 8.0,
+        tile_cells: int = 12,
+    ) -> None:
+        if isinstance(tile_cells, bool) or not isinstance(tile_cells, int) or tile_cells < 1:
+            raise InputError("tile_cells", f"must be a positive integer, got {tile_cells!r}")
+        self.terrain = terrain
+        self.resolution_m = float(resolution_m)
+        self.seed = int(seed)
+        self.spacing_m = float(spacing_m)
+        self.tile_m = self.spacing_m * tile_cells
+        self._tiles: dict[tuple[int, int], LandmarkMap] = {}
+
+    def __getstate__(self) -> dict[str, object]:
+        state = dict(self.__dict__)
+        state["_tiles"] = {}
+        return state
+
+    def around(self, p_s_m: FloatArray, reach_m: float) -> LandmarkMap:
+        """The landmarks of every tile within ``reach_m`` of ``p_s_m`` (North, East)."""
+        lo = np.floor((np.asarray(p_s_m[:2]) - reach_m) / self.tile_m).astype(int)
+        hi = np.floor((np.asarray(p_s_m[:2]) + reach_m) / self.tile_m).astype(int)
+        maps = [self._tile(i, j) for i in range(lo[0], hi[0] + 1) for j in range(lo[1], hi[1] + 1)]
+        return LandmarkMap(
+            np.concatenate([m.true_s_m for m in maps]),
+            np.concatenate([m.map_s_m for m in maps]),
+            self.resolution_m,
+        )
+
+    def _tile(self, i: int, j: int) -> LandmarkMap:
+        if (i, j) not in self._tiles:
+            half = 0.5 * self.tile_m
+            self._tiles[(i, j)] = build_landmark_map(
+                self.terrain,
+                self.resolution_m,
+                np.random.default_rng([self.seed, 7005, i + 2**20, j + 2**20]),
+                extent_m=half,
+                spacing_m=self.spacing_m,
+                centre_m=((i + 0.5) * self.tile_m, (j + 0.5) * self.tile_m),
+            )
+        return self._tiles[(i, j)]
+
+
+class OrbitalDem:
+    """The site's orbital elevation model onboard: ground heights (m, up; no rocks, as
+    ``ground_height_m``) on posts ``post_m`` apart (HiRISE stereo DEMs: ~1 m), read
+    bilinearly. Built in square tiles of ``tile_posts`` posts the first time a height there
+    is asked for; the tiles are a cache, left out of a pickle."""
+
+    def __init__(self, terrain: Terrain, post_m: float = 1.0, tile_posts: int = 64) -> None:
+        if not (math.isfinite(post_m) and 0.05 <= post_m <= 100.0):
+            raise InputError("post_m", f"must be in [0.05, 100] m, got {post_m}")
+        if isinstance(tile_posts, bool) or not isinstance(tile_posts, int) or tile_posts < 2:
+            raise InputError("tile_posts", f"must be an integer of at least 2, got {tile_posts!r}")
+        self.terrain = terrain
+        self.post_m = float(post_m)
+        self.tile_posts = tile_posts
+        self._tiles: dict[tuple[int, int], FloatArray] = {}
+
+    def __getstate__(self) -> dict[str, object]:
+        state = dict(self.__dict__)
+        state["_tiles"] = {}
+        return state
+
+    def height_m(self, north_m: float, east_m: float) -> float:
+        """Ground height (m, up) at Site-frame ``(north_m, east_m)``, bilinear in the posts."""
+        u, v = north_m / self.post_m, east_m / self.post_m
+        i, j = math.floor(u), math.floor(v)
+        fu, fv = u - i, v - j
+        h00, h01 = self._post(i, j), self._post(i, j + 1)
+        h10, h11 = self._post(i + 1, j), self._post(i + 1, j + 1)
+        return (1 - fu) * ((1 - fv) * h00 + fv * h01) + fu * ((1 - fv) * h10 + fv * h11)
+
+    def _post(self, i: int, j: int) -> float:
+        n = self.tile_posts
+        key = (i // n, j // n)
+        tile = self._tiles.get(key)
+        if tile is None:
+            idx = np.arange(n, dtype=np.float64)
+            north = (key[0] * n + idx[:, None]) * self.post_m * np.ones((1, n))
+            east = (key[1] * n + idx[None, :]) * self.post_m * np.ones((n, 1))
+            tile = ground_height_m(self.terrain, north, east)
+            self._tiles[key] = tile
+        return float(tile[i % n, j % n])

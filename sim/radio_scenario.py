@@ -25,6 +25,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation, Slerp
 
+from estimation.fusion.radio_ekf import RadioEkfTuning
+from estimation.fusion.radio_models import radii_of_curvature_m
 from estimation.gyro_propagation import propagate_gyro
 from estimation.ivp import mars_rotation_ll
 from sim.imu import (
@@ -83,6 +85,18 @@ class RadioScenario:
         R = R_ll_mf(self.site_lat_rad, self.site_lon_east_rad)
         out: FloatArray = site_mf_m(self.site_lat_rad, self.site_lon_east_rad) + self.p_s @ R
         return out
+
+
+# The filter's Q matched to this scenario's errors rather than the paper's (white-noise
+# stand-ins for the correlated ones, ``sim.bench_fusion_radio``; the NEES checks it).
+SCENARIO_TUNING = RadioEkfTuning(q_position_m2_per_s=1.0e-3, q_velocity_m2_s2_per_s=1.0e-2)
+
+
+def metres_per_radian(lat_rad: float) -> tuple[float, float]:
+    """Metres per radian of latitude and of East longitude at ``lat_rad`` on the ellipsoid:
+    how a Site frame's North/East map to the filter's state near its origin."""
+    M, N, _, _ = radii_of_curvature_m(lat_rad)
+    return M, N * math.cos(lat_rad)
 
 
 SITE_LAT_RAD = math.radians(-1.95)  # Opportunity's landing site (sim.sites)

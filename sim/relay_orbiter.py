@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from datetime import UTC, datetime
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -33,6 +34,7 @@ from sim.mars_frames import R_ll_mf, R_mf_j2000, elevation_rad, iau_mars_angles_
 FloatArray = NDArray[np.float64]
 
 ELEVATION_MASK_DEG = 10.0  # approximate: UHF relay passes are used above ~10°
+ORBIT_EPOCH = datetime(2004, 3, 1, tzinfo=UTC)  # the elements' epoch: Opportunity's first months
 
 
 @dataclass(frozen=True)

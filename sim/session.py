@@ -60,8 +60,15 @@ from sim.imu import ImuSamples, Ln200Params
 from sim.local_level import q_ll_b_from_site
 from sim.mars_frames import earth_ll_truth, elevation_rad, sun_ll_truth
 from sim.marsclock import lmst_h_from_t_s, sol_number_t_s
+from sim.radio_runner import RadioEkfRunner
 from sim.rover_sim import RoverSim, Segment
-from sim.side_estimators import ESTIMATORS, KinematicEkfRunner, SideEstimate
+from sim.side_estimators import (
+    ESTIMATORS,
+    DriveInputs,
+    KinematicEkfRunner,
+    SideEstimate,
+    SideRunner,
+)
 from sim.truth import CONTROL_DT_S
 from sim.vo_drive import (
     VO_MAST_AZ_RAD,
@@ -212,10 +219,12 @@ class RoverSession:
             raise InputError(
                 "estimators", f"must include sapp, from {', '.join(ESTIMATORS)}; got {estimators!r}"
             )
-        self.side: list[KinematicEkfRunner] = (
-            [KinematicEkfRunner(sim, seed)] if "kinematic_ekf" in estimators else []
-        )
-        self._side_now: dict[str, tuple[FloatArray, FloatArray]] | None = None
+        self.side: list[SideRunner] = []
+        if "kinematic_ekf" in estimators:
+            self.side.append(KinematicEkfRunner(sim, seed))
+        if "radio_ekf" in estimators:
+            self.side.append(RadioEkfRunner(sim, seed, x_m, y_m))
+        self._side_now: dict[str, tuple[FloatArray, FloatArray | None]] | None = None
         self._vo: VisualOdometry | None = None  # made at the first vo=on drive
         self._last_frame_t = -math.inf
         self._last_mode = ""
@@ -424,7 +433,7 @@ class RoverSession:
         nate.mobility(drive, wheel_angle_rad=wheel0)
         outputs = self._step_segment(seg)
         nate.stop()
-        side = self._side_drive(seg, kind, args, start)
+        side = self._side_drive(seg, kind, args, start, outputs)
         self._segment_frames(seg, outputs, side)
         self._frame_now(force=True)
         distance = float(np.sum(np.linalg.norm(np.diff(seg.truth.p_s, axis=0), axis=1)))
@@ -639,14 +648,26 @@ class RoverSession:
         return p_mission, nate.q_b_ll
 
     def _side_drive(
-        self, seg: Segment, kind: str, args: tuple[float, ...], start: tuple[FloatArray, FloatArray]
+        self,
+        seg: Segment,
+        kind: str,
+        args: tuple[float, ...],
+        start: tuple[FloatArray, FloatArray],
+        outputs: Sequence[NateOutput],
     ) -> dict[str, SideEstimate]:
-        """The side estimators through a drive segment (``sim.side_estimators``)."""
+        """The side estimators through a drive segment (``sim.side_estimators``); ``start``
+        SAPP's pose before it and ``outputs`` its cycles through it."""
         if not self.side:
             return {}
-        wheel = self.sim.encoders.wheel_angle_rad(seg.encoders.wheel_counts)
-        steer = seg.encoders.steer_rad
-        return {r.name: r.drive(seg, kind, args, wheel, steer, start) for r in self.side}
+        inputs = DriveInputs(
+            kind=kind,
+            args=args,
+            wheel_rad=self.sim.encoders.wheel_angle_rad(seg.encoders.wheel_counts),
+            steer_rad=seg.encoders.steer_rad,
+            start=start,
+            sapp_q_b_ll=np.array([start[1], *(o.q_b_ll for o in outputs)]),
+        )
+        return {r.name: r.drive(seg, inputs) for r in self.side}
 
     def _segment_frames(
         self, seg: Segment, outputs: Sequence[NateOutput], side: dict[str, SideEstimate]
@@ -657,7 +678,10 @@ class RoverSession:
         for k, out in enumerate(outputs):
             if self._keep(out, False):
                 i = k + 1
-                self._side_now = {n: (e.p_mission[i], e.q_b_ll[i]) for n, e in side.items()}
+                self._side_now = {
+                    n: (e.p_mission[i], None if e.q_b_ll is None else e.q_b_ll[i])
+                    for n, e in side.items()
+                }
                 joints = (float(traj.rocker_rad[i]), traj.bogie_rad[i], traj.steer_rad[i])
                 self._append(out, q_ll_b[i], traj.p_s[i], joints)
         self._side_now = None
@@ -729,16 +753,20 @@ class RoverSession:
         """Each side estimator's pose in this frame and its errors against the truth."""
         out: dict[str, Any] = {}
         for runner in self.side:
-            now = self._side_now.get(runner.name) if self._side_now else runner.estimate_now()
+            if self._side_now is None:  # at rest
+                runner.rest_until(self.sim.t_s, self.sim.state.p_s)
+                now = runner.estimate_now()
+            else:
+                now = self._side_now.get(runner.name)
             if now is None:
                 continue  # not started: it starts at the first drive
             p, q = now
-            att = (Rotation.from_quat(q) * q_b_ll_true.inv()).magnitude()
-            out[runner.name] = {
+            att = None if q is None else (Rotation.from_quat(q) * q_b_ll_true.inv()).magnitude()
+            out[runner.name] = {  # position-only estimators have no attitude (None)
                 "p_mission": [float(v) for v in p],
-                "q_b_ll": [float(v) for v in q],
+                "q_b_ll": None if q is None else [float(v) for v in q],
                 "position_error_m": float(np.linalg.norm(p - p_mission_true)),
-                "attitude_error_deg": math.degrees(float(att)),
+                "attitude_error_deg": None if att is None else math.degrees(float(att)),
             }
         return out
 

@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -38,16 +39,48 @@ from sim.sun_sensor import SunSensorParams, SunSensorSamples, WassSunSensor
 
 FloatArray = NDArray[np.float64]
 
-ESTIMATORS = ("sapp", "kinematic_ekf")  # what `--estimators` accepts; SAPP always runs
+# what `--estimators` accepts; SAPP always runs (the radio EKF: ``sim.radio_runner``)
+ESTIMATORS = ("sapp", "kinematic_ekf", "radio_ekf")
 
 
 @dataclass(frozen=True)
 class SideEstimate:
     """An estimator's pose per sample of a segment: mission-frame positions (N, 3), m, and
-    ``q_b_ll`` (N, 4) (``[x, y, z, w]``; LL and mission axes agree to ~1e-5 rad)."""
+    ``q_b_ll`` (N, 4) (``[x, y, z, w]``; LL and mission axes agree to ~1e-5 rad), ``None``
+    for an estimator of position only."""
 
     p_mission: FloatArray
-    q_b_ll: FloatArray
+    q_b_ll: FloatArray | None
+
+
+@dataclass(frozen=True)
+class DriveInputs:
+    """What a side estimator gets of a drive segment besides the segment itself (its truth,
+    for the sensors ``sim/`` models, and its IMU): the command ``kind`` and ``args``
+    (``commanded_rates``); the wheel (N, 6) and corner steering (N, 4) encoders as the flight
+    software read them, rad; SAPP's ``(p_mission, q_b_ll)`` before the drive (``start``) and
+    its attitude ``sapp_q_b_ll`` (N, 4) at each sample."""
+
+    kind: str
+    args: tuple[float, ...]
+    wheel_rad: FloatArray
+    steer_rad: FloatArray
+    start: tuple[FloatArray, FloatArray]
+    sapp_q_b_ll: FloatArray
+
+
+class SideRunner(Protocol):
+    """An estimator beside SAPP: its name, its pose now (``None`` before it starts), a drive
+    segment, and the rover at rest at ``p_s_true`` (truth, for ``sim/``'s sensor models)
+    until ``t_s``."""
+
+    name: str
+
+    def estimate_now(self) -> tuple[FloatArray, FloatArray | None] | None: ...
+
+    def drive(self, seg: Segment, inputs: DriveInputs) -> SideEstimate: ...
+
+    def rest_until(self, t_s: float, p_s_true: FloatArray) -> None: ...
 
 
 def commanded_rates(
@@ -140,28 +173,28 @@ class KinematicEkfRunner:
         self.frame_rate_ll = mars_rotation_ll(sim.lat_rad)
         self.ekf: KinematicEkf | None = None
 
-    def estimate_now(self) -> tuple[FloatArray, FloatArray] | None:
+    def estimate_now(self) -> tuple[FloatArray, FloatArray | None] | None:
         """``(p_mission, q_b_ll)`` now, or ``None`` before the first drive."""
         if self.ekf is None:
             return None
-        est = self.ekf.estimate()
-        return est.p_s, est.q_b_s
+        return self._pose()
 
-    def drive(
-        self,
-        seg: Segment,
-        kind: str,
-        args: tuple[float, ...],
-        wheel_rad: FloatArray,
-        steer_rad: FloatArray,
-        start: tuple[FloatArray, FloatArray],
-    ) -> SideEstimate:
-        """Run the filter through ``seg`` (its IMU and sun/joint sensors on its truth);
-        ``wheel_rad`` (N, 6) and ``steer_rad`` (N, 4) the encoders as the flight software
-        read them; ``start`` SAPP's ``(p_mission, q_b_ll)`` for a filter not started yet.
-        Returns the estimate at each sample of the segment (its first = before moving)."""
+    def rest_until(self, t_s: float, p_s_true: FloatArray) -> None:
+        """At rest the filter is left as it is (module docstring)."""
+
+    def drive(self, seg: Segment, inputs: DriveInputs) -> SideEstimate:
+        """Run the filter through ``seg`` (its IMU and sun/joint sensors on its truth) with
+        the encoders and commands of ``inputs``; a filter not started yet starts at SAPP's
+        ``inputs.start``. Returns the estimate at each sample of the segment (its first =
+        before moving)."""
+        kind, args, wheel_rad, steer_rad = (
+            inputs.kind,
+            inputs.args,
+            inputs.wheel_rad,
+            inputs.steer_rad,
+        )
         if self.ekf is None:
-            p0, q_b_ll0 = start
+            p0, q_b_ll0 = inputs.start
             q_s_b0 = Rotation.from_quat(q_b_ll0).inv().as_quat()
             self.ekf = KinematicEkf(q_s_b0, p0, gyro="3axis")  # the LN-200 has three axes
         ekf = self.ekf

@@ -29,10 +29,12 @@ def _free_port() -> int:
         return port
 
 
-def _start(data_dir: Path, port: int, token: str = TOKEN) -> subprocess.Popen[bytes]:
-    """``roverops serve`` as its own process (the real server, as an operator runs it); its
-    output goes to ``server.log`` in ``data_dir`` (a pipe nobody reads would fill up and
-    stall the server)."""
+def _start(
+    data_dir: Path, port: int, token: str = TOKEN, estimators: str = "sapp"
+) -> subprocess.Popen[bytes]:
+    """``roverops serve`` as its own process (the real server, as an operator runs it,
+    with ``--estimators``); its output goes to ``server.log`` in ``data_dir`` (a pipe nobody
+    reads would fill up and stall the server)."""
     env = dict(os.environ, ROVEROPS_OPERATOR_TOKEN=token)
     cmd = [
         sys.executable,
@@ -43,6 +45,8 @@ def _start(data_dir: Path, port: int, token: str = TOKEN) -> subprocess.Popen[by
         str(port),
         "--data-dir",
         str(data_dir),
+        "--estimators",
+        estimators,
     ]
     with open(data_dir / "server.log", "ab") as log:
         return subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT)

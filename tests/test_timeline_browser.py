@@ -27,6 +27,8 @@ PLOTS = {  # container test id -> its series' stroke colour (timeline.js)
     "plot-attitude-error": (0x6B, 0xD4, 0x8A),
     "plot-hga-margin": (0xF0, 0xB4, 0x29),
 }
+SIDE_ESTIMATORS = "sapp,kinematic_ekf,radio_ekf"
+SIDE_RGB = {"kinematic_ekf": (0xFF, 0x8C, 0x42), "radio_ekf": (0xE6, 0x5A, 0xC8)}
 # Pixels of a canvas within 40 of a colour on every channel: the plotted line's own.
 COUNT_COLOUR = """(canvas, rgb) => {
   const data = canvas.getContext("2d").getImageData(0, 0, canvas.width, canvas.height).data;
@@ -41,9 +43,10 @@ COUNT_COLOUR = """(canvas, rgb) => {
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    """The real server with the example sequence run to completion on spirit."""
+    """The real server, both fusion filters beside SAPP, with the example sequence run to
+    completion on spirit."""
     port = _free_port()
-    proc = _start(tmp_path_factory.mktemp("timeline"), port, TOKEN)
+    proc = _start(tmp_path_factory.mktemp("timeline"), port, TOKEN, SIDE_ESTIMATORS)
     base = f"http://127.0.0.1:{port}"
     try:
         _wait(lambda: httpx.get(f"{base}/api/rovers").status_code == 200)
@@ -202,3 +205,23 @@ def test_each_vo_step_is_a_mark_on_the_vo_lane(page: Page, server: str) -> None:
     others = page.get_by_test_id("timeline-event").evaluate_all("els => els.map(e => e.title)")
     assert not any("VO step" in t for t in others)
     page.get_by_test_id("timeline-panel").screenshot(path=str(ARTIFACTS / "timeline-vo.png"))
+
+
+def test_the_estimators_beside_sapp_are_lines_on_the_error_plots(page: Page) -> None:
+    """roverops serve --estimators sapp,kinematic_ekf,radio_ekf: each filter's position
+    error is a line of its own colour, named in the legend; the radio EKF estimates
+    position only, so the attitude plot has the kinematic EKF's line and not its."""
+    position = page.get_by_test_id("plot-position-error")
+    attitude = page.get_by_test_id("plot-attitude-error")
+    expect(position.locator(".u-legend")).to_contain_text("kinematic_ekf")
+    expect(position.locator(".u-legend")).to_contain_text("radio_ekf")
+    expect(attitude.locator(".u-legend")).to_contain_text("kinematic_ekf")
+    expect(attitude.locator(".u-legend")).not_to_contain_text("radio_ekf")
+    pos_canvas, att_canvas = position.locator("canvas"), attitude.locator("canvas")
+    for name, rgb in SIDE_RGB.items():
+        assert pos_canvas.evaluate(COUNT_COLOUR, rgb) > 40, f"{name}: no position line"
+    assert att_canvas.evaluate(COUNT_COLOUR, SIDE_RGB["kinematic_ekf"]) > 40
+    assert att_canvas.evaluate(COUNT_COLOUR, SIDE_RGB["radio_ekf"]) == 0
+    page.get_by_test_id("timeline-panel").screenshot(
+        path=str(ARTIFACTS / "timeline-estimators.png")
+    )

@@ -330,7 +330,7 @@
 
   // Estimators run beside SAPP (roverops serve --estimators): one more line each on the
   // error plots, from the frames' "estimators" entries.
-  const SIDE_COLOURS = { kinematic_ekf: "#ff8c42" };
+  const SIDE_COLOURS = { kinematic_ekf: "#ff8c42", radio_ekf: "#e65ac8" };  // as the 3D view's
   const SIDE_KEYS = { "plot-position-error": "position_error_m", "plot-attitude-error": "attitude_error_deg" };
 
   function sideNames(frames) {
@@ -402,11 +402,13 @@
       const container = byId(spec.id);
       const ys = frames.map((f) => { const v = spec.value(f); return v === undefined ? null : v; });
       const key = SIDE_KEYS[spec.id];
-      const sides = key ? names : [];
-      const sideYs = sides.map((name) => frames.map((f) => {
+      const sideValues = (name) => frames.map((f) => {
         const e = (f.estimators || {})[name];
         return e && e[key] !== undefined ? e[key] : null;
-      }));
+      });
+      // an estimator of position only (radio_ekf) has no attitude line
+      const sides = key ? names.filter((name) => sideValues(name).some((v) => v !== null)) : [];
+      const sideYs = sides.map(sideValues);
       const data = [xs, ys, ...sideYs];
       view.plots.push(new uPlot(plotOptions(container, spec, sides), data, container));
     }

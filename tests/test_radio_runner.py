@@ -1,0 +1,111 @@
+"""The radio + terrain-matching EKF beside SAPP in a rover session (the fusion issue,
+item 3; ``sim.radio_runner``), and the onboard orbital maps it uses (``sim.landmarks``)."""
+
+from __future__ import annotations
+
+import math
+import pickle
+from datetime import UTC, datetime
+
+import numpy as np
+import pytest
+
+from estimation.aqf import AttitudeQuality
+from sequences import commands as cmd
+from sim.landmarks import LandmarkTiles, OrbitalDem, ground_height_m
+from sim.radio_runner import RadioEkfRunner
+from sim.radio_scenario import metres_per_radian
+from sim.session import RoverSession
+from sim.sites import make_terrain
+
+# The relay orbiter (sim.relay_orbiter, ORBIT_EPOCH) culminates at 51° over Gusev 7 min
+# after this; its next pass there is 12.6 h later.
+START = datetime(2004, 4, 14, 15, 0, tzinfo=UTC)
+
+
+def _runner(session: RoverSession) -> RadioEkfRunner:
+    (runner,) = [r for r in session.side if isinstance(r, RadioEkfRunner)]
+    return runner
+
+
+def _horizontal_sigma_m(runner: RadioEkfRunner) -> float:
+    assert runner.ekf is not None
+    _, P = runner.ekf.estimate()
+    return math.sqrt(P[0, 0] * runner.m_per_lat**2 + P[1, 1] * runner.m_per_lon**2)
+
+
+@pytest.fixture(scope="module")
+def gusev_drive() -> RoverSession:
+    session = RoverSession("gusev", 5, START, estimators=("sapp", "radio_ekf"), frame_every_s=1.0)
+    session.nate.load_attitude(session.q_b_ll_true(), AttitudeQuality.FINE)
+    session.execute(cmd.Wait(duration_s=30.0))
+    session.execute(cmd.DriveStraight(distance_m=4.0))
+    return session
+
+
+def test_it_starts_at_the_first_drive_and_estimates_position_only(
+    gusev_drive: RoverSession,
+) -> None:
+    frames = gusev_drive.frames
+    assert all(f.estimators == {} for f in frames if f.command.startswith("WAIT"))
+    during = [f.estimators["radio_ekf"] for f in frames if f.command.startswith("DRIVE")]
+    assert len(during) > 100  # a frame a second through the drive
+    assert all(e["q_b_ll"] is None and e["attitude_error_deg"] is None for e in during)
+    last = frames[-1].estimators["radio_ekf"]
+    # landmarks of a 0.25 m map every second and 1 m ranges: decimetres (SAPP: ~1-3 %)
+    assert last["position_error_m"] < 0.3
+    assert last["p_mission"][0] == pytest.approx(frames[-1].p_mission_true[0], abs=0.3)
+    runner = _runner(gusev_drive)
+    assert runner.ekf is not None
+    np.testing.assert_allclose(runner.ekf.estimate()[0][2:], 0.0, atol=1e-4)  # parked: v = 0
+
+
+def test_a_pass_at_rest_brings_ranges_and_no_pass_changes_nothing(
+    gusev_drive: RoverSession,
+) -> None:
+    session = pickle.loads(pickle.dumps(gusev_drive))  # the fixture stays as it was
+    runner = _runner(session)
+    sigma_before = _horizontal_sigma_m(runner)
+    session.execute(cmd.Wait(duration_s=900.0))  # the rest of the pass
+    assert runner.last_seen_t_s > session.frames[-1].t_s - 900.0
+    assert _horizontal_sigma_m(runner) < sigma_before  # the ranges were used
+    held = session.frames[-1].estimators["radio_ekf"]["p_mission"]
+    session.execute(cmd.Wait(duration_s=3600.0))  # the orbiter is below the mask
+    assert session.frames[-1].estimators["radio_ekf"]["p_mission"] == held
+
+
+def test_landmark_tiles_are_the_same_whenever_built_and_cover_the_reach() -> None:
+    terrain = make_terrain("gusev", 5)
+    tiles = LandmarkTiles(terrain, 0.25, seed=5)
+    here = np.array([10.0, -30.0, 0.0])
+    first = tiles.around(here, 40.0)
+    again = pickle.loads(pickle.dumps(tiles))  # the tiles are left out and rebuilt
+    assert again._tiles == {}
+    second = again.around(here, 40.0)
+    np.testing.assert_array_equal(first.true_s_m, second.true_s_m)
+    np.testing.assert_array_equal(first.map_s_m, second.map_s_m)
+    d = first.true_s_m[:, :2] - here[:2]
+    # every 8 m cell within reach has its landmark: the reach's square holds ~(80/8)² of them
+    assert np.count_nonzero(np.all(np.abs(d) <= 40.0, axis=1)) >= 90
+    np.testing.assert_allclose(
+        -first.true_s_m[:, 2], ground_height_m(terrain, first.true_s_m[:, 0], first.true_s_m[:, 1])
+    )
+
+
+def test_orbital_dem_is_the_ground_at_its_posts_and_bilinear_between() -> None:
+    terrain = make_terrain("gusev", 5)
+    dem = OrbitalDem(terrain, post_m=1.0)
+    for n, e in [(3.0, -7.0), (-64.0, 63.0), (130.0, 2.0)]:
+        assert dem.height_m(n, e) == pytest.approx(float(ground_height_m(terrain, n, e)), abs=1e-9)
+    corners = [dem.height_m(3.0 + i, -7.0 + j) for i in (0, 1) for j in (0, 1)]
+    assert dem.height_m(3.5, -6.5) == pytest.approx(np.mean(corners), abs=1e-12)
+    assert pickle.loads(pickle.dumps(dem))._tiles == {}
+
+
+def test_site_metres_follow_the_ellipsoid() -> None:
+    """At the equator: the meridian's radius of curvature a(1 - e²) and the equatorial
+    radius a, from the IAU radii (3396.19 km equatorial, 3376.20 km polar)."""
+    a, b = 3_396_190.0, 3_376_200.0
+    m_per_lat, m_per_lon = metres_per_radian(0.0)
+    assert m_per_lat == pytest.approx(b**2 / a, rel=1e-4)  # a(1 - e²) = b²/a
+    assert m_per_lon == pytest.approx(a, rel=1e-4)
