@@ -1,7 +1,8 @@
 """``roverops bench fusion``: both fusion filters' figures in one result (the fusion issue,
 item 4): Balaram's kinematic EKF on surface eq. 22 (``sim.bench_fusion_kinematic``) and
 the radio + terrain-matching EKF's four cases (``sim.bench_fusion_radio``), with
-``filter_consistency_nees`` for each filter. Each part's module says how it measures.
+``filter_consistency_nees`` for each filter, and both beside SAPP in rover sessions on
+Gusev and Meridiani (``sim.bench_fusion_session``). Each part's module says how it measures.
 """
 
 from __future__ import annotations
@@ -11,14 +12,21 @@ from typing import Any
 from sim.bench import _result
 
 
-def bench_fusion(kinematic_runs: int = 10, radio_seeds: int = 20) -> dict[str, Any]:
-    """Both parts; smaller counts make a quick run (the targets stay the issue's)."""
+def bench_fusion(
+    kinematic_runs: int = 10,
+    radio_seeds: int = 20,
+    session_seeds: int = 6,
+    session_straight_m: float = 10.0,
+) -> dict[str, Any]:
+    """All parts; smaller counts make a quick run (the targets stay the issue's)."""
     from sim.bench_fusion_kinematic import bench_fusion_kinematic
     from sim.bench_fusion_radio import bench_fusion_radio
+    from sim.bench_fusion_session import bench_fusion_session
 
     kinematic = bench_fusion_kinematic(n_runs=kinematic_runs)
     radio = bench_fusion_radio(n_seeds=radio_seeds)
-    metrics = {**kinematic["metrics"], **radio["metrics"]}
+    session = bench_fusion_session(n_seeds=session_seeds, straight_m=session_straight_m)
+    metrics = {**kinematic["metrics"], **radio["metrics"], **session["metrics"]}
     metrics["filter_consistency_nees"] = {
         "kinematic_ekf": kinematic["metrics"]["kinematic_ekf_nees"],
         "radio_ekf": radio["metrics"]["radio_ekf_nees"],
