@@ -42,6 +42,7 @@ from server.timeline import sol_timeline
 from server.viser_proxy import fetch, relay
 from sim.mars_frames import earth_ll_truth, elevation_rad
 from sim.marsclock import t_s_for_sol_lmst
+from sim.side_estimators import ESTIMATORS
 
 MAX_UPLOAD_BYTES = 1_000_000
 WEB_DIR = Path(__file__).resolve().parent.parent / "web"  # the console, served as is
@@ -589,16 +590,37 @@ CSV_VECTORS = {
     "p_mission_true": 3, "bogie_deg": 2, "steer_deg": 4, "sun_ll_true": 3,
     "earth_ll_true": 3, "hga_boresight_ll_true": 3,
 }  # fmt: skip
+# Each estimator that can run beside SAPP (sim.side_estimators) has its columns in every
+# CSV, empty where it did not run: columns never depend on the rover's configuration.
+CSV_SIDE_ESTIMATORS = tuple(e for e in ESTIMATORS if e != "sapp")
+CSV_SIDE_FIELDS = ("position_error_m", "attitude_error_deg")
+CSV_SIDE_VECTORS = {"p_mission": 3, "q_b_ll": 4}
+
+
+def _side_cells(f: dict[str, Any]) -> list[Any]:
+    cells: list[Any] = []
+    for name in CSV_SIDE_ESTIMATORS:
+        side = (f.get("estimators") or {}).get(name) or {}
+        cells += [side.get(c) for c in CSV_SIDE_FIELDS]
+        for v, n in CSV_SIDE_VECTORS.items():
+            values = list(side.get(v) or [])
+            cells += values + [None] * (n - len(values))
+    return cells
 
 
 def _csv(frames: list[dict[str, Any]]) -> str:
-    """Frames as CSV, one column per vector component; a figure a frame lacks (NaN, or a
-    field frames stored by an older version do not have) is an empty cell."""
+    """Frames as CSV, one column per vector component, then each side estimator's figures
+    (``<name>_position_error_m``, ...); a figure a frame lacks (NaN, an estimator that did not
+    run, or a field frames stored by an older version do not have) is an empty cell."""
     out = io.StringIO()
     writer = csv.writer(out)
     header = list(CSV_COLUMNS)
     for v, n in CSV_VECTORS.items():
         header += [f"{v}_{i}" for i in range(n)]
+    for name in CSV_SIDE_ESTIMATORS:
+        header += [f"{name}_{c}" for c in CSV_SIDE_FIELDS]
+        for v, n in CSV_SIDE_VECTORS.items():
+            header += [f"{name}_{v}_{i}" for i in range(n)]
     header.append("events")
     writer.writerow(header)
     for f in frames:
@@ -606,6 +628,7 @@ def _csv(frames: list[dict[str, Any]]) -> str:
         for v, n in CSV_VECTORS.items():
             values = list(f.get(v) or [])
             row += values + [None] * (n - len(values))
+        row += _side_cells(f)
         row.append("; ".join(f.get("events", [])))
         writer.writerow(row)
     return out.getvalue()
