@@ -10,6 +10,7 @@ nothing changes. Request bodies are validated (422 with the reason); uploads abo
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import csv
 import hmac
 import io
@@ -24,6 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
+import anyio
 from fastapi import Depends, FastAPI, Header, HTTPException, Query, Request, WebSocket
 from fastapi.responses import FileResponse, JSONResponse, RedirectResponse, Response
 from fastapi.staticfiles import StaticFiles
@@ -543,17 +545,30 @@ def create_app(config: ServerConfig) -> FastAPI:
         await websocket.accept()
         client = server.hub.subscribe(rover)
         period = 1.0 / MAX_RATE_HZ
+
+        async def send_frames(done: anyio.CancelScope) -> None:
+            with contextlib.suppress(WebSocketDisconnect, RuntimeError):  # the browser left
+                next_send = 0.0
+                while True:
+                    message = await next_message(client)
+                    await websocket.send_json(message)
+                    next_send = max(next_send + period, time.monotonic())  # >= period apart
+                    wait = next_send - time.monotonic()
+                    if wait > 0:
+                        await asyncio.sleep(wait)
+            done.cancel()
+
+        async def until_closed(done: anyio.CancelScope) -> None:
+            # A rover at rest sends nothing for a long time: listening is how a closed
+            # browser, or the server shutting down, ends this handler (and its subscription).
+            while (await websocket.receive())["type"] != "websocket.disconnect":
+                pass
+            done.cancel()
+
         try:
-            next_send = 0.0
-            while True:
-                message = await next_message(client)
-                await websocket.send_json(message)
-                next_send = max(next_send + period, time.monotonic())  # sends >= period apart
-                wait = next_send - time.monotonic()
-                if wait > 0:
-                    await asyncio.sleep(wait)
-        except (WebSocketDisconnect, RuntimeError):
-            pass
+            async with anyio.create_task_group() as tasks:
+                tasks.start_soon(send_frames, tasks.cancel_scope)
+                tasks.start_soon(until_closed, tasks.cancel_scope)
         finally:
             server.hub.unsubscribe(rover, client)
 
