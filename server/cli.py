@@ -103,7 +103,10 @@ def _cmd_serve(args: argparse.Namespace) -> dict[str, Any]:
         )
     print(f"operator token: {token}", flush=True)
     print(f"database: {url}", flush=True)
-    uvicorn.run(app, host=args.host, port=args.port, log_level="warning")
+    # A connection that never closes must not keep an operator's Ctrl-C from stopping it.
+    uvicorn.run(
+        app, host=args.host, port=args.port, log_level="warning", timeout_graceful_shutdown=10
+    )
     return {}
 
 
