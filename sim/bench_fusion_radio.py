@@ -42,12 +42,14 @@ from estimation.fusion.radio_ekf import RadioEkf, RadioEkfTuning
 from sim.bench import _result
 from sim.errors import InputError
 from sim.landmarks import (
+    MAX_MATCHING_RANGE_M,
     NAVCAM_FOCAL_PX,
     NAVCAM_OFFSET_B_M,
     PIXEL_SIGMA_PX,
     build_landmark_map,
     choose_pair,
     ground_height_m,
+    matching_band,
     matching_geometry,
     navcam_pixels,
 )
@@ -83,9 +85,10 @@ def run_case(sc: RadioScenario, case: int, tuning: RadioEkfTuning) -> dict[str, 
     resolution_m, radio_m = CASES[case]
     rng = np.random.default_rng([sc.seed, case, 7])
     terrain = make_terrain("meridiani", sc.seed)
-    spacing_m, min_range_m, max_range_m = matching_geometry(resolution_m)
+    spacing_m, _, farthest_m = matching_geometry(resolution_m)
+    farthest_m = max(farthest_m, MAX_MATCHING_RANGE_M)
     landmarks = build_landmark_map(
-        terrain, resolution_m, rng, extent_m=100.0 + max_range_m, spacing_m=spacing_m
+        terrain, resolution_m, rng, extent_m=100.0 + farthest_m, spacing_m=spacing_m
     )
     map_mf = landmarks.map_mf_m(sc.site_lat_rad, sc.site_lon_east_rad)
     ranges, visible = sc.orbiter.ranges(
@@ -124,9 +127,8 @@ def run_case(sc: RadioScenario, case: int, tuning: RadioEkfTuning) -> dict[str, 
             beacon_mf = beacon.position_mf_m(float(sc.t_s[k + 1]))
             ekf.update_range(float(ranges[k + 1]), beacon_mf, height_m, radio_m)
         yaw_true = math.atan2(sc.R_s_b[k + 1][1, 0], sc.R_s_b[k + 1][0, 0])
-        pair = choose_pair(
-            sc.p_s[k + 1], yaw_true, landmarks.true_s_m, rng, min_range_m, max_range_m
-        )
+        near_m, far_m = matching_band(resolution_m, ekf.horizontal_sigma_m())
+        pair = choose_pair(sc.p_s[k + 1], yaw_true, landmarks.true_s_m, rng, near_m, far_m)
         if pair is not None:
             ids, pans = pair
             pixels = navcam_pixels(

@@ -62,12 +62,34 @@ def matching_geometry(resolution_m: float) -> tuple[float, float, float]:
     """``(spacing_m, min_range_m, max_range_m)`` for a map of ``resolution_m``: features it
     resolves are ~4 resolutions apart (at least 8 m: one per Navcam-sized patch), and
     matching one is worth it where its error subtends a modest angle, 5 to 20 resolutions
-    away (at least 8 to 40 m, where Navcam sees the ground well)."""
+    away, and at least 8 to 20 m away, where Navcam sees the ground well.
+
+    Why not farther: a landmark's line of sight fixes the rover to within its map error
+    plus its distance times the attitude error (eqs. 10-11 use the onboard attitude), so
+    nearer is better as long as pairs 60-120° apart remain (an 8-20 m annulus holds ~16
+    landmarks 8 m apart). Seed 004's case 4 measured the attitude's share: the true attitude
+    in the camera alone takes its error from 0.37 to 0.26 m (seeds 0-9); in eq. 1 alone,
+    nothing.
+    """
     return (
         max(8.0, 4.0 * resolution_m),
         max(8.0, 5.0 * resolution_m),
-        max(40.0, 20.0 * resolution_m),
+        max(20.0, 20.0 * resolution_m),
     )
+
+
+MAX_MATCHING_RANGE_M = 100.0  # the farthest ``matching_band`` reaches for a fine map
+
+
+def matching_band(resolution_m: float, position_sigma_m: float) -> tuple[float, float]:
+    """``(min_range_m, max_range_m)`` of the landmarks to match for a map of ``resolution_m``
+    when the position is known to ``position_sigma_m`` (1σ, horizontal): the band of
+    ``matching_geometry``, pushed out to three sigmas (50 m at most) so that a line of sight
+    stays near its linearisation from a poor estimate (landmarks nearer than the error flip
+    the predicted bearings and the EKF diverges), the far edge twice the near."""
+    _, near, far = matching_geometry(resolution_m)
+    near = max(near, min(3.0 * position_sigma_m, 50.0))
+    return near, min(max(far, 2.0 * near), max(MAX_MATCHING_RANGE_M, far))
 
 
 def ground_height_m(terrain: Terrain, x_m: FloatArray, y_m: FloatArray) -> FloatArray:

@@ -54,6 +54,7 @@ from sim.landmarks import (
     LandmarkTiles,
     OrbitalDem,
     choose_pair,
+    matching_band,
     matching_geometry,
     navcam_pixels,
 )
@@ -85,7 +86,7 @@ class RadioEkfRunner:
         self.lat_rad, self.lon_east_rad = sim.lat_rad, sim.lon_east_rad
         self.m_per_lat, self.m_per_lon = metres_per_radian(sim.lat_rad)
         self.body_height_m = MER_GEOMETRY.body_height_m
-        self.spacing_m, self.min_range_m, self.max_range_m = matching_geometry(MAP_RESOLUTION_M)
+        self.spacing_m, _, _ = matching_geometry(MAP_RESOLUTION_M)
         # the orbital maps onboard, both cut from the site's terrain
         self.dem = OrbitalDem(sim.terrain)
         self.landmarks = LandmarkTiles(sim.terrain, MAP_RESOLUTION_M, seed, self.spacing_m)
@@ -212,11 +213,10 @@ class RadioEkfRunner:
     ) -> None:
         """Two landmarks imaged from the truth pose (``sim.landmarks``), matched to the map."""
         assert self.ekf is not None
-        landmarks = self.landmarks.around(p_s_true, self.max_range_m)
+        near_m, far_m = matching_band(MAP_RESOLUTION_M, self.ekf.horizontal_sigma_m())
+        landmarks = self.landmarks.around(p_s_true, far_m)
         yaw_true = math.atan2(R_s_b_true[1, 0], R_s_b_true[0, 0])  # to centre them: pointing only
-        pair = choose_pair(
-            p_s_true, yaw_true, landmarks.true_s_m, self.rng, self.min_range_m, self.max_range_m
-        )
+        pair = choose_pair(p_s_true, yaw_true, landmarks.true_s_m, self.rng, near_m, far_m)
         if pair is None:
             return
         ids, pans = pair

@@ -187,6 +187,11 @@ def test_zero_velocity_update_is_the_kalman_update_of_a_direct_velocity_measurem
     assert np.all(np.abs(x1[2:]) < 1e-5) and x1[0] != x0[0]
 
 
+def test_horizontal_sigma_is_the_initial_ten_metres_per_axis() -> None:
+    ekf = RadioEkf(LAT, LON, 0.0, 0.0, height_m=-1500.0)  # P0 = diag(10² I, I): seed 004
+    assert ekf.horizontal_sigma_m(-1500.0) == pytest.approx(math.hypot(10.0, 10.0), rel=1e-12)
+
+
 def test_landmark_behind_the_camera_is_left_out() -> None:
     ekf = RadioEkf(LAT, LON, 0.0, 0.0)
     landmark_mf, _, _ = _pixel_setup()

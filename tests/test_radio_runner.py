@@ -3,7 +3,6 @@ item 3; ``sim.radio_runner``), and the onboard orbital maps it uses (``sim.landm
 
 from __future__ import annotations
 
-import math
 import pickle
 from datetime import UTC, datetime
 
@@ -12,7 +11,7 @@ import pytest
 
 from estimation.aqf import AttitudeQuality
 from sequences import commands as cmd
-from sim.landmarks import LandmarkTiles, OrbitalDem, ground_height_m
+from sim.landmarks import LandmarkTiles, OrbitalDem, ground_height_m, matching_band
 from sim.radio_runner import RadioEkfRunner
 from sim.radio_scenario import metres_per_radian
 from sim.session import RoverSession
@@ -26,12 +25,6 @@ START = datetime(2004, 4, 14, 15, 0, tzinfo=UTC)
 def _runner(session: RoverSession) -> RadioEkfRunner:
     (runner,) = [r for r in session.side if isinstance(r, RadioEkfRunner)]
     return runner
-
-
-def _horizontal_sigma_m(runner: RadioEkfRunner) -> float:
-    assert runner.ekf is not None
-    _, P = runner.ekf.estimate()
-    return math.sqrt(P[0, 0] * runner.m_per_lat**2 + P[1, 1] * runner.m_per_lon**2)
 
 
 @pytest.fixture(scope="module")
@@ -65,10 +58,11 @@ def test_a_pass_at_rest_brings_ranges_and_no_pass_changes_nothing(
 ) -> None:
     session = pickle.loads(pickle.dumps(gusev_drive))  # the fixture stays as it was
     runner = _runner(session)
-    sigma_before = _horizontal_sigma_m(runner)
+    assert runner.ekf is not None
+    sigma_before = runner.ekf.horizontal_sigma_m()
     session.execute(cmd.Wait(duration_s=900.0))  # the rest of the pass
     assert runner.last_seen_t_s > session.frames[-1].t_s - 900.0
-    assert _horizontal_sigma_m(runner) < sigma_before  # the ranges were used
+    assert runner.ekf.horizontal_sigma_m() < sigma_before  # the ranges were used
     held = session.frames[-1].estimators["radio_ekf"]["p_mission"]
     session.execute(cmd.Wait(duration_s=3600.0))  # the orbiter is below the mask
     assert session.frames[-1].estimators["radio_ekf"]["p_mission"] == held
@@ -109,3 +103,18 @@ def test_site_metres_follow_the_ellipsoid() -> None:
     m_per_lat, m_per_lon = metres_per_radian(0.0)
     assert m_per_lat == pytest.approx(b**2 / a, rel=1e-4)  # a(1 - e²) = b²/a
     assert m_per_lon == pytest.approx(a, rel=1e-4)
+
+
+@pytest.mark.parametrize(
+    ("resolution_m", "sigma_m", "band"),
+    [
+        (0.25, 0.3, (8.0, 20.0)),  # converged: as near as pairs remain
+        (0.25, 10.0, (30.0, 60.0)),  # seed 004's 10 m start: three sigmas out
+        (0.25, 500.0, (50.0, 100.0)),  # lost: capped
+        (10.0, 10.0, (50.0, 200.0)),  # a 10 m map: 5 to 20 resolutions
+    ],
+)
+def test_the_matching_band_moves_out_with_the_position_uncertainty(
+    resolution_m: float, sigma_m: float, band: tuple[float, float]
+) -> None:
+    assert matching_band(resolution_m, sigma_m) == pytest.approx(band)

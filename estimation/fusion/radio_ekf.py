@@ -126,6 +126,14 @@ class RadioEkf:
         """Copies of the state (4,) and covariance (4, 4)."""
         return self._x.copy(), self._P.copy()
 
+    def horizontal_sigma_m(self, height_m: float = 0.0) -> float:
+        """The horizontal position uncertainty (m, 1σ: the root of the North and East
+        variances) at ``height_m`` above the ellipsoid."""
+        h = _height(height_m)
+        M, N, _, _ = rm.radii_of_curvature_m(float(self._x[0]))
+        east_m_per_rad = (N + h) * math.cos(float(self._x[0]))
+        return math.sqrt(self._P[0, 0] * (M + h) ** 2 + self._P[1, 1] * east_m_per_rad**2)
+
     # ---- time update ---------------------------------------------------------------------
 
     def propagate(
