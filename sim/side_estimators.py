@@ -6,8 +6,11 @@ seed 001) on every drive segment, sample for sample at 8 Hz, from the sensors th
 has: the IMU's gyros (the heading gyro, eqs. 12-13), the wheel and steering encoders and
 the rocker/bogie joint encoders (the slip constraints, eqs. 17-20) and a WASS-like sun
 sensor (eqs. 15-16, with IVP's sun as the reference), and the drive's commanded rates
-(what the driving software commanded: eq. 1's inputs). At rest the rover does not move
-and the filter is left as it is.
+(what the driving software commanded: eq. 1's inputs, from the second control cycle when
+the drive steers first). At rest the rover does not move and the filter is left as it is.
+The rover drives each wheel at its commanded rate, so the filter takes the rolling slip
+noise of rate-controlled wheels (``kinematic_ekf.RATE_CONTROLLED_WHEELS``), not the
+paper's compliant ones.
 
 It starts from SAPP's estimate at the first drive it sees (it has no attitude acquisition
 of its own) and from then on runs on its own. It works in the mission frame (the first
@@ -27,7 +30,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from estimation.fusion.encoder_rates import interval_rates
-from estimation.fusion.kinematic_ekf import KinematicEkf
+from estimation.fusion.kinematic_ekf import RATE_CONTROLLED_WHEELS, KinematicEkf
 from estimation.fusion.rover_kinematics import steer_per_wheel
 from estimation.fusion.slip_constraint import JointRates
 from estimation.ivp import mars_rotation_ll, sun_ll
@@ -41,6 +44,9 @@ FloatArray = NDArray[np.float64]
 
 # what `--estimators` accepts; SAPP always runs (the radio EKF: ``sim.radio_runner``)
 ESTIMATORS = ("sapp", "kinematic_ekf", "radio_ekf")
+# A corner steered by more than this stands steered: 10 σ of the steering sensors' 0.05 deg
+# (``sim.encoders``), and the corners of an arc up to ~80 m radius.
+STEERED_RAD = math.radians(0.5)
 
 
 @dataclass(frozen=True)
@@ -83,38 +89,55 @@ class SideRunner(Protocol):
     def rest_until(self, t_s: float, p_s_true: FloatArray) -> None: ...
 
 
+def starts_with_steering(kind: str, steer_rad: FloatArray) -> bool:
+    """Whether a drive segment begins with a control cycle of steering at rest
+    (``sim.rover_sim``): a turn or an arc always does; a straight drive does when its corner
+    wheels stood steered before it, which the steering sensors say (``steer_rad`` (N, 4),
+    rad, its first sample before the drive). An arc wider than ~80 m leaves its wheels
+    within ``STEERED_RAD`` of straight; a straight after it then starts a cycle early."""
+    if kind in ("turn", "arc"):
+        return True
+    return bool(np.max(np.abs(steer_rad[0])) > STEERED_RAD)
+
+
 def commanded_rates(
-    kind: str, args: tuple[float, ...], t_s: FloatArray
+    kind: str, args: tuple[float, ...], t_s: FloatArray, steering_cycle: bool | None = None
 ) -> tuple[FloatArray, FloatArray]:
     """The commanded body velocity (m/s) and rate (rad/s) over each interval of a segment
-    (N-1, 3) each: the drive moves at its speed from the first sample (a turn from the
-    second: the steering takes the first control cycle, ``sim.rover_sim``) until it is done.
+    (N-1, 3) each: the drive moves at its speed from the first sample until it is done, or
+    from the second when the segment begins with a ``steering_cycle``
+    (``starts_with_steering``; ``None``: a turn or an arc does, a straight does not, as
+    from straight wheels).
 
     >>> v, w = commanded_rates("straight", (0.075,), np.array([0.0, 1.0, 2.0, 3.0]))
     >>> v[:, 0].round(4).tolist(), float(abs(w).max())
     ([0.0375, 0.0375, 0.0], 0.0)
+    >>> v, w = commanded_rates("straight", (0.075,), np.array([0.0, 1.0, 2.0, 3.0]), True)
+    >>> v[:, 0].round(4).tolist()
+    [0.0, 0.0375, 0.0375]
     """
+    if kind not in ("straight", "arc", "turn"):
+        raise ValueError(f"kind: must be straight, arc or turn, got {kind!r}")
+    start = int(kind != "straight" if steering_cycle is None else steering_cycle)
     v = np.zeros((t_s.size - 1, 3))
     w = np.zeros((t_s.size - 1, 3))
 
-    def profile(start: int, amount: float, rate: float) -> FloatArray:
+    def profile(amount: float, rate: float) -> FloatArray:
         elapsed = np.clip(t_s - t_s[min(start, t_s.size - 1)], 0.0, None)
         done = np.minimum(elapsed * rate, amount)
         out: FloatArray = np.diff(done) / np.diff(t_s)
         return out
 
     if kind == "straight":
-        v[:, 0] = profile(0, args[0], DEFAULT_SPEED_M_S)
+        v[:, 0] = profile(args[0], DEFAULT_SPEED_M_S)
     elif kind == "arc":
         radius, angle = args
-        speed = profile(0, abs(radius) * angle, DEFAULT_SPEED_M_S)
+        speed = profile(abs(radius) * angle, DEFAULT_SPEED_M_S)
         v[:, 0] = speed
         w[:, 2] = math.copysign(1.0, radius) * speed / abs(radius)  # > 0 centre on the right
-    elif kind == "turn":
-        (angle,) = args
-        w[:, 2] = math.copysign(1.0, angle) * profile(1, abs(angle), DEFAULT_TURN_RATE_RAD_S)
     else:
-        raise ValueError(f"kind: must be straight, arc or turn, got {kind!r}")
+        (angle,) = args
+        w[:, 2] = math.copysign(1.0, angle) * profile(abs(angle), DEFAULT_TURN_RATE_RAD_S)
     return v, w
 
 
@@ -196,7 +219,8 @@ class KinematicEkfRunner:
         if self.ekf is None:
             p0, q_b_ll0 = inputs.start
             q_s_b0 = Rotation.from_quat(q_b_ll0).inv().as_quat()
-            self.ekf = KinematicEkf(q_s_b0, p0, gyro="3axis")  # the LN-200 has three axes
+            # the LN-200 has three axes; the rover drives its wheels at their commanded rates
+            self.ekf = KinematicEkf(q_s_b0, p0, gyro="3axis", noise=RATE_CONTROLLED_WHEELS)
         ekf = self.ekf
         truth = seg.truth
         t = truth.t_s
@@ -206,7 +230,7 @@ class KinematicEkfRunner:
         sun_true = sun_ll_truth(t, self.lat_rad, self.lon_east_rad)
         sun = self.sun_sensor.measure(t, q_s_b, sun_true)
         gamma = np.column_stack([joints.rocker_rad, joints.bogie_rad])
-        v_c, w_c = commanded_rates(kind, args, t)
+        v_c, w_c = commanded_rates(kind, args, t, starts_with_steering(kind, steer_rad))
         p = np.empty((t.size, 3))
         q = np.empty((t.size, 4))
         p[0], q[0] = self._pose()

@@ -17,7 +17,8 @@ We absorb after the propagation as well as after each update, so every measureme
 linearised at ``θ = 0`` about the predicted attitude: the same filter to first order
 (``q0 ⊗ δq(θ⁻ + δθ) ≈ (q0 ⊗ δq(θ⁻)) ⊗ δq(δθ)`` for the few tenths of a degree a step
 turns), with simpler Jacobians. The covariance of ``θ`` is kept unchanged through the
-absorption (the reset Jacobian is ``I`` to first order).
+absorption (the reset Jacobian is ``I`` to first order). After every step the contact
+angles are also held on the wheels' lower halves (``CONTACT_ANGLE_LIMIT_RAD``).
 
 Timing: the gyro's delta angles and the encoders' increments are averages over an
 interval; apply them at its middle (``propagate(dt/2)``, ``update_gyro``,
@@ -62,6 +63,14 @@ FloatArray = NDArray[np.float64]
 # position 1 mm, velocity 1 cm/s, contact angles 0.3 rad, gyro bias 2 deg/h.
 DEFAULT_SIGMA0 = (0.005, 0.01, 0.001, 0.01, 0.3, 1e-5)
 
+# A wheel touches the ground on its lower half, |ξ| < 90 deg. The slip constraint cannot
+# tell: ξ + π with the body velocity reversed satisfies eqs. 17-20 as well (the contact on
+# top of the wheel, the rover rolling backwards), and one update linearised at a contact
+# angle of 40 deg on a rock can carry ξ past 90 deg into that mirror solution, where the
+# filter then drives backwards. We hold ξ inside ±75 deg (a 13 cm wheel against a face of
+# 75 deg; Gusev's rocks give at most ~60 deg), projecting the estimate after each step.
+CONTACT_ANGLE_LIMIT_RAD = float(np.deg2rad(75.0))
+
 
 @dataclass(frozen=True)
 class SensorNoise:
@@ -93,6 +102,20 @@ class SensorNoise:
         for name, value in self.__dict__.items():
             if not (np.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name} must be positive and finite, got {value}")
+
+
+# The defaults are the paper's compliant wheels (sec. 2.3.4: each wheel's controller gives
+# way to the ground, so rolling slip is small and independent). A rover that drives each
+# wheel at its commanded rate (MER, and the simulated rover: ``sim.drive``) cannot do that
+# on rocks: a wheel climbing or leaving a rock face has its centre moving at v / cos(ξ)
+# while its rim turns at v, and it skids. Measured on Gusev through eq. 17 with the truth
+# (10 m legs and an arc, with and without slip): rolling slip 4.4-5.1 mm/s RMS, correlated
+# over ~20 samples at 8 Hz (2.5 s, one rock's passage). A white-noise model of a noise
+# correlated over N samples must carry √N times its RMS (as the joint rates above):
+# √20 x 4.4-5.1 mm/s = 2.0-2.3 cm/s. With the compliant 1 mm/s the filter explains each skid
+# by tilting all six contact angles together (unobservable against the body's vertical
+# velocity) and drifts in height by ~4 % of the distance.
+RATE_CONTROLLED_WHEELS = SensorNoise(slip_rolling_m_s=0.02)
 
 
 @dataclass(frozen=True)
@@ -195,6 +218,12 @@ class KinematicEkf:
         self.q_s_b = q / np.linalg.norm(q)
         self.X[self.layout.THETA] = 0.0
 
+    def _hold_contacts(self) -> None:
+        """Project ``ξ`` onto the wheels' lower halves (``CONTACT_ANGLE_LIMIT_RAD``), away
+        from the slip constraint's mirror solution; ``P`` is left as it is."""
+        xi = self.layout.XI
+        self.X[xi] = np.clip(self.X[xi], -CONTACT_ANGLE_LIMIT_RAD, CONTACT_ANGLE_LIMIT_RAD)
+
     def _R0(self) -> FloatArray:
         out: FloatArray = Rotation.from_quat(self.q_s_b).as_matrix()
         return out
@@ -215,10 +244,12 @@ class KinematicEkf:
         F = jacobian(self.X, R0, c.v_c_b, c.omega_c_b, p)
         self.X, self.P = ekf_core.propagate(self.X, self.P, f, F, self._Q, dt_s)
         self._absorb()
+        self._hold_contacts()
 
     def _update(self, residual: FloatArray, H: FloatArray, R: FloatArray) -> float:
         self.X, self.P, nis = ekf_core.update(self.X, self.P, residual, H, R)
         self._absorb()
+        self._hold_contacts()
         return nis
 
     # ---- measurements (eqs. 12-20) ----------------------------------------------------
