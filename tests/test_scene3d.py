@@ -24,6 +24,7 @@ from server.scene3d import (
     TERRAIN_HALF_M,
     TERRAIN_STEP_M,
     TRACK_CHUNK,
+    TRACK_RGB,
     RoverPose,
     RoverScene,
     Track,
@@ -151,6 +152,29 @@ def test_the_scene_follows_the_frames_and_scrubs_back(
     first = rover_scene.scrub(frames[0]["lmst_h"])
     assert first is not None and first["t_s"] == frames[0]["t_s"]
     np.testing.assert_allclose(rover_scene.model.root.position, frames[0]["p_mission_true"])
+
+
+def test_each_estimator_beside_sapp_is_a_traverse_of_its_own_colour(
+    tmp_path_factory: pytest.TempPathFactory,
+) -> None:
+    store = Store(data_dir_url(tmp_path_factory.mktemp("scene_sides")))
+    runtime = RoverRuntime(ROVERS["spirit"], estimators=("sapp", "kinematic_ekf", "radio_ekf"))
+    rover_scene = RoverScene(runtime, store)
+    rover_scene.start()
+    try:
+        runtime.session.execute(cmd.DriveStraight(distance_m=2.0))
+        frames = [f.as_dict() for f in runtime.session.frames]
+        rover_scene.on_frames("spirit", frames)
+        assert rover_scene.server is not None
+        handles = rover_scene.server.scene._handle_from_node_name
+        for name in ("kinematic_ekf", "radio_ekf"):
+            node = _wait(lambda name=name: handles.get(f"/traverse_{name}/0"))
+            assert tuple(np.asarray(node.colors).reshape(-1, 3)[0]) == TRACK_RGB[name]
+            end = np.asarray(node.points)[-1, 1]  # the traverse's last vertex
+            np.testing.assert_allclose(end, frames[-1]["estimators"][name]["p_mission"], atol=0.1)
+    finally:
+        rover_scene.stop()
+        store.close()
 
 
 def test_viser_is_served_and_relayed_on_the_console_origin(
