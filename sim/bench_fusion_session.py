@@ -4,9 +4,8 @@ sees (the fusion issue, item 3), measured.
 Each seed is a ``RoverSession`` with ``estimators=("sapp", "kinematic_ekf", "radio_ekf")``
 on a real site's terrain with slip, at 10:00 LMST of its mission's sol 100 + seed (so the
 relay orbiter's passes fall differently while the sun stays where it is): GetFineAttitude,
-then
-a course (``course``: 10 m straight, a 90° turn in place, a 60° arc of 5 m radius, 10 m
-straight: ~25 m). Each estimator's final mission-frame position error is taken against
+then a course (``course``: 10 m straight, a 90° turn in place, a 60° arc of 5 m radius,
+10 m straight: ~25 m). Each estimator's final mission-frame position error is taken against
 the truth at the end of the course.
 
 Figures, per site, RMS over seeds: ``session_<site>_<estimator>_err_m`` and the same as a

@@ -205,8 +205,12 @@ class LandmarkTiles:
         spacing_m: float = 8.0,
         tile_cells: int = 12,
     ) -> None:
-        if isinstance(tile_cells, bool) or not isinstance(tile_cells, int) or tile_cells < 1:
-            raise InputError("tile_cells", f"must be a positive integer, got {tile_cells!r}")
+        if isinstance(tile_cells, bool) or not isinstance(tile_cells, int) or tile_cells < 2:
+            raise InputError("tile_cells", f"must be an integer of at least 2, got {tile_cells!r}")
+        if not (math.isfinite(resolution_m) and 0.0 < resolution_m <= 100.0):
+            raise InputError("resolution_m", f"must be in (0, 100] m, got {resolution_m}")
+        if not (math.isfinite(spacing_m) and 1.0 <= spacing_m <= 100.0):
+            raise InputError("spacing_m", f"must be in [1, 100] m, got {spacing_m}")
         self.terrain = terrain
         self.resolution_m = float(resolution_m)
         self.seed = int(seed)

@@ -9,7 +9,9 @@ its case 4 configuration (a HiRISE-class 0.25 m landmark map, 1 m radio ranging)
     SAPP's attitude, summed, and turned into body axes at the step's start;
   - eq. 1 with SAPP's attitude: the paper takes the attitude as known, and SAPP is this
     rover's attitude;
-  - eq. 4 with the yaw rate of SAPP's gyro-propagated attitude over the step;
+  - eq. 4 with the yaw rate of SAPP's gyro-propagated attitude over the step (at 3.75 cm/s
+    it weighs little: the acceleration uncertainty in its prediction, ``Q``'s velocity
+    part over the speed squared, dwarfs the gyro's noise);
   - a range to the relay orbiter (``sim.relay_orbiter``) whenever it is above the 10°
     mask (eqs. 7-9);
   - two landmarks of the orbital map seen by Navcam (eqs. 10-11, ``sim.landmarks``).
@@ -17,9 +19,16 @@ its case 4 configuration (a HiRISE-class 0.25 m landmark map, 1 m radio ranging)
   When the wheels stop at the end of a segment, a zero-velocity update: the driving
   software knows the rover is parked.
 - **At rest** the state is held (the rover does not move). Every 10 s of a relay pass
-  brings a range. Each pass starts with the overflight predict: the orbiter's state, as
-  the ground uploads it for MER's relay passes, then propagated onboard (two-body,
+  brings a range. Each pass starts with the overflight predict, the orbiter's state as
+  the ground would upload it for the pass, propagated onboard (two-body,
   ``estimation.fusion.radio_beacon``).
+
+What is taken as exact, as seed 004 takes it: the orbiter's state (the upload is the
+true two-body state, so the ranges carry only their 1 m noise; a real predict has
+along-track errors that would bias them), the maps' tie to the site (the rover's start is
+its true placement in the map, and the elevation model is the true rock-free ground), and
+the identity of each matched landmark. The figures are therefore those of a rover whose
+maps and ephemerides are good: the mission-frame error leaves out any map-tie error.
 
 The filter estimates position only (latitude, longitude, North and East velocity); its
 frames carry its position and error and no attitude of its own. It starts at the first

@@ -667,7 +667,16 @@ class RoverSession:
             start=start,
             sapp_q_b_ll=np.array([start[1], *(o.q_b_ll for o in outputs)]),
         )
-        return {r.name: r.drive(seg, inputs) for r in self.side}
+        out: dict[str, SideEstimate] = {}
+        for runner in list(self.side):
+            try:
+                out[runner.name] = runner.drive(seg, inputs)
+            except ValueError as exc:  # InputError and numpy's LinAlgError are ValueErrors
+                # The rover has driven and SAPP has its result: a comparison estimator that
+                # fails must not turn the drive into a refusal. It stops, and says why.
+                self.side.remove(runner)
+                self._events.append(f"{runner.name} stopped: {exc}")
+        return out
 
     def _segment_frames(
         self, seg: Segment, outputs: Sequence[NateOutput], side: dict[str, SideEstimate]
@@ -741,7 +750,7 @@ class RoverSession:
                 earth_ll_true=[float(v) for v in earth_true],
                 hga_boresight_ll_true=[float(v) for v in boresight_ll],
                 events=events,
-                estimators=self._side_estimates(p_mission_true, q_b_ll_true),
+                estimators=self._side_estimates(t, p_mission_true, q_b_ll_true),
             )
         )
         self._last_frame_t = t
@@ -749,12 +758,14 @@ class RoverSession:
 
     # ---- truth for benchmarks and tests -------------------------------------------
 
-    def _side_estimates(self, p_mission_true: FloatArray, q_b_ll_true: Rotation) -> dict[str, Any]:
+    def _side_estimates(
+        self, t_s: float, p_mission_true: FloatArray, q_b_ll_true: Rotation
+    ) -> dict[str, Any]:
         """Each side estimator's pose in this frame and its errors against the truth."""
         out: dict[str, Any] = {}
         for runner in self.side:
-            if self._side_now is None:  # at rest
-                runner.rest_until(self.sim.t_s, self.sim.state.p_s)
+            if self._side_now is None:  # at rest, up to this frame's time (the simulator
+                runner.rest_until(t_s, self.sim.state.p_s)  # may have run a chunk ahead)
                 now = runner.estimate_now()
             else:
                 now = self._side_now.get(runner.name)

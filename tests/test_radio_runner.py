@@ -11,6 +11,7 @@ import pytest
 
 from estimation.aqf import AttitudeQuality
 from sequences import commands as cmd
+from sim.errors import InputError
 from sim.landmarks import LandmarkTiles, OrbitalDem, ground_height_m, matching_band
 from sim.radio_runner import RadioEkfRunner
 from sim.radio_scenario import metres_per_radian
@@ -90,7 +91,9 @@ def test_orbital_dem_is_the_ground_at_its_posts_and_bilinear_between() -> None:
     terrain = make_terrain("gusev", 5)
     dem = OrbitalDem(terrain, post_m=1.0)
     for n, e in [(3.0, -7.0), (-64.0, 63.0), (130.0, 2.0)]:
-        assert dem.height_m(n, e) == pytest.approx(float(ground_height_m(terrain, n, e)), abs=1e-9)
+        assert dem.height_m(n, e) == pytest.approx(
+            float(ground_height_m(terrain, np.array(n), np.array(e))), abs=1e-9
+        )
     corners = [dem.height_m(3.0 + i, -7.0 + j) for i in (0, 1) for j in (0, 1)]
     assert dem.height_m(3.5, -6.5) == pytest.approx(np.mean(corners), abs=1e-12)
     assert pickle.loads(pickle.dumps(dem))._tiles == {}
@@ -118,3 +121,33 @@ def test_the_matching_band_moves_out_with_the_position_uncertainty(
     resolution_m: float, sigma_m: float, band: tuple[float, float]
 ) -> None:
     assert matching_band(resolution_m, sigma_m) == pytest.approx(band)
+
+
+def test_a_failing_estimator_beside_sapp_stops_without_refusing_the_drive(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    session = RoverSession("flat", 3, START, estimators=("sapp", "radio_ekf"))
+    runner = _runner(session)
+
+    def broken_map(p_s_m: np.ndarray, reach_m: float) -> None:
+        raise InputError("tile_cells", "a broken map, for the test")
+
+    monkeypatch.setattr(runner.landmarks, "around", broken_map)
+    report = session.execute(cmd.DriveStraight(distance_m=1.0))
+    assert report.status == "completed"
+    assert report.details["distance_truth_m"] > 0.9
+    assert any(e.startswith("radio_ekf stopped: tile_cells") for e in report.events)
+    assert session.side == [] and session.frames[-1].estimators == {}
+
+
+def test_parked_frames_use_no_range_from_after_their_own_time() -> None:
+    """The simulator rests in chunks and the frames inside a chunk come after it: each
+    frame's estimate must still be the one of its own time (ranges up to then only)."""
+    session = RoverSession("gusev", 5, START, estimators=("sapp", "radio_ekf"))
+    session.nate.load_attitude(session.q_b_ll_true(), AttitudeQuality.FINE)
+    session.execute(cmd.DriveStraight(distance_m=0.5))
+    session.execute(cmd.ArticulateStart())  # 8 Hz frames at rest, in 600 s chunks
+    first = len(session.frames)
+    session.execute(cmd.Wait(duration_s=300.0))  # the orbiter is up (START + 7 min: 51°)
+    positions = [tuple(f.estimators["radio_ekf"]["p_mission"]) for f in session.frames[first:]]
+    assert len(set(positions)) > 20  # a range every 10 s of the pass, each in its own frame

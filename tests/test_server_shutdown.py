@@ -32,7 +32,8 @@ def test_the_server_stops_after_a_telemetry_viewer_left(tmp_path: Path, sig: int
         started = time.monotonic()
         proc.send_signal(sig)
         proc.wait(timeout=15.0)
-        assert time.monotonic() - started < 10.0
+        # well inside uvicorn's 10 s graceful-shutdown timeout: nothing waited for it
+        assert time.monotonic() - started < 5.0
     finally:
         if proc.poll() is None:
             proc.kill()

@@ -127,8 +127,9 @@ class RadioEkf:
         return self._x.copy(), self._P.copy()
 
     def horizontal_sigma_m(self, height_m: float = 0.0) -> float:
-        """The horizontal position uncertainty (m, 1σ: the root of the North and East
-        variances) at ``height_m`` above the ellipsoid."""
+        """The horizontal position uncertainty (m, 1σ: the root of the sum of the North and
+        East variances, √2 times a per-axis σ when they are equal) at ``height_m`` above the
+        ellipsoid."""
         h = _height(height_m)
         M, N, _, _ = rm.radii_of_curvature_m(float(self._x[0]))
         east_m_per_rad = (N + h) * math.cos(float(self._x[0]))
