@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 from estimation.fusion.radio_models import R_cam_b
 from sim.errors import InputError
 from sim.heightmap import HeightmapTerrain
-from sim.mars_frames import R_ll_mf, site_mf_m
+from sim.mars_frames import mf_from_site_m
 from sim.terrain import Terrain
 
 FloatArray = NDArray[np.float64]
@@ -49,13 +49,8 @@ class LandmarkMap:
     resolution_m: float
 
     def map_mf_m(self, site_lat_rad: float, site_lon_east_rad: float) -> FloatArray:
-        """The map's landmarks in Mars-fixed coordinates (m), (K, 3): what the rover stores.
-
-        The Site frame is the LL frame of its origin, a point of the reference ellipsoid.
-        """
-        R = R_ll_mf(site_lat_rad, site_lon_east_rad)
-        out: FloatArray = site_mf_m(site_lat_rad, site_lon_east_rad) + self.map_s_m @ R
-        return out
+        """The map's landmarks in Mars-fixed coordinates (m), (K, 3): what the rover stores."""
+        return mf_from_site_m(self.map_s_m, site_lat_rad, site_lon_east_rad)
 
 
 def matching_geometry(resolution_m: float) -> tuple[float, float, float]:

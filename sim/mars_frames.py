@@ -127,6 +127,15 @@ def site_mf_m(lat_rad: float, lon_east_rad: float) -> FloatArray:
     )
 
 
+def mf_from_site_m(p_s_m: ArrayLike, lat_rad: float, lon_east_rad: float) -> FloatArray:
+    """Mars-fixed positions (m) of Site-frame points ``p_s_m`` (..., 3) (North, East, Down)
+    of a Site whose origin is the ellipsoid point at ``lat_rad``, ``lon_east_rad``: the Site
+    frame is the LL frame of its origin."""
+    p = np.asarray(p_s_m, dtype=np.float64)
+    out: FloatArray = site_mf_m(lat_rad, lon_east_rad) + p @ R_ll_mf(lat_rad, lon_east_rad)
+    return out
+
+
 def R_ll_mf(lat_rad: ArrayLike, lon_east_rad: ArrayLike) -> FloatArray:
     """Rotation taking Mars-fixed coordinates to Local-Level (N, E, Down) at the site.
 

@@ -67,7 +67,7 @@ from sim.landmarks import (
     matching_geometry,
     navcam_pixels,
 )
-from sim.mars_frames import R_ll_mf, site_mf_m
+from sim.mars_frames import mf_from_site_m
 from sim.marsclock import utc_to_t_s
 from sim.radio_scenario import metres_per_radian
 from sim.relay_orbiter import ORBIT_EPOCH, KeplerOrbit, RelayOrbiter
@@ -120,11 +120,6 @@ class RadioEkfRunner:
             [(x[0] - self.lat_rad) * self.m_per_lat, (x[1] - self.lon_east_rad) * self.m_per_lon]
         )
 
-    def _mf_from_site(self, p_s: FloatArray) -> FloatArray:
-        R = R_ll_mf(self.lat_rad, self.lon_east_rad)
-        out: FloatArray = site_mf_m(self.lat_rad, self.lon_east_rad) + p_s @ R
-        return out
-
     def _p_mission(self) -> FloatArray:
         assert self.ekf is not None
         ne = self._ne_from_state(self.ekf.estimate()[0])
@@ -148,10 +143,9 @@ class RadioEkfRunner:
         """Ranges at the instants ``t_s`` (n,) from the rover's truth ``p_s_true`` (n, 3),
         those the orbiter is above the mask for."""
         assert self.ekf is not None
-        ranges, visible = self.orbiter.ranges(
-            t_s, self._mf_from_site(p_s_true), self.lat_rad, self.lon_east_rad,
-            RADIO_SIGMA_M, self.rng,
-        )  # fmt: skip
+        lat, lon = self.lat_rad, self.lon_east_rad
+        rover_mf = mf_from_site_m(p_s_true, lat, lon)
+        ranges, visible = self.orbiter.ranges(t_s, rover_mf, lat, lon, RADIO_SIGMA_M, self.rng)
         for t, r in zip(t_s[visible], ranges[visible], strict=True):
             if self.beacon is None or t - self.last_seen_t_s > NEW_PASS_GAP_S:
                 r0, v0 = self.orbiter.state_j2000(float(t))  # the pass's overflight predict

@@ -37,7 +37,7 @@ from sim.imu import (
     Ln200Params,
 )
 from sim.local_level import q_ll_b_from_site
-from sim.mars_frames import R_ll_mf, site_mf_m
+from sim.mars_frames import mf_from_site_m, site_mf_m
 from sim.marsclock import t_s_to_utc
 from sim.relay_orbiter import RelayOrbiter
 from sim.rover_sim import RoverSim
@@ -82,9 +82,7 @@ class RadioScenario:
 
     def rover_mf_m(self) -> FloatArray:
         """Truth Mars-fixed positions (m) of the body origin, (K+1, 3)."""
-        R = R_ll_mf(self.site_lat_rad, self.site_lon_east_rad)
-        out: FloatArray = site_mf_m(self.site_lat_rad, self.site_lon_east_rad) + self.p_s @ R
-        return out
+        return mf_from_site_m(self.p_s, self.site_lat_rad, self.site_lon_east_rad)
 
 
 # The filter's Q matched to this scenario's errors rather than the paper's (white-noise
