@@ -1,10 +1,12 @@
 """The operations server: FastAPI over the rover runtimes, storage and live telemetry.
 
-``create_app(config)`` builds the app; ``roverops serve`` runs it with uvicorn. Viewing
-needs no token; uploading, commanding and clock control need the operator token
-(``Authorization: Bearer <token>`` or ``X-Operator-Token``): missing 401, wrong 403, and
-nothing changes. Request bodies are validated (422 with the reason); uploads above
-``max_upload_bytes`` get 413. OpenAPI at ``/docs``.
+``create_app(config)`` builds the app; ``roverops serve`` runs it with uvicorn. Each route
+needs a role (``server.accounts``: viewer, operator, conductor, admin; ``server.auth``):
+viewing needs no token while ``public_read`` is on; uploading, commanding and clock control
+need an operator's token (``Authorization: Bearer <token>``): missing 401, wrong or too low
+403, and nothing changes. Every mutating request is audited (``server.audit``). Request
+bodies are validated (422 with the reason); uploads above ``max_upload_bytes`` get 413.
+OpenAPI at ``/docs``.
 """
 
 from __future__ import annotations
@@ -12,21 +14,20 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import csv
-import hmac
 import io
 import json
 import math
 import re
-import secrets
 import time
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import anyio
-from fastapi import Depends, FastAPI, Header, HTTPException, Query, Request, WebSocket
+from fastapi import FastAPI, HTTPException, Query, Request, WebSocket
 from fastapi.responses import FileResponse, JSONResponse, RedirectResponse, Response
 from fastapi.staticfiles import StaticFiles
 from pydantic import BaseModel, ConfigDict, Field
@@ -36,6 +37,18 @@ from starlette.websockets import WebSocketDisconnect
 from sequences import commands as cmd
 from sequences.language import Sequence, SequenceStep
 from sequences.validate import ValidationContext, ValidationResult, validate
+from server.accounts import (
+    DEFAULT_EXPIRY_DAYS,
+    ROLES,
+    AccountError,
+    Accounts,
+    Principal,
+    TokenRefusedError,
+    UnknownUserError,
+    UserExistsError,
+)
+from server.audit import AuditLog, AuditMiddleware, as_csv
+from server.auth import COOKIE, Admin, Operator, Viewer, websocket_principal
 from server.hub import MAX_RATE_HZ, TelemetryHub, next_message
 from server.runtime import MAX_SPEED, ROVERS, RoverRuntime
 from server.scene3d import RoverScene
@@ -55,7 +68,11 @@ class ServerConfig:
     """Settings of one server (``roverops serve`` fills them from flags and ROVEROPS_*)."""
 
     database_url: str
-    operator_token: str = field(default_factory=lambda: secrets.token_urlsafe(18))
+    # the bootstrap admin token (--operator-token): in memory only, for scripts and tests;
+    # None: only the users' tokens in the database are accepted
+    operator_token: str | None = None
+    # reading (telemetry, sequences, timelines, the 3D view) needs no token while on
+    public_read: bool = True
     max_upload_bytes: int = MAX_UPLOAD_BYTES
     start_clocks: bool = True
     initial_speed: float = 1.0
@@ -92,12 +109,52 @@ class ValidateBody(BaseModel):
     rover: str | None = Field(default=None, description="validate against this rover's state")
 
 
+class SessionBody(BaseModel):
+    """``POST /api/session``: sign this browser in with a token (kept in a cookie)."""
+
+    model_config = ConfigDict(extra="forbid")
+    token: str = Field(min_length=1, max_length=512)
+
+
+class NewUserBody(BaseModel):
+    """``POST /api/users``: a user, its role and the lifetime of its first token."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
+    name: str = Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.-]+$")
+    role: Literal["viewer", "operator", "conductor", "admin"]
+    expires_days: float = Field(default=DEFAULT_EXPIRY_DAYS, gt=0, le=3650)
+
+
+class RoleBody(BaseModel):
+    """``PATCH /api/users/{name}``: a new role."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
+    role: Literal["viewer", "operator", "conductor", "admin"]
+
+
+class TokenBody(BaseModel):
+    """``POST /api/users/{name}/tokens``: the lifetime of the new token."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
+    expires_days: float = Field(default=DEFAULT_EXPIRY_DAYS, gt=0, le=3650)
+
+
+def _account_error(error: AccountError) -> HTTPException:
+    if isinstance(error, UnknownUserError):
+        return HTTPException(404, str(error))
+    if isinstance(error, UserExistsError):
+        return HTTPException(409, str(error))
+    return HTTPException(422, str(error))
+
+
 class Server:
     """The app's state: the runtimes, storage, the writer and the hub."""
 
     def __init__(self, config: ServerConfig) -> None:
         self.config = config
         self.store = Store(config.database_url)
+        self.accounts = Accounts(self.store, config.operator_token)
+        self.audit = AuditLog(self.store)
         self.writer = BatchWriter(self.store)
         self.hub = TelemetryHub()
         self.rovers: dict[str, RoverRuntime] = {}
@@ -226,25 +283,6 @@ def _step_json(step: SequenceStep) -> dict[str, Any]:
     }
 
 
-def operator(
-    request: Request,
-    authorization: Annotated[str | None, Header()] = None,
-    x_operator_token: Annotated[str | None, Header()] = None,
-) -> None:
-    """The operator token check: missing 401, wrong 403 (before anything changes)."""
-    expected: str = request.app.state.server.config.operator_token
-    token = x_operator_token
-    if authorization and authorization.lower().startswith("bearer "):
-        token = authorization[7:].strip()
-    if not token:
-        raise HTTPException(401, "operator token required", {"WWW-Authenticate": "Bearer"})
-    if not hmac.compare_digest(token.encode(), expected.encode()):
-        raise HTTPException(403, "wrong operator token")
-
-
-Operator = Annotated[None, Depends(operator)]
-
-
 def create_app(config: ServerConfig) -> FastAPI:
     """The FastAPI app over a new ``Server``."""
     server = Server(config)
@@ -263,6 +301,7 @@ def create_app(config: ServerConfig) -> FastAPI:
         lifespan=lifespan,
     )
     app.state.server = server
+    app.add_middleware(AuditMiddleware, server=server)
 
     @app.get("/", include_in_schema=False)
     def console_page() -> FileResponse:
@@ -272,19 +311,19 @@ def create_app(config: ServerConfig) -> FastAPI:
     app.mount("/static", StaticFiles(directory=WEB_DIR), name="static")
 
     @app.get("/api/rovers")
-    def list_rovers() -> list[dict[str, Any]]:
+    def list_rovers(_: Viewer) -> list[dict[str, Any]]:
         """The rovers and their clocks."""
         return [
             {k: v for k, v in r.state().items() if k != "frame"} for r in server.rovers.values()
         ]
 
     @app.get("/api/rovers/{rover}/state")
-    def rover_state(rover: str) -> dict[str, Any]:
+    def rover_state(rover: str, _: Viewer) -> dict[str, Any]:
         """Clock, queue, the executing command and the latest telemetry frame."""
         return server.rover(rover).state()
 
     @app.get("/api/commands")
-    def command_dictionary() -> list[dict[str, Any]]:
+    def command_dictionary(_: Viewer) -> list[dict[str, Any]]:
         """The command dictionary: every command with its arguments, each from the spec that
         construction checks (``sequences.commands.ArgSpec``): ``type`` (number, boolean,
         string, number_or_boolean), ``unit``, ``min``, ``max``, ``min_exclusive``, ``range``
@@ -344,9 +383,10 @@ def create_app(config: ServerConfig) -> FastAPI:
         return _decode(body, "body"), "text"
 
     @app.post("/api/rovers/{rover}/sequences", status_code=201)
-    async def upload_sequence(rover: str, request: Request, _: Operator) -> JSONResponse:
+    async def upload_sequence(rover: str, request: Request, who: Operator) -> JSONResponse:
         """Validate, store and queue a sequence (text, JSON, or a multipart file)."""
         runtime = server.rover(rover)
+        request.state.audit_action = "upload a sequence"
         source, fmt = await _read_upload(request)
         result = await run_in_threadpool(validate, source, server.context(runtime))
         text = source if isinstance(source, str) else json.dumps(source)
@@ -356,7 +396,9 @@ def create_app(config: ServerConfig) -> FastAPI:
             seq_id = await run_in_threadpool(
                 server.store.add_sequence,
                 rover, name, text, fmt, "rejected", diags["errors"], diags["warnings"], [],
+                who.name,
             )  # fmt: skip
+            request.state.audit_action = f"upload sequence {name} (#{seq_id}): rejected"
             return JSONResponse({"id": seq_id, "status": "rejected", **diags}, status_code=422)
         steps = _steps_json(result.sequence)
         seq_id = await run_in_threadpool(
@@ -369,12 +411,14 @@ def create_app(config: ServerConfig) -> FastAPI:
             [],
             diags["warnings"],
             steps,
+            who.name,
         )
         runtime.enqueue(seq_id, result.sequence)
+        request.state.audit_action = f"upload sequence {name} (#{seq_id}): queued"
         return JSONResponse({"id": seq_id, "status": "queued", **diags}, status_code=201)
 
     @app.post("/api/sequences/validate")
-    async def validate_only(request: Request) -> dict[str, Any]:
+    async def validate_only(request: Request, _: Viewer) -> dict[str, Any]:
         """Validation only: nothing stored. ``?rover=`` adds that rover's warnings."""
         source, _fmt = await _read_upload(request)
         rover = request.query_params.get("rover")
@@ -383,13 +427,13 @@ def create_app(config: ServerConfig) -> FastAPI:
         return {"valid": not result.errors, **_diagnostics(result)}
 
     @app.get("/api/rovers/{rover}/sequences")
-    def list_sequences(rover: str) -> list[dict[str, Any]]:
-        """Sequences of a rover, newest first."""
+    def list_sequences(rover: str, _: Viewer) -> list[dict[str, Any]]:
+        """Sequences of a rover, newest first, each with who submitted it."""
         server.rover(rover)
         return server.store.list_sequences(rover)
 
     @app.get("/api/sequences/{sequence_id}")
-    def get_sequence(sequence_id: int) -> dict[str, Any]:
+    def get_sequence(sequence_id: int, _: Viewer) -> dict[str, Any]:
         """One sequence with its source, steps, status, errors and warnings."""
         found = server.store.get_sequence(sequence_id)
         if found is None:
@@ -397,11 +441,13 @@ def create_app(config: ServerConfig) -> FastAPI:
         return found
 
     @app.delete("/api/sequences/{sequence_id}")
-    def cancel_sequence(sequence_id: int, _: Operator) -> dict[str, Any]:
+    def cancel_sequence(sequence_id: int, request: Request, _: Operator) -> dict[str, Any]:
         """Cancel a queued sequence (a running one stops after its current command)."""
+        request.state.audit_action = f"cancel sequence #{sequence_id}"
         found = server.store.get_sequence(sequence_id)
         if found is None:
             raise HTTPException(404, f"no sequence {sequence_id}")
+        request.state.audit_rover = found["rover"]
         runtime = server.rover(found["rover"])
         if not runtime.cancel(sequence_id):
             raise HTTPException(409, f"sequence {sequence_id} is {found['status']}, not queued")
@@ -409,9 +455,12 @@ def create_app(config: ServerConfig) -> FastAPI:
         return {"id": sequence_id, "status": "cancelled"}
 
     @app.post("/api/rovers/{rover}/commands", status_code=201)
-    def immediate_command(rover: str, body: CommandBody, _: Operator) -> dict[str, Any]:
+    def immediate_command(
+        rover: str, body: CommandBody, request: Request, who: Operator
+    ) -> dict[str, Any]:
         """One command, run before the next queued step."""
         runtime = server.rover(rover)
+        request.state.audit_action = f"immediate command {body.command}"
         source = {
             "name": f"immediate_{body.command}",
             "steps": [{"command": body.command, "args": body.args}],
@@ -428,14 +477,19 @@ def create_app(config: ServerConfig) -> FastAPI:
             [],
             _diagnostics(result)["warnings"],
             _steps_json(result.sequence),
+            who.name,
         )
         runtime.enqueue(seq_id, result.sequence, immediate=True)
+        request.state.audit_action = f"immediate command {body.command} (#{seq_id}): queued"
         return {"id": seq_id, "status": "queued", **_diagnostics(result)}
 
     @app.post("/api/rovers/{rover}/clock")
-    def set_clock(rover: str, body: ClockBody, _: Operator) -> dict[str, Any]:
+    def set_clock(rover: str, body: ClockBody, request: Request, _: Operator) -> dict[str, Any]:
         """Pause, resume, or set the speed factor (1 to MAX_SPEED, or 'max')."""
         runtime = server.rover(rover)
+        request.state.audit_action = "clock " + " ".join(
+            f"{k}={v}" for k, v in body.model_dump(exclude_none=True).items()
+        )
         speed: float | None = None
         if body.speed == "max":
             speed = math.inf
@@ -449,14 +503,14 @@ def create_app(config: ServerConfig) -> FastAPI:
         return clock
 
     @app.get("/api/rovers/{rover}/sols")
-    def sols(rover: str) -> list[int]:
+    def sols(rover: str, _: Viewer) -> list[int]:
         """Sols with telemetry."""
         server.rover(rover)
         server.writer.flush()
         return server.store.sols(rover)
 
     @app.get("/api/rovers/{rover}/sols/{sol}/timeline")
-    def timeline(rover: str, sol: int) -> dict[str, Any]:
+    def timeline(rover: str, sol: int, _: Viewer) -> dict[str, Any]:
         """One sol: commands, NATE mode and AQF intervals, events, distance, summary."""
         runtime = server.rover(rover)
         server.writer.flush()
@@ -469,6 +523,7 @@ def create_app(config: ServerConfig) -> FastAPI:
     def sol_telemetry_csv(
         rover: str,
         sol: int,
+        _: Viewer,
         every: Annotated[float, Query(ge=0.0, le=86400.0)] = 0.0,
     ) -> Response:
         """One sol's frames as a CSV file to download (one per ``every`` s; frames with
@@ -488,6 +543,7 @@ def create_app(config: ServerConfig) -> FastAPI:
     def telemetry(
         rover: str,
         request: Request,
+        _: Viewer,
         t_from: Annotated[float | None, Query(alias="from")] = None,
         t_to: Annotated[float | None, Query(alias="to")] = None,
         every: Annotated[float, Query(ge=0.0, le=86400.0)] = 0.0,
@@ -512,12 +568,12 @@ def create_app(config: ServerConfig) -> FastAPI:
         return server.scenes[rover].port
 
     @app.get("/viser/{rover}", include_in_schema=False)
-    def viser_root(rover: str) -> RedirectResponse:
+    def viser_root(rover: str, _: Viewer) -> RedirectResponse:
         scene_port(rover)
         return RedirectResponse(f"/viser/{rover}/")
 
     @app.get("/viser/{rover}/{path:path}", include_in_schema=False)
-    async def viser_page(rover: str, path: str) -> Response:
+    async def viser_page(rover: str, path: str, _: Viewer) -> Response:
         """The rover's viser client (and anything else viser serves), proxied."""
         got = await run_in_threadpool(fetch, scene_port(rover), path)
         return Response(got.body, status_code=got.status, media_type=got.content_type)
@@ -528,10 +584,12 @@ def create_app(config: ServerConfig) -> FastAPI:
         if rover not in server.scenes:
             await websocket.close(code=4404)
             return
+        if not await _websocket_allowed(websocket):
+            return
         await relay(websocket, server.scenes[rover].port)
 
     @app.get("/api/rovers/{rover}/scene")
-    def scene_state(rover: str) -> dict[str, Any]:
+    def scene_state(rover: str, _: Viewer) -> dict[str, Any]:
         """The 3D view: its URL on this origin and how many frames it has drawn."""
         scene_port(rover)
         return {"url": f"/viser/{rover}/", "frames_drawn": server.scenes[rover].frames_drawn}
@@ -541,6 +599,8 @@ def create_app(config: ServerConfig) -> FastAPI:
         """Frames as they are played out, at most MAX_RATE_HZ per second of wall time."""
         if rover not in server.rovers:
             await websocket.close(code=4404)
+            return
+        if not await _websocket_allowed(websocket):
             return
         await websocket.accept()
         client = server.hub.subscribe(rover)
@@ -572,7 +632,131 @@ def create_app(config: ServerConfig) -> FastAPI:
         finally:
             server.hub.unsubscribe(rover, client)
 
+    async def _websocket_allowed(websocket: WebSocket) -> bool:
+        """The viewer check of a WebSocket handshake (header or cookie token): a refused
+        one is closed with 4401 (no token) or 4403 (wrong token) before it is accepted."""
+        try:
+            who = await run_in_threadpool(
+                websocket_principal, server, websocket.headers, websocket.cookies
+            )
+        except HTTPException as refused:
+            code = 4401 if refused.status_code == 401 else 4403
+            await websocket.close(code=code, reason=str(refused.detail)[:120])
+            return False
+        websocket.state.principal = who
+        return True
+
+    # ---- accounts -------------------------------------------------------------------
+
+    def _principal_json(who: Principal) -> dict[str, Any]:
+        return {"name": who.name, "role": who.role, "public_read": config.public_read,
+                "roles": list(ROLES)}  # fmt: skip
+
+    @app.get("/api/me")
+    def me(who: Viewer) -> dict[str, Any]:
+        """Who this request acts as (``anonymous`` with no role when reading without a
+        token), and whether reading needs a token on this server."""
+        return _principal_json(who)
+
+    @app.post("/api/session")
+    def sign_in(body: SessionBody, request: Request) -> JSONResponse:
+        """Sign this browser in: the token is checked and kept in an HttpOnly cookie that
+        the 3D view and the telemetry WebSocket send (it counts for reading only)."""
+        request.state.audit_action = "sign in"
+        try:
+            who = server.accounts.authenticate(body.token)
+        except TokenRefusedError as refused:
+            raise HTTPException(403, f"wrong token: {refused}") from None
+        request.state.principal = who
+        response = JSONResponse(_principal_json(who))
+        secure = request.url.scheme == "https"
+        response.set_cookie(COOKIE, body.token, httponly=True, samesite="strict", secure=secure)
+        return response
+
+    @app.delete("/api/session")
+    def sign_out(request: Request) -> JSONResponse:
+        """Sign this browser out (forget the cookie)."""
+        request.state.audit_action = "sign out"
+        response = JSONResponse({"signed_out": True})
+        response.delete_cookie(COOKIE, httponly=True, samesite="strict")
+        return response
+
+    @app.get("/api/users")
+    def list_users(_: Admin) -> list[dict[str, Any]]:
+        """Every user: name, role, creation time and how many live tokens it holds."""
+        return server.accounts.list_users()
+
+    @app.post("/api/users", status_code=201)
+    def add_user(body: NewUserBody, request: Request, _: Admin) -> dict[str, Any]:
+        """A new user and its first token (shown in this answer only; stored hashed)."""
+        request.state.audit_action = f"add user {body.name} as {body.role}"
+        try:
+            issued = server.accounts.add_user(body.name, body.role, body.expires_days)
+        except AccountError as error:
+            raise _account_error(error) from None
+        return {"name": issued.name, "role": issued.role, "token": issued.token,
+                "expires_at": issued.expires_at.isoformat()}  # fmt: skip
+
+    @app.patch("/api/users/{name}")
+    def change_role(name: str, body: RoleBody, request: Request, _: Admin) -> dict[str, Any]:
+        """Give a user another role."""
+        request.state.audit_action = f"set the role of {name} to {body.role}"
+        try:
+            server.accounts.set_role(name, body.role)
+        except AccountError as error:
+            raise _account_error(error) from None
+        return {"name": name, "role": body.role}
+
+    @app.post("/api/users/{name}/tokens", status_code=201)
+    def new_token(name: str, body: TokenBody, request: Request, _: Admin) -> dict[str, Any]:
+        """Another token for a user (shown in this answer only)."""
+        request.state.audit_action = f"issue a token to {name}"
+        try:
+            issued = server.accounts.issue_token(name, body.expires_days)
+        except AccountError as error:
+            raise _account_error(error) from None
+        return {"name": issued.name, "role": issued.role, "token": issued.token,
+                "expires_at": issued.expires_at.isoformat()}  # fmt: skip
+
+    @app.delete("/api/users/{name}/tokens")
+    def revoke_tokens(name: str, request: Request, _: Admin) -> dict[str, Any]:
+        """Revoke every live token of a user."""
+        request.state.audit_action = f"revoke the tokens of {name}"
+        try:
+            revoked = server.accounts.revoke(name)
+        except AccountError as error:
+            raise _account_error(error) from None
+        return {"name": name, "revoked": revoked}
+
+    @app.get("/api/audit", response_model=None)
+    def audit(
+        request: Request,
+        _: Admin,
+        user: Annotated[str | None, Query(max_length=64)] = None,
+        rover: Annotated[str | None, Query(max_length=64)] = None,
+        result: Literal["accepted", "refused"] | None = None,
+        method: Literal["POST", "PUT", "PATCH", "DELETE"] | None = None,
+        since: datetime | None = None,
+        until: datetime | None = None,
+        limit: Annotated[int, Query(ge=1, le=10_000)] = 1000,
+        format: Literal["json", "csv"] | None = None,  # the query parameter's own name
+    ) -> Response | list[dict[str, Any]]:
+        """The audit log, newest first: every accepted or refused mutating request with who,
+        when (UTC and the rover's sol and LMST), what and the result. Filters combine; CSV
+        with ``format=csv`` or ``Accept: text/csv``."""
+        rows = server.audit.query(user, rover, result, method, _utc(since), _utc(until), limit)
+        if format == "csv" or (format is None and "text/csv" in request.headers.get("accept", "")):
+            return Response(as_csv(rows), media_type="text/csv")
+        return rows
+
     return app
+
+
+def _utc(value: datetime | None) -> datetime | None:
+    """A query's datetime as aware UTC (a naive one is taken as UTC)."""
+    if value is None:
+        return None
+    return value.replace(tzinfo=UTC) if value.tzinfo is None else value.astimezone(UTC)
 
 
 _SEQUENCE_LINE = re.compile(r"^\s*SEQUENCE\s+([A-Za-z0-9_-]{1,64})\s*(?:#.*)?$", re.MULTILINE)

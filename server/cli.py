@@ -73,27 +73,46 @@ def _estimators(text: str) -> tuple[str, ...]:
     return names
 
 
-def _cmd_serve(args: argparse.Namespace) -> dict[str, Any]:
-    import secrets
+def _on_off(name: str) -> Callable[[str], bool]:
+    def parse(text: str) -> bool:
+        value = text.strip().lower()
+        if value in ("on", "true", "1", "yes"):
+            return True
+        if value in ("off", "false", "0", "no"):
+            return False
+        raise argparse.ArgumentTypeError(f"{name} must be on or off, got {text!r}")
 
+    return parse
+
+
+def _database_url(args: argparse.Namespace) -> str:
+    from server.app import data_dir_url
+
+    try:
+        return str(args.database_url or data_dir_url(args.data_dir))
+    except OSError as exc:
+        raise InputError("--data-dir", f"cannot create {args.data_dir}: {exc.strerror}") from None
+
+
+def _cmd_serve(args: argparse.Namespace) -> dict[str, Any]:
     import uvicorn
 
-    from server.app import ServerConfig, create_app, data_dir_url
+    from server.app import ServerConfig, create_app
 
     if args.operator_token and len(args.operator_token) < 8:
         raise InputError("--operator-token", "must be at least 8 characters")
-    try:
-        url = args.database_url or data_dir_url(args.data_dir)
-    except OSError as exc:
-        raise InputError("--data-dir", f"cannot create {args.data_dir}: {exc.strerror}") from None
-    token = args.operator_token or secrets.token_urlsafe(18)
+    url = _database_url(args)
     config = ServerConfig(
         database_url=url,
-        operator_token=token,
+        operator_token=args.operator_token or None,
+        public_read=args.public_read,
         viewer_3d=not args.no_3d,
         estimators=args.estimators,
     )
     app = create_app(config)
+    # A new data directory gets a local admin, its token printed this once (stored hashed:
+    # it cannot be shown again; `roverops users token admin` issues another).
+    issued = app.state.server.accounts.ensure_local_admin() if not args.operator_token else None
     shown = "localhost" if args.host in ("127.0.0.1", "0.0.0.0") else args.host
     print(f"roverops console: http://{shown}:{args.port}/  (REST API: /docs)", flush=True)
     if config.viewer_3d:
@@ -101,13 +120,77 @@ def _cmd_serve(args: argparse.Namespace) -> dict[str, Any]:
             f"3D view: http://{shown}:{args.port}/viser/spirit/  (and /viser/opportunity/)",
             flush=True,
         )
-    print(f"operator token: {token}", flush=True)
+    if issued is not None:
+        print(
+            f"admin token (user {issued.name}, shown once, keep it; sign the console in "
+            f"with it): {issued.token}",
+            flush=True,
+        )
+    elif args.operator_token:
+        print("bootstrap admin token: the one given by --operator-token", flush=True)
+    else:
+        print(
+            "sign in with your token (new ones: roverops users token NAME --data-dir ...)",
+            flush=True,
+        )
+    print(f"reading without a token: {'on' if args.public_read else 'off'}", flush=True)
     print(f"database: {url}", flush=True)
     # A connection that never closes must not keep an operator's Ctrl-C from stopping it.
     uvicorn.run(
         app, host=args.host, port=args.port, log_level="warning", timeout_graceful_shutdown=10
     )
     return {}
+
+
+def _cmd_users(args: argparse.Namespace) -> dict[str, Any]:
+    """``roverops users add|list|revoke|token|role`` on the server's database (a running
+    server sees the change at once: it reads users and tokens on every request)."""
+    from server.accounts import AccountError, Accounts
+    from server.storage import Store
+
+    store = Store(_database_url(args))
+    try:
+        accounts = Accounts(store)
+        if args.action == "list":
+            return {"users": accounts.list_users()}
+        if args.name is None:
+            raise InputError("NAME", f"users {args.action} needs a user name")
+        if args.action == "add":
+            if args.role is None:
+                raise InputError("--role", "users add needs --role viewer|operator|conductor|admin")
+            issued = accounts.add_user(args.name, args.role, args.expires_days)
+        elif args.action == "token":
+            issued = accounts.issue_token(args.name, args.expires_days)
+        elif args.action == "role":
+            if args.role is None:
+                raise InputError("--role", "users role needs --role")
+            accounts.set_role(args.name, args.role)
+            return {"name": args.name, "role": args.role}
+        else:
+            return {"name": args.name, "revoked_tokens": accounts.revoke(args.name)}
+        return {
+            "name": issued.name,
+            "role": issued.role,
+            "token": issued.token,
+            "expires_at": issued.expires_at.isoformat(),
+            "note": "the token is shown this once and stored hashed",
+        }
+    except AccountError as error:
+        raise InputError(args.action, str(error)) from None
+    finally:
+        store.close()
+
+
+def _print_users(result: dict[str, Any], as_json: bool) -> None:
+    if as_json or "users" not in result:
+        _print(result, as_json)
+        return
+    print(f"{'name':<24} {'role':<10} {'live tokens':>11}  created")
+    for user in result["users"]:
+        print(
+            f"{user['name']:<24} {user['role']:<10} {user['live_tokens']:>11}  "
+            f"{user['created_at'][:19]}"
+        )
 
 
 def _print(result: dict[str, Any], as_json: bool) -> None:
@@ -282,7 +365,15 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument(
         "--operator-token",
         default=_env("OPERATOR_TOKEN", ""),
-        help="token for uploads, commands and clock control (default: a new one, printed)",
+        help="a bootstrap admin token, kept in memory only, for scripts, tests and benches "
+        "(default: none; a new data directory gets a local admin whose token is printed once)",
+    )
+    serve.add_argument(
+        "--public-read",
+        type=_on_off("--public-read"),
+        default=_env("PUBLIC_READ", "on"),  # a string default goes through type= too
+        help="on (default): reading needs no token; off: every read, the WebSocket and the "
+        "3D view included, needs a viewer token",
     )
     serve.add_argument(
         "--estimators",
@@ -297,6 +388,35 @@ def build_parser() -> argparse.ArgumentParser:
         help="do not start the viser 3D views (/viser/{rover}/)",
     )
     serve.set_defaults(handler=_cmd_serve, printer=lambda result, as_json: None, json=False)
+
+    users = sub.add_parser(
+        "users",
+        help="manage users and their API tokens in the server's database",
+        description="Users have a role: viewer < operator < conductor < admin (each may do "
+        "all that the ones before it may). Tokens are shown once and stored hashed.",
+    )
+    users.add_argument("action", choices=("add", "list", "revoke", "token", "role"),
+                       help="add NAME --role ROLE; list; revoke NAME (all its tokens); "
+                       "token NAME (a new token); role NAME --role ROLE")  # fmt: skip
+    users.add_argument("name", nargs="?", metavar="NAME", help="the user's name")
+    users.add_argument("--role", choices=("viewer", "operator", "conductor", "admin"))
+    users.add_argument(
+        "--expires-days",
+        type=_finite_float("--expires-days"),
+        default=90.0,
+        help="lifetime of a new token, days (default 90, at most 3650)",
+    )
+    users.add_argument(
+        "--data-dir",
+        type=Path,
+        default=Path(_env("DATA_DIR", "data")),
+        help="the server's data directory (default ./data)",
+    )
+    users.add_argument(
+        "--database-url", default=_env("DATABASE_URL", ""), help="or any SQLAlchemy URL"
+    )
+    users.add_argument("--json", action="store_true", help="print JSON")
+    users.set_defaults(handler=_cmd_users, printer=_print_users)
 
     bench = sub.add_parser("bench", help="run a benchmark and print its figures")
     bench.add_argument("name", help="benchmark name: sim, sapp, vo, fusion, server or view3d")

@@ -208,6 +208,13 @@ class RoverRuntime:
         """MER sol number at ``t_s``."""
         return int(sol_number_t_s(self.spec.mission, t_s))
 
+    def clock_text(self) -> str:
+        """The rover's clock now as ``sol N hh:mm:ss LMST`` (for the audit log)."""
+        t = self._clock_t_s
+        seconds = int(self.lmst_h(t) % 24.0 * 3600.0)
+        h, rest = divmod(seconds, 3600)
+        return f"sol {self.sol(t)} {h:02d}:{rest // 60:02d}:{rest % 60:02d} LMST"
+
     def state(self) -> dict[str, Any]:
         """A JSON-ready summary: clock, queue, executing command and the last frame."""
         with self.lock:

@@ -55,9 +55,11 @@ from sqlalchemy import (
     event,
     func,
     insert,
+    inspect,
     select,
     update,
 )
+from sqlalchemy import text as sql_text
 from sqlalchemy.engine import Connection, Engine, RowMapping, make_url
 from sqlalchemy.pool import StaticPool
 
@@ -85,6 +87,8 @@ sequences = Table(
     Column("steps", JSON, nullable=False),
     Column("created_at", DateTime(timezone=True), nullable=False, default=_now),
     Column("updated_at", DateTime(timezone=True), nullable=False, default=_now),
+    # who uploaded it (an immediate command: who sent it); null on rows from before accounts
+    Column("submitted_by", String(64), nullable=True),
 )
 
 commands = Table(
@@ -134,6 +138,79 @@ checkpoints = Table(
     Column("blob", LargeBinary, nullable=False),
     Column("saved_at", DateTime(timezone=True), nullable=False, default=_now),
 )
+
+
+# ---- accounts and the audit log (server.accounts, server.audit) ---------------------------
+
+users = Table(
+    "users",
+    metadata,
+    Column("id", Integer, primary_key=True, autoincrement=True),
+    Column("name", String(64), nullable=False, unique=True),
+    Column("role", String(16), nullable=False),  # viewer, operator, conductor, admin
+    Column("created_at", DateTime(timezone=True), nullable=False, default=_now),
+)
+
+api_tokens = Table(
+    "api_tokens",
+    metadata,
+    Column("id", Integer, primary_key=True, autoincrement=True),
+    Column("user_id", Integer, ForeignKey("users.id", ondelete="CASCADE"), nullable=False),
+    # SHA-256 of the token (hex): the token itself is shown once and never stored
+    Column("token_sha256", String(64), nullable=False, unique=True),
+    Column("created_at", DateTime(timezone=True), nullable=False, default=_now),
+    Column("expires_at", DateTime(timezone=True), nullable=False),
+    Column("revoked_at", DateTime(timezone=True), nullable=True),
+)
+
+audit_log = Table(
+    "audit_log",
+    metadata,
+    Column("id", Integer, primary_key=True, autoincrement=True),
+    Column("at", DateTime(timezone=True), nullable=False),  # wall-clock UTC
+    Column("rover", String(64), nullable=True),
+    Column("rover_clock", String(32), nullable=True),  # "sol N hh:mm:ss LMST" of that rover
+    Column("username", String(64), nullable=False),  # "anonymous" without a valid token
+    Column("role", String(16), nullable=True),
+    Column("method", String(8), nullable=False),
+    Column("path", String(512), nullable=False),
+    Column("action", Text, nullable=True),  # what the request did, in words
+    Column("status", Integer, nullable=False),  # the HTTP status answered
+    Column("result", String(16), nullable=False),  # "accepted" or "refused"
+    Column("detail", Text, nullable=True),  # why it was refused
+    Index("ix_audit_at", "at"),
+)
+
+
+def add_missing_columns(engine: Engine) -> list[str]:
+    """Bring a database made by an older version up to ``metadata``: every column the code
+    declares and the table lacks is added (``ALTER TABLE ... ADD COLUMN``, nullable, on
+    SQLite and PostgreSQL alike). New tables come from ``create_all``; this covers the
+    columns later versions add to existing tables. Returns ``table.column`` added."""
+    inspector = inspect(engine)
+    added: list[str] = []
+    with engine.begin() as conn:
+        for table in metadata.sorted_tables:
+            if not inspector.has_table(table.name):
+                continue
+            have = {c["name"] for c in inspector.get_columns(table.name)}
+            for column in table.columns:
+                if column.name in have:
+                    continue
+                if not column.nullable:
+                    raise RuntimeError(f"cannot add NOT NULL column {table.name}.{column.name}")
+                kind = column.type.compile(dialect=engine.dialect)
+                preparer = engine.dialect.identifier_preparer
+                conn.execute(
+                    sql_text(
+                        f"ALTER TABLE {preparer.quote(table.name)} "
+                        f"ADD COLUMN {preparer.quote(column.name)} {kind}"
+                    )
+                )
+                added.append(f"{table.name}.{column.name}")
+    if added:
+        log.warning("storage: upgraded the schema, added %s", ", ".join(added))
+    return added
 
 
 def _finite(value: Any) -> Any:
@@ -193,6 +270,7 @@ class Store:
         if self.is_sqlite:
             event.listen(self.engine, "connect", _sqlite_pragmas)
         metadata.create_all(self.engine)
+        add_missing_columns(self.engine)
 
     def close(self) -> None:
         """Close every pooled connection (the store is not usable afterwards)."""
@@ -210,8 +288,10 @@ class Store:
         errors: list[dict[str, Any]],
         warnings: list[dict[str, Any]],
         steps: list[dict[str, Any]],
+        submitted_by: str | None = None,
     ) -> int:
-        """Store an upload as given (a rejected one keeps its errors); its new id."""
+        """Store an upload as given (a rejected one keeps its errors), with the name of who
+        submitted it; its new id."""
         with self.engine.begin() as conn:
             result = conn.execute(
                 insert(sequences).values(
@@ -223,6 +303,7 @@ class Store:
                     errors=errors,
                     warnings=warnings,
                     steps=steps,
+                    submitted_by=submitted_by,
                 )
             )
             key = result.inserted_primary_key
@@ -252,6 +333,16 @@ class Store:
         query = select(*cols).where(sequences.c.rover == rover).order_by(sequences.c.id.desc())
         with self.engine.connect() as conn:
             return [_row_dict(r._mapping) for r in conn.execute(query)]
+
+    def submitters(self, sequence_ids: Iterable[int]) -> dict[int, str | None]:
+        """Who submitted each of these sequences (``None`` for rows from before accounts)."""
+        ids = sorted({int(i) for i in sequence_ids})
+        if not ids:
+            return {}
+        c = sequences.c
+        query = select(c.id, c.submitted_by).where(c.id.in_(ids))
+        with self.engine.connect() as conn:
+            return {int(r.id): r.submitted_by for r in conn.execute(query)}
 
     # ---- command executions ------------------------------------------------------
 

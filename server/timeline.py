@@ -46,6 +46,7 @@ def sol_timeline(store: Store, runtime: RoverRuntime, sol: int) -> dict[str, Any
     frames = store.frames(rover, t0, t1)
     commands = store.commands(rover, t0, t1)
     events = store.events(rover, t0, t1)
+    submitted_by = store.submitters(c["sequence_id"] for c in commands if c["sequence_id"])
     path = np.array([f["p_mission_true"] for f in frames], dtype=float)
     distance = (
         float(np.sum(np.linalg.norm(np.diff(path[:, :2], axis=0), axis=1)))
@@ -69,6 +70,7 @@ def sol_timeline(store: Store, runtime: RoverRuntime, sol: int) -> dict[str, Any
         "commands": [
             {
                 **c,
+                "submitted_by": submitted_by.get(c["sequence_id"] or 0),
                 "start": _when(runtime, float(c["start_t_s"])),
                 "end": _when(runtime, float(c["end_t_s"])),
             }

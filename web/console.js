@@ -1,17 +1,20 @@
 // roverops console: readouts from the live telemetry WebSocket, commanding over REST.
 // Everything comes from the server (a reload loses nothing); the token is kept in this
-// browser's sessionStorage only.
+// browser's sessionStorage, and in an HttpOnly cookie the server sets at sign-in so that
+// the telemetry WebSocket and the 3D view can read on a server that needs a token for it.
 "use strict";
 
 const $ = (id) => document.getElementById(id);
-const state = { rover: null, ws: null, validateTimer: null, dictionary: [] };
+const state = { rover: null, ws: null, validateTimer: null, dictionary: [], me: null };
+const ROLES = ["viewer", "operator", "conductor", "admin"]; // each may do all before it
 const IMU_WARN_S = 10000; // seed 000 sec. 4: MER reacquired attitude at about this IMU time
 
-function token() { return $("token").value.trim(); }
+function token() { return state.me && state.me.role ? sessionStorage.getItem("roverops-token") || "" : ""; }
 function authHeaders() { const t = token(); return t ? { Authorization: `Bearer ${t}` } : {}; }
 
+// Every call carries the signed-in token (GETs also have the cookie; a POST needs this).
 async function api(path, options = {}) {
-  const response = await fetch(path, options);
+  const response = await fetch(path, { ...options, headers: { ...authHeaders(), ...(options.headers || {}) } });
   let body = null;
   try { body = await response.json(); } catch (_) { body = null; }
   return { ok: response.ok, status: response.status, body };
@@ -78,7 +81,7 @@ async function refreshSequences() {
   const body = $("sequences").querySelector("tbody");
   body.replaceChildren(...r.body.slice(0, 12).map((s) => {
     const tr = document.createElement("tr");
-    for (const v of [s.id, s.name, s.status, s.detail || ""]) {
+    for (const v of [s.id, s.name, s.submitted_by || "", s.status, s.detail || ""]) {
       const td = document.createElement("td");
       td.textContent = v;
       tr.appendChild(td);
@@ -119,7 +122,7 @@ async function validateEditor() {
 function uploaded(r) {
   const status = $("sequence-status");
   if (r.status === 401 || r.status === 403) {
-    status.textContent = "Enter the operator token to upload.";
+    status.textContent = `Not uploaded: ${r.body && r.body.detail}`;
   } else if (r.body && r.body.status === "queued") {
     status.textContent = `Sequence #${r.body.id} queued`;
     showDiagnostics(r.body);
@@ -152,7 +155,7 @@ async function clock(body) {
   const r = await api(`/api/rovers/${state.rover}/clock`, {
     method: "POST", headers: { ...authHeaders(), "Content-Type": "application/json" }, body: JSON.stringify(body),
   });
-  if (!r.ok) $("sequence-status").textContent = r.status === 422 ? "Bad clock setting" : "Enter the operator token to control the clock.";
+  if (!r.ok) $("sequence-status").textContent = r.status === 422 ? "Bad clock setting" : `Clock not changed: ${r.body && r.body.detail}`;
   refreshState();
 }
 
@@ -259,7 +262,7 @@ async function sendCommand() {
     method: "POST", headers: { ...authHeaders(), "Content-Type": "application/json" },
     body: JSON.stringify({ command: entry.command, args }),
   });
-  if (r.status === 401 || r.status === 403) status.textContent = "Enter the operator token to send commands.";
+  if (r.status === 401 || r.status === 403) status.textContent = `Not sent: ${r.body && r.body.detail}`;
   else if (r.ok) status.textContent = `Command ${entry.command} queued (#${r.body.id})`;
   else {
     const detail = r.body && r.body.detail;
@@ -273,15 +276,87 @@ async function sendCommand() {
   refreshSequences();
 }
 
+// ---- signing in: who is at this console, and what their role lets them do ----------------
+
+function mayAct(role) {
+  const mine = state.me && state.me.role ? ROLES.indexOf(state.me.role) : -1;
+  return mine >= ROLES.indexOf(role);
+}
+
+// Controls carry data-role="operator" (the lowest role the server accepts for them): those
+// the signed-in role may not use are greyed out and say why.
+function applyRole() {
+  for (const el of document.querySelectorAll("[data-role]")) {
+    const needed = el.dataset.role;
+    el.disabled = !mayAct(needed);
+    el.title = el.disabled ? `needs the ${needed} role: sign in with a ${needed}'s token` : "";
+  }
+  const me = state.me;
+  const signedIn = Boolean(me && me.role);
+  $("who").textContent = signedIn ? `${me.name} · ${me.role}`
+    : me ? "not signed in (reading only)" : "sign in to view";
+  $("who").dataset.role = signedIn ? me.role : "";
+  $("sign-out").hidden = !signedIn;
+  $("sign-in").hidden = signedIn;
+  $("token").hidden = signedIn;
+}
+
+async function whoAmI(t) {
+  return api("/api/me", { headers: t ? { Authorization: `Bearer ${t}` } : {} });
+}
+
+async function signIn() {
+  const t = $("token").value.trim();
+  const status = $("sequence-status");
+  if (!t) { status.textContent = "Paste your API token, then Sign in."; return; }
+  const r = await whoAmI(t);
+  if (!r.ok) {
+    status.textContent = `Not signed in: ${r.body && r.body.detail ? r.body.detail : r.status}`;
+    return;
+  }
+  await api("/api/session", {
+    method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify({ token: t }),
+  });
+  sessionStorage.setItem("roverops-token", t);
+  $("token").value = "";
+  state.me = r.body;
+  status.textContent = `Signed in as ${r.body.name} (${r.body.role})`;
+  applyRole();
+  await start();
+}
+
+async function signOut() {
+  sessionStorage.removeItem("roverops-token");
+  await api("/api/session", { method: "DELETE" });
+  const r = await whoAmI("");
+  state.me = r.ok ? r.body : null;
+  $("sequence-status").textContent = "Signed out";
+  applyRole();
+}
+
 async function init() {
-  state.dictionary = (await api("/api/commands")).body || [];
+  $("sign-in").addEventListener("click", signIn);
+  $("token").addEventListener("keydown", (e) => { if (e.key === "Enter") signIn(); });
+  $("sign-out").addEventListener("click", signOut);
+  const kept = sessionStorage.getItem("roverops-token") || "";
+  let r = await whoAmI(kept);
+  if (!r.ok && kept) { sessionStorage.removeItem("roverops-token"); r = await whoAmI(""); }
+  state.me = r.ok ? r.body : null;
+  applyRole();
+  if (state.me) await start();
+}
+
+// What the console shows once it may read (at once on a server with public reading).
+async function start() {
+  if (state.started) { connect(); return; }
+  state.started = true;
+  state.dictionary = (await api("/api/commands", { headers: authHeaders() })).body || [];
   $("command").replaceChildren(...state.dictionary.map((c) => new Option(c.command, c.command)));
   $("command").addEventListener("change", renderArgs);
   $("send").addEventListener("click", sendCommand);
   renderArgs();
-  $("token").value = sessionStorage.getItem("roverops-token") || "";
-  $("token").addEventListener("change", () => sessionStorage.setItem("roverops-token", token()));
-  const rovers = (await api("/api/rovers")).body || [];
+  applyRole();
+  const rovers = (await api("/api/rovers", { headers: authHeaders() })).body || [];
   $("rover").replaceChildren(...rovers.map((r) => new Option(`${r.rover} (${r.site})`, r.rover)));
   state.rover = new URLSearchParams(location.search).get("rover") || (rovers[0] && rovers[0].rover);
   $("rover").value = state.rover;

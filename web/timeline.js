@@ -206,7 +206,8 @@
     bar.dataset.testid = "timeline-command";
     bar.dataset.status = c.status;
     const reason = c.reason ? `: ${c.reason}` : "";
-    bar.title = `${c.command}\n${c.status}${reason}\n${hhmmss(c.start.lmst_h)}–${hhmmss(c.end.lmst_h)} LMST`;
+    const by = c.submitted_by ? `\nsent by ${c.submitted_by}` : "";
+    bar.title = `${c.command}\n${c.status}${reason}\n${hhmmss(c.start.lmst_h)}–${hhmmss(c.end.lmst_h)} LMST${by}`;
     return withLabel(bar, c.command);
   }
 
