@@ -194,14 +194,19 @@ class Accounts:
 
     def revoke(self, name: str) -> int:
         """Revoke every live token of ``name``; how many were revoked."""
+        now = datetime.now(UTC)
         with self.store.engine.begin() as conn:
             user = conn.execute(select(users.c.id).where(users.c.name == check_name(name))).first()
             if user is None:
                 raise UnknownUserError(f"no user {name!r}")
             result = conn.execute(
                 update(api_tokens)
-                .where(api_tokens.c.user_id == user.id, api_tokens.c.revoked_at.is_(None))
-                .values(revoked_at=datetime.now(UTC))
+                .where(
+                    api_tokens.c.user_id == user.id,
+                    api_tokens.c.revoked_at.is_(None),
+                    api_tokens.c.expires_at > now,
+                )
+                .values(revoked_at=now)
             )
             return int(result.rowcount)
 

@@ -581,10 +581,10 @@ def create_app(config: ServerConfig) -> FastAPI:
     @app.websocket("/viser/{rover}")
     async def viser_socket(websocket: WebSocket, rover: str) -> None:
         """The viser client's WebSocket, relayed to the rover's viser server."""
+        if not await _websocket_allowed(websocket):
+            return
         if rover not in server.scenes:
             await websocket.close(code=4404)
-            return
-        if not await _websocket_allowed(websocket):
             return
         await relay(websocket, server.scenes[rover].port)
 
@@ -597,10 +597,10 @@ def create_app(config: ServerConfig) -> FastAPI:
     @app.websocket("/ws/rovers/{rover}/telemetry")
     async def live(websocket: WebSocket, rover: str) -> None:
         """Frames as they are played out, at most MAX_RATE_HZ per second of wall time."""
+        if not await _websocket_allowed(websocket):
+            return
         if rover not in server.rovers:
             await websocket.close(code=4404)
-            return
-        if not await _websocket_allowed(websocket):
             return
         await websocket.accept()
         client = server.hub.subscribe(rover)

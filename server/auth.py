@@ -48,14 +48,15 @@ def presented_token(
     return None, False
 
 
-def resolve(
+def identify(
     accounts: Accounts,
     public_read: bool,
     role: str,
     token: str | None,
     from_cookie: bool,
 ) -> Principal:
-    """The principal for ``token`` if it may act in ``role``; ``HTTPException`` if not."""
+    """Who presents ``token`` (anonymous when none is needed for ``role``); ``HTTPException``
+    401 when a token is needed and missing, 403 when it is not valid."""
     if token is None:
         if role == "viewer" and public_read:
             return ANONYMOUS
@@ -70,7 +71,13 @@ def resolve(
         if from_cookie and role == "viewer" and public_read:
             return ANONYMOUS  # a stale sign-in must not stop public reading
         raise HTTPException(403, f"wrong token: {refused}") from None
-    if not principal.may(role):
+    return principal
+
+
+def authorize(principal: Principal, role: str) -> Principal:
+    """``principal`` if its role is ``role`` or above (anonymous passes for reading only
+    when ``identify`` let it through); ``HTTPException`` 403 if not."""
+    if principal.role is not None and not principal.may(role):
         raise HTTPException(
             403, f"{principal.name} is {principal.role}: this needs the {role} role"
         )
@@ -93,8 +100,9 @@ def require(role: str) -> Callable[..., Principal]:
         token, from_cookie = presented_token(
             request.headers, request.cookies, request.method in SAFE_METHODS
         )
-        principal = resolve(server.accounts, server.config.public_read, role, token, from_cookie)
-        request.state.principal = principal
+        principal = identify(server.accounts, server.config.public_read, role, token, from_cookie)
+        request.state.principal = principal  # known before the role check: the audit names it
+        authorize(principal, role)
         request.state.checked_role = role
         return principal
 
@@ -106,7 +114,8 @@ def require(role: str) -> Callable[..., Principal]:
 def websocket_principal(server: Any, headers: Headers, cookies: Mapping[str, str]) -> Principal:
     """The principal of a WebSocket handshake (viewer role); ``HTTPException`` if refused."""
     token, from_cookie = presented_token(headers, cookies, True)
-    return resolve(server.accounts, server.config.public_read, "viewer", token, from_cookie)
+    principal = identify(server.accounts, server.config.public_read, "viewer", token, from_cookie)
+    return authorize(principal, "viewer")
 
 
 Viewer = Annotated[Principal, Depends(require("viewer"))]

@@ -194,6 +194,11 @@ def test_a_sequence_runs_at_max_speed_and_shows_on_the_timeline(client: TestClie
     sols = client.get("/api/rovers/spirit/sols").json()
     timeline = client.get(f"/api/rovers/spirit/sols/{sols[-1]}/timeline").json()
     names = [c["command"] for c in timeline["commands"]]
+    # who sent it: the bootstrap admin token of this server acts as "bootstrap"
+    assert {c["submitted_by"] for c in timeline["commands"] if c["sequence_id"] == seq_id} == {
+        "bootstrap"
+    }
+    assert client.get(f"/api/sequences/{seq_id}").json()["submitted_by"] == "bootstrap"
     assert "SUNCHECK_SUNGAZE" in names and any(n.startswith("DRIVE_STRAIGHT") for n in names)
     assert "Fine" in [a["value"] for a in timeline["aqf"]]
     assert timeline["distance_m"] > 9.0

@@ -66,15 +66,32 @@ def page(server: str) -> Iterator[Page]:
             browser.close()
 
 
+def sign_in(page: Page, token: str = TOKEN, who: str = "bootstrap · admin") -> None:
+    """Sign the console in (once: a signed-in page stays signed in)."""
+    signed = page.get_by_test_id("signed-in")
+    if signed.text_content() == who:
+        return
+    page.fill("[data-testid=token]", token)
+    page.click("[data-testid=sign-in]")
+    expect(signed).to_have_text(who)
+
+
 def test_errors_show_at_their_lines_and_nothing_is_queued(page: Page, server: str) -> None:
     expect(page.get_by_test_id("sol-clock")).to_contain_text("LMST")
     page.fill("#editor", BAD)
     errors = page.get_by_test_id("validation-errors")
     expect(errors).to_contain_text("line 2:")
     expect(errors).to_contain_text("line 4:")
-    page.click("#upload-text")  # no token yet
-    expect(page.get_by_test_id("sequence-status")).to_contain_text("operator token")
-    page.fill("[data-testid=token]", TOKEN)
+    # not signed in: reading only, the operator's controls greyed out and saying why
+    expect(page.get_by_test_id("signed-in")).to_have_text("not signed in (reading only)")
+    upload = page.locator("#upload-text")
+    expect(upload).to_be_disabled()
+    expect(upload).to_have_attribute("title", re.compile("needs the operator role"))
+    page.fill("[data-testid=token]", "not-the-token")
+    page.click("[data-testid=sign-in]")
+    expect(page.get_by_test_id("sequence-status")).to_contain_text("wrong token")
+    expect(upload).to_be_disabled()
+    sign_in(page)
     page.click("#upload-text")
     expect(page.get_by_test_id("sequence-status")).to_contain_text("Rejected: 2 error(s)")
     assert httpx.get(f"{server}/api/rovers/spirit/state").json()["queue"] == []
@@ -89,7 +106,7 @@ IMU_WATCH = """() => {
 
 
 def test_fine_attitude_then_drive_runs_and_the_readouts_follow(page: Page, server: str) -> None:
-    page.fill("[data-testid=token]", TOKEN)
+    sign_in(page)
     page.select_option("#speed", "100")
     expect(page.get_by_test_id("clock-speed")).to_contain_text("100", timeout=10_000)
     # A short drive first: IMU time accrues while the gyros are integrated in motion.
@@ -205,7 +222,7 @@ def test_nothing_overlaps(page: Page, width: int, height: int) -> None:
 
 
 def test_an_immediate_command_from_the_dictionary_form(page: Page, server: str) -> None:
-    page.fill("[data-testid=token]", TOKEN)
+    sign_in(page)
     # a rule across arguments the form leaves to the server: its 422 message is shown
     page.select_option("[data-testid=command-picker]", "DRIVE_ARC")
     page.fill("#args input[name=radius_m]", "0.3")
@@ -230,7 +247,7 @@ def test_an_out_of_range_argument_is_named_with_its_range_and_nothing_is_sent(
         return [s["id"] for s in httpx.get(f"{server}/api/rovers/spirit/sequences").json()]
 
     before = sequence_ids()
-    page.fill("[data-testid=token]", TOKEN)
+    sign_in(page)
     page.select_option("[data-testid=command-picker]", "DRIVE_STRAIGHT")
     distance = page.locator("#args input[name=distance_m]")
     expect(distance).to_have_attribute("max", "100")

@@ -1,0 +1,119 @@
+"""Signing the console in, in a real browser (Chromium, Playwright) against a real server
+that keeps reading private (``--public-read off``): before sign-in the console says so and
+shows nothing; a viewer's token shows the rover live (the telemetry WebSocket and the 3D
+view read with the sign-in cookie) with the operator's controls greyed out; an operator's
+token enables them; signing out forgets the token. Screenshots go to test-artifacts/."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import httpx
+import pytest
+
+from tests.test_console_browser import ARTIFACTS, CHROMIUM, LAUNCH_ARGS
+from tests.test_server_restart import _free_port, _wait
+
+if not Path(CHROMIUM).exists():
+    pytest.skip("Chromium not installed (make test installs it)", allow_module_level=True)
+
+from playwright.sync_api import Page, expect, sync_playwright
+
+BOOTSTRAP = "signin-bootstrap-token"
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, dict[str, str]]]:
+    data = tmp_path_factory.mktemp("signin")
+    port = _free_port()
+    env = dict(os.environ, ROVEROPS_OPERATOR_TOKEN=BOOTSTRAP, ROVEROPS_PUBLIC_READ="off")
+    cmd = [
+        sys.executable,
+        "-m",
+        "server.cli",
+        "serve",
+        "--port",
+        str(port),
+        "--data-dir",
+        str(data),
+    ]
+    with open(data / "server.log", "wb") as log:
+        proc = subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT)
+    base = f"http://127.0.0.1:{port}"
+    admin = {"Authorization": f"Bearer {BOOTSTRAP}"}
+    try:
+        _wait(lambda: httpx.get(f"{base}/api/rovers", headers=admin).status_code == 200)
+        tokens = {
+            role: httpx.post(f"{base}/api/users", json={"name": f"{role}1", "role": role},
+                             headers=admin).json()["token"]
+            for role in ("viewer", "operator")
+        }  # fmt: skip
+        yield base, tokens
+    finally:
+        proc.kill()
+        proc.wait(timeout=10)
+
+
+@pytest.fixture(scope="module")
+def page(server: tuple[str, dict[str, str]]) -> Iterator[Page]:
+    ARTIFACTS.mkdir(exist_ok=True)
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=LAUNCH_ARGS)
+        pg = browser.new_page(viewport={"width": 1280, "height": 800})
+        pg.goto(f"{server[0]}/?rover=spirit")
+        try:
+            yield pg
+        finally:
+            pg.screenshot(path=str(ARTIFACTS / "signin.png"), full_page=True)
+            browser.close()
+
+
+def test_a_private_server_shows_nothing_before_sign_in(page: Page) -> None:
+    expect(page.get_by_test_id("signed-in")).to_have_text("sign in to view")
+    expect(page.get_by_test_id("sol-clock")).to_have_text("—")
+    expect(page.locator("#upload-text")).to_be_disabled()
+
+
+def test_a_viewer_reads_live_and_may_not_command(
+    page: Page, server: tuple[str, dict[str, str]]
+) -> None:
+    page.fill("[data-testid=token]", server[1]["viewer"])
+    page.click("[data-testid=sign-in]")
+    expect(page.get_by_test_id("signed-in")).to_have_text("viewer1 · viewer")
+    expect(page.get_by_test_id("sol-clock")).to_contain_text("LMST", timeout=20_000)
+    # the telemetry WebSocket reads with the cookie: readouts arrive without a reload
+    expect(page.get_by_test_id("nate-mode")).not_to_have_text("—", timeout=20_000)
+    # the 3D view (its own page and WebSocket in the iframe) reads with the cookie too
+    frame = page.frame_locator("[data-testid=view3d]")
+    expect(frame.locator("canvas").first).to_be_visible(timeout=60_000)
+    for control in ("#upload-text", "#send", "#pause", "#speed"):
+        expect(page.locator(control)).to_be_disabled()
+        expect(page.locator(control)).to_have_attribute("title", re.compile("operator role"))
+    page.screenshot(path=str(ARTIFACTS / "signin_viewer.png"))
+
+
+def test_an_operator_may_command_and_signing_out_forgets_the_token(
+    page: Page, server: tuple[str, dict[str, str]]
+) -> None:
+    page.click("[data-testid=sign-out]")
+    expect(page.get_by_test_id("signed-in")).to_have_text("sign in to view")
+    page.fill("[data-testid=token]", server[1]["operator"])
+    page.keyboard.press("Enter")
+    expect(page.get_by_test_id("signed-in")).to_have_text("operator1 · operator")
+    expect(page.locator("#upload-text")).to_be_enabled()
+    page.click("#pause")
+    expect(page.get_by_test_id("clock-speed")).to_contain_text("paused")
+    page.reload()  # the sign-in survives a reload of the page
+    expect(page.get_by_test_id("signed-in")).to_have_text("operator1 · operator")
+    audit = httpx.get(
+        f"{server[0]}/api/audit",
+        params={"user": "operator1"},
+        headers={"Authorization": f"Bearer {BOOTSTRAP}"},
+    ).json()
+    assert [r["action"] for r in audit][:2] == ["clock action=pause", "sign in"]
+    page.screenshot(path=str(ARTIFACTS / "signin_operator.png"))
