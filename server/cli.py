@@ -284,6 +284,22 @@ def _cmd_bench(args: argparse.Namespace) -> dict[str, Any]:
     return run_bench(args.name)
 
 
+def _database_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--data-dir`` and ``--database-url``: where the server keeps its database."""
+    parser.add_argument(
+        "--data-dir",
+        type=Path,
+        default=Path(_env("DATA_DIR", "data")),
+        help="where the embedded SQLite database lives (default ./data)",
+    )
+    parser.add_argument(
+        "--database-url",
+        default=_env("DATABASE_URL", ""),
+        help="any SQLAlchemy URL, e.g. postgresql+psycopg://user@host/db (default: SQLite "
+        "in the data directory)",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``roverops``; exposed for tests and documentation."""
     parser = argparse.ArgumentParser(
@@ -350,18 +366,7 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument(
         "--port", type=_port, default=_port(_env("PORT", "8000")), help="TCP port (1-65535)"
     )
-    serve.add_argument(
-        "--data-dir",
-        type=Path,
-        default=Path(_env("DATA_DIR", "data")),
-        help="where the embedded SQLite database lives (default ./data)",
-    )
-    serve.add_argument(
-        "--database-url",
-        default=_env("DATABASE_URL", ""),
-        help="any SQLAlchemy URL, e.g. postgresql+psycopg://user@host/db (default: SQLite "
-        "in the data directory)",
-    )
+    _database_arguments(serve)
     serve.add_argument(
         "--operator-token",
         default=_env("OPERATOR_TOKEN", ""),
@@ -406,15 +411,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=90.0,
         help="lifetime of a new token, days (default 90, at most 3650)",
     )
-    users.add_argument(
-        "--data-dir",
-        type=Path,
-        default=Path(_env("DATA_DIR", "data")),
-        help="the server's data directory (default ./data)",
-    )
-    users.add_argument(
-        "--database-url", default=_env("DATABASE_URL", ""), help="or any SQLAlchemy URL"
-    )
+    _database_arguments(users)
     users.add_argument("--json", action="store_true", help="print JSON")
     users.set_defaults(handler=_cmd_users, printer=_print_users)
 

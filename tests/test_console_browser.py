@@ -9,6 +9,7 @@ Screenshots go to test-artifacts/."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import shutil
@@ -52,18 +53,25 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
         proc.wait(timeout=10)
 
 
-@pytest.fixture(scope="module")
-def page(server: str) -> Iterator[Page]:
+@contextlib.contextmanager
+def console_page(url: str, screenshot: str) -> Iterator[Page]:
+    """Chromium on ``url`` at 1280x800; a full-page screenshot in test-artifacts/ at the end."""
     ARTIFACTS.mkdir(exist_ok=True)
     with sync_playwright() as p:
         browser = p.chromium.launch(executable_path=CHROMIUM, args=LAUNCH_ARGS)
         pg = browser.new_page(viewport={"width": 1280, "height": 800})
-        pg.goto(f"{server}/?rover=spirit")
+        pg.goto(url)
         try:
             yield pg
         finally:
-            pg.screenshot(path=str(ARTIFACTS / "console.png"), full_page=True)
+            pg.screenshot(path=str(ARTIFACTS / screenshot), full_page=True)
             browser.close()
+
+
+@pytest.fixture(scope="module")
+def page(server: str) -> Iterator[Page]:
+    with console_page(f"{server}/?rover=spirit", "console.png") as pg:
+        yield pg
 
 
 def sign_in(page: Page, token: str = TOKEN, who: str = "bootstrap · admin") -> None:

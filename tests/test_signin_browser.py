@@ -16,13 +16,13 @@ from pathlib import Path
 import httpx
 import pytest
 
-from tests.test_console_browser import ARTIFACTS, CHROMIUM, LAUNCH_ARGS
+from tests.test_console_browser import ARTIFACTS, CHROMIUM, console_page
 from tests.test_server_restart import _free_port, _wait
 
 if not Path(CHROMIUM).exists():
     pytest.skip("Chromium not installed (make test installs it)", allow_module_level=True)
 
-from playwright.sync_api import Page, expect, sync_playwright
+from playwright.sync_api import Page, expect
 
 BOOTSTRAP = "signin-bootstrap-token"
 
@@ -61,16 +61,8 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, dict
 
 @pytest.fixture(scope="module")
 def page(server: tuple[str, dict[str, str]]) -> Iterator[Page]:
-    ARTIFACTS.mkdir(exist_ok=True)
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=LAUNCH_ARGS)
-        pg = browser.new_page(viewport={"width": 1280, "height": 800})
-        pg.goto(f"{server[0]}/?rover=spirit")
-        try:
-            yield pg
-        finally:
-            pg.screenshot(path=str(ARTIFACTS / "signin.png"), full_page=True)
-            browser.close()
+    with console_page(f"{server[0]}/?rover=spirit", "signin.png") as pg:
+        yield pg
 
 
 def test_a_private_server_shows_nothing_before_sign_in(page: Page) -> None:
