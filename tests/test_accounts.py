@@ -161,3 +161,28 @@ def test_a_database_from_before_accounts_is_upgraded_in_place(tmp_path: Path) ->
     new_id = store.add_sequence("spirit", "new", "X", "text", "queued", [], [], [], "ada")
     assert store.submitters([1, new_id]) == {1: None, new_id: "ada"}
     assert Accounts(store).count_users() == 0  # the new tables exist
+
+
+def test_the_api_refuses_an_expired_or_revoked_token_with_its_reason(tmp_path: Path) -> None:
+    from fastapi.testclient import TestClient
+
+    from server.app import ServerConfig, create_app
+
+    config = ServerConfig(database_url=f"sqlite:///{tmp_path / 'api.db'}", start_clocks=False)
+    app = create_app(config)
+    accounts: Accounts = app.state.server.accounts
+    expiring = accounts.add_user("old", "operator").token
+    revoked = accounts.add_user("gone", "operator").token
+    accounts.revoke("gone")
+    with accounts.store.engine.begin() as conn:
+        conn.execute(
+            update(api_tokens)
+            .where(api_tokens.c.token_sha256 == hashlib.sha256(expiring.encode()).hexdigest())
+            .values(expires_at=datetime.now(UTC) - timedelta(seconds=1))
+        )
+    with TestClient(app) as client:
+        for token, reason in ((expiring, "token expired"), (revoked, "token revoked")):
+            auth = {"Authorization": f"Bearer {token}"}
+            answer = client.post("/api/rovers/spirit/clock", json={"action": "pause"}, headers=auth)
+            assert (answer.status_code, answer.json()["detail"]) == (403, f"wrong token: {reason}")
+        assert client.get("/api/rovers/spirit/state").json()["clock"]["running"] is True
