@@ -36,11 +36,20 @@ HOSTILE = [
     ('{"steps":[],"name":' + BIG + "}", 1, 20, "bad-value"),
     ('{"steps":[{"command":"DRIVE_STRAIGHT","args":{"distance_m":' + BIG + "}}]}", 1, 60, ""),
     ('{"steps":[{"command":"WAIT","args":{"duration_s":-' + BIG + ".5}}]}", 1, 50, ""),
-    ('{"steps": [{"command": "PLANT_SITE", "time": {"sol": ' + BIG + ', "lmst": "10:00"}}]}',
-     1, 54, "bad-value"),  # fmt: skip
+    (
+        '{"steps": [{"command": "PLANT_SITE", "time": {"sol": ' + BIG + ', "lmst": "10:00"}}]}',
+        1,
+        54,
+        "bad-value",
+    ),
     ("[" * 100_000, 1, 65, "bad-json"),
     ('{"steps":\n' + "[" * 100_000, 2, 64, "bad-json"),
-    ('{"steps": [{"command": "PLANT_SITE", "args": {"x": "[[[["}}, ' + "[" * 100_000, 1, 0, ""),
+    (
+        '{"steps": [{"command": "PLANT_SITE", "args": {"x": "[[[["}}, ' + "[" * 100_000,
+        1,
+        124,
+        "bad-json",
+    ),  # strings skipped
     (f"@ sol {BIG} 10:00 LMST SUNGAZE", 1, 1, "bad-time-tag"),
     (f"@ sol {'0' * 5000}7 10:00 LMST SUNGAZE", 0, 0, "ok"),
     (f"DRIVE_STRAIGHT distance_m={BIG}", 1, 27, "bad-value"),
