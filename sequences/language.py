@@ -626,7 +626,13 @@ def parse_json(source: str | Mapping[str, Any] | list[Any]) -> ParseResult:
     if isinstance(data, list):
         data = {"steps": data}
     if not isinstance(data, Mapping):
-        out.error(0, 0, "bad-structure", "a JSON sequence is an object with 'steps' (a list)")
+        # decoded from text: the top-level value starts at the first non-blank character
+        line, col = (
+            _json_where(source, len(source) - len(source.lstrip(" \t\n\r")))
+            if isinstance(source, str)
+            else (0, 0)
+        )
+        out.error(line, col, "bad-structure", "a JSON sequence is an object with 'steps' (a list)")
         return empty
     _unknown_keys(data, ("name", "steps"), "", out)
     name = data.get("name")
@@ -700,10 +706,21 @@ def _unknown_keys(
     for key in obj:
         if key not in allowed:
             out.error(
-                0, 0, "bad-structure", f"{where}{key}: unknown key (allowed: {', '.join(allowed)})"
+                0,
+                0,
+                "bad-structure",
+                f"{where}{_key(key)}: unknown key (allowed: {', '.join(allowed)})",
             )
     for key in getattr(obj, "duplicates", []):
-        out.error(0, 0, "bad-structure", f"{where}{key}: given more than once")
+        out.error(0, 0, "bad-structure", f"{where}{_key(key)}: given more than once")
+
+
+def _key(key: object) -> str:
+    """A JSON key in a location path: as it is if a plain name, else quoted and cut short."""
+    return key if isinstance(key, str) and _PLAIN_KEY_RE.fullmatch(key) else shown(key)
+
+
+_PLAIN_KEY_RE = re.compile(r"[A-Za-z0-9_]{1,40}", _A)
 
 
 def _json_step(raw: object, i: int, out: _Lines) -> SequenceStep | None:
@@ -721,7 +738,7 @@ def _json_step(raw: object, i: int, out: _Lines) -> SequenceStep | None:
         out.error(0, 0, "bad-structure", f"{where}.args: must be an object")
         return None
     for key in getattr(args, "duplicates", []):
-        out.error(0, 0, "duplicate-argument", f"{where}.args.{key}: given more than once")
+        out.error(0, 0, "duplicate-argument", f"{where}.args.{_key(key)}: given more than once")
     if not isinstance(keyword, str):
         out.error(0, 0, "bad-structure", f"{where}.command: must be a command keyword")
         return None
@@ -734,7 +751,7 @@ def _json_step(raw: object, i: int, out: _Lines) -> SequenceStep | None:
     for arg in args:
         if arg not in names:
             bad = True
-            message = _unknown_arg(keyword, str(arg))
+            message = _unknown_arg(keyword, _key(arg))
             out.error(0, 0, "unknown-argument", f"{where}.args.{message}")
     for f in _FIELDS[keyword]:
         required = f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
