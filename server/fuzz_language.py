@@ -22,13 +22,15 @@ import json
 import math
 import re
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from sequences.language import parse, split_lines, to_json, to_text
 from sequences.validate import CODES, ValidationContext, validate
 
+T = TypeVar("T")
 EXAMPLES = Path(__file__).resolve().parents[1] / "sequences" / "examples"
 MAX_FAILURES_KEPT = 5
 SHOWN_CHARS = 300
@@ -67,7 +69,7 @@ NUMBERS = (
     "1.5e",
     "00000000000000000000000000000000000000000000007",
 )
-PIECES = (
+PIECES: tuple[str, ...] = (
     *' \t\n\r"#@=+-.:,{}[]0123456789eEs\\',
     "\u00a0",
     "\uff11",
@@ -92,6 +94,7 @@ PIECES = (
     "null",
     "true",
 )
+_TEXT_OPS = ("insert", "delete", "duplicate", "lines", "tokens", "number", "nest", "repeat")
 NESTING = (1, 2, 10, 63, 64, 65, 999, 5000, 100_000)
 REPEATS = (2, 10, 1000)
 _NUMBER_RE = re.compile(r"-?\d+(?:\.\d+)?(?:[eE][+-]?\d+)?", re.ASCII)
@@ -156,6 +159,7 @@ class _Tally:
     without_line: int = 0
     unknown_codes: int = 0
     slowest_s: float = 0.0
+    slowest_input: str = ""
     failures: list[dict[str, str]] = field(default_factory=list)
 
     def keep(self, kind: str, source: object, detail: str) -> None:
@@ -185,7 +189,11 @@ def _check(source: str | dict[str, Any], context: ValidationContext | None, tall
         tally.keep("crash", source, f"{type(exc).__name__}: {exc}")
         return
     finally:
-        tally.slowest_s = max(tally.slowest_s, time.process_time() - t0)
+        spent = time.process_time() - t0
+        if spent > tally.slowest_s:
+            tally.slowest_s = spent
+            shown = source if isinstance(source, str) else _safe_repr(source)
+            tally.slowest_input = repr(shown[:SHOWN_CHARS]) + f" ({len(shown)} characters)"
     is_text = isinstance(source, str) and source.lstrip()[:1] not in ("{", "[")
     lines = sum(1 for _ in split_lines(source)) if is_text and isinstance(source, str) else 0
     for d in (*result.errors, *result.warnings):
@@ -202,41 +210,44 @@ def _check(source: str | dict[str, Any], context: ValidationContext | None, tall
             tally.keep("no line", source, f"{d.line}:{d.column} {d.code} {d.message}")
 
 
-def _pick(data: Any, st: Any, options: tuple[Any, ...] | list[Any]) -> Any:
+def _int(data: Any, st: Any, lo: int, hi: int) -> int:
+    """An integer in ``[lo, hi]`` drawn from hypothesis' ``data``."""
+    value: int = data.draw(st.integers(lo, hi))
+    return value
+
+
+def _pick(data: Any, st: Any, options: Sequence[T]) -> T:
     """One of ``options``, drawn by index: hypothesis records (and may print) only ints."""
-    return options[data.draw(st.integers(0, len(options) - 1))]
+    return options[_int(data, st, 0, len(options) - 1)]
 
 
 def _mutate_text(data: Any, st: Any, text: str) -> str:
-    op = data.draw(st.sampled_from(("insert", "delete", "duplicate", "lines", "tokens",
-                                    "number", "nest", "repeat")))  # fmt: skip
+    op = _pick(data, st, _TEXT_OPS)
     n = len(text)
-    i = data.draw(st.integers(0, n))
+    i = _int(data, st, 0, n)
     if op == "insert":
         return text[:i] + _pick(data, st, PIECES) + text[i:]
     if op in ("delete", "duplicate"):
-        j = data.draw(st.integers(i, min(n, i + 40)))
+        j = _int(data, st, i, min(n, i + 40))
         return text[:i] + text[j:] if op == "delete" else text[:j] + text[i:j] + text[j:]
     if op in ("lines", "tokens"):
         parts = text.split("\n") if op == "lines" else re.split(r"([ \t\n,:]+)", text)
-        a = data.draw(st.integers(0, len(parts) - 1))
-        b = data.draw(st.integers(0, len(parts) - 1))
+        a = _int(data, st, 0, len(parts) - 1)
+        b = _int(data, st, 0, len(parts) - 1)
         parts[a], parts[b] = parts[b], parts[a]
         return ("\n" if op == "lines" else "").join(parts)
     if op == "number":
         numbers = list(_NUMBER_RE.finditer(text))
         if not numbers:
             return text
-        m = numbers[data.draw(st.integers(0, len(numbers) - 1))]
+        m = numbers[_int(data, st, 0, len(numbers) - 1)]
         return text[: m.start()] + _pick(data, st, NUMBERS) + text[m.end() :]
     if op == "nest":
         return (
-            text[:i]
-            + data.draw(st.sampled_from(("[", "{", '{"a":['))) * _pick(data, st, NESTING)
-            + text[i:]
+            text[:i] + _pick(data, st, ("[", "{", '{"a":[')) * _pick(data, st, NESTING) + text[i:]
         )
     lines = text.split("\n")
-    k = data.draw(st.integers(0, len(lines) - 1))
+    k = _int(data, st, 0, len(lines) - 1)
     lines[k:k] = [lines[k]] * _pick(data, st, REPEATS)
     return "\n".join(lines)
 
@@ -250,9 +261,9 @@ def _mutate_json(data: Any, st: Any, decoded: Any, values: tuple[object, ...]) -
         for s in steps:
             if isinstance(s, dict):
                 targets += [v for v in s.values() if isinstance(v, dict)]
-    target = targets[data.draw(st.integers(0, len(targets) - 1))]
+    target = targets[_int(data, st, 0, len(targets) - 1)]
     keys = [*target.keys(), "extra", "time", "args", "sol"]
-    key = keys[data.draw(st.integers(0, len(keys) - 1))]
+    key = keys[_int(data, st, 0, len(keys) - 1)]
     value = _pick(data, st, values)
     shallow = isinstance(value, dict) or (
         isinstance(value, list) and value and isinstance(value[0], dict)
@@ -293,14 +304,14 @@ def fuzz_language(n_inputs: int, seed: int) -> dict[str, Any]:
     )
     @hypothesis.given(st.data())
     def one_input(data: Any) -> None:
-        base = bases[data.draw(st.integers(0, len(bases) - 1))]
+        base = bases[_int(data, st, 0, len(bases) - 1)]
         source: str | dict[str, Any] = base
         if base.lstrip().startswith("{") and data.draw(st.booleans()):
             source = json.loads(base)
-            for _ in range(data.draw(st.integers(1, 3))):
+            for _ in range(_int(data, st, 1, 3)):
                 source = _mutate_json(data, st, source, values)
         else:
-            for _ in range(data.draw(st.integers(1, 4))):
+            for _ in range(_int(data, st, 1, 4)):
                 source = _mutate_text(data, st, str(source))
         tally.inputs += 1
         _check(source, None, tally)
@@ -314,6 +325,7 @@ def fuzz_language(n_inputs: int, seed: int) -> dict[str, Any]:
         "language_fuzz_diagnostics_without_line": tally.without_line,
         "language_fuzz_unknown_codes": tally.unknown_codes,
         "language_fuzz_slowest_validation_s": round(tally.slowest_s, 4),
+        "language_fuzz_slowest_input": tally.slowest_input,
         "language_fuzz_cpu_s": round(time.process_time() - t0, 2),
         "language_fuzz_seed": seed,
         "language_fuzz_failures": tally.failures,
