@@ -21,7 +21,7 @@ import server.validation_context as vc
 from sequences.validate import MAX_EPHEMERIS_SOL, validate
 from server.app import ServerConfig, create_app, data_dir_url
 from server.validation_context import SampledElevation, site_context
-from sim.ephemeris import coverage_t_s
+from sim.ephemeris import astrometric_from_mars_j2000_km, coverage_t_s, mars_velocity_j2000_km_s
 from sim.mars_frames import earth_ll_truth, elevation_rad, sun_ll_truth
 from sim.marsclock import MISSIONS, SOL_S, sol_number_t_s, t_s_for_sol_lmst
 
@@ -54,52 +54,72 @@ def test_sampled_elevation_agrees_with_de421_over_a_sol(mission: str, body: str)
     lat, lon = _site(mission)
     direct = earth_ll_truth if body == "earth" else sun_ll_truth
     start = t_s_for_sol_lmst(mission, 42, 8.0)
-    sampled = SampledElevation(lambda t: direct(t, lat, lon), start, coverage_t_s()[1])
-    t = start + np.linspace(0.0, SOL_S, 487) + 37.0  # off the 10-minute sample grid
+    sampled = SampledElevation(body, lat, lon, start, coverage_t_s()[1])  # type: ignore[arg-type]
+    t = start + np.linspace(0.0, SOL_S, 487) + 37.0  # off the quarter-sol sample grid
     truth = np.degrees(elevation_rad(direct(t, lat, lon)))
     got = np.array([sampled(float(x)) for x in t])
     assert np.max(np.abs(got - truth)) < 0.05
     assert truth.min() < -10.0 < 10.0 < truth.max()  # the sol includes rise and set
-    assert sampled.chunks_sampled == 2  # a sol and 37 s: two chunks
+    assert sampled.blocks_sampled == 1
 
 
 def test_samples_stop_at_the_ephemeris_end() -> None:
     lat, lon = _site("spirit")
     end = coverage_t_s()[1]
-    sampled = SampledElevation(lambda t: earth_ll_truth(t, lat, lon), end - 1000.0, end)
+    sampled = SampledElevation("earth", lat, lon, end - 1000.0, end)
     truth = math.degrees(float(elevation_rad(earth_ll_truth(end - 1.0, lat, lon))))
     assert abs(sampled(end - 1.0) - truth) < 0.05
     with pytest.raises(ValueError, match="past the end"):
         sampled(end + 1.0)
 
 
-def test_forty_thousand_hga_passes_cost_one_ephemeris_call_per_sol(
-    monkeypatch: pytest.MonkeyPatch,
+@pytest.fixture
+def calls(monkeypatch: pytest.MonkeyPatch) -> dict[str, int]:
+    """Counts the DE421 calls of the context, by body (``mars`` for Mars' velocity)."""
+    counted = {"earth": 0, "sun": 0, "mars": 0}
+
+    def positions(body: Any, t_s: Any) -> Any:
+        counted[body] += 1
+        return astrometric_from_mars_j2000_km(body, t_s)
+
+    def velocity(t_s: Any) -> Any:
+        counted["mars"] += 1
+        return mars_velocity_j2000_km_s(t_s)
+
+    monkeypatch.setattr(vc, "astrometric_from_mars_j2000_km", positions)
+    monkeypatch.setattr(vc, "mars_velocity", velocity)
+    return counted
+
+
+def test_forty_thousand_hga_passes_cost_one_ephemeris_call_per_block(
+    calls: dict[str, int],
 ) -> None:
     """Before: one DE421 evaluation per HGA pass start and end (80,000 for this sequence,
-    137 s of CPU); now one per sol reached (10,000 h of passes: 406 sols)."""
-    calls = {"earth": 0, "sun": 0}
-
-    def counting(name: str, direct: Any) -> Any:
-        def wrapped(*args: Any) -> Any:
-            calls[name] += 1
-            return direct(*args)
-
-        return wrapped
-
-    monkeypatch.setattr(vc, "earth_ll_truth", counting("earth", earth_ll_truth))
-    monkeypatch.setattr(vc, "sun_ll_truth", counting("sun", sun_ll_truth))
+    137 s of CPU); now one per block of 32 sols reached (10,000 h of passes: 406 sols)."""
     lat, lon = _site("spirit")
     start = t_s_for_sol_lmst("spirit", 42, 8.0)
     context = site_context("spirit", lat, lon, start, aqf="Fine")
     result = validate("HGA_PASS duration_min=15\n" * 40_000, context)
-    sols = math.ceil(40_000 * 15 * 60 / SOL_S)
+    blocks = math.ceil(40_000 * 15 * 60 / (vc.COARSE_S * vc.BLOCK))
     assert result.ok and len(result.warnings) > 10_000  # Earth sets daily: warnings
-    assert calls["earth"] <= sols + 1
+    assert calls["earth"] <= blocks + 1 and calls["mars"] == calls["earth"]
     assert calls["sun"] == 0  # asked for nothing: sampled nothing
     assert context.sun_elevation_deg is not None
     assert -90.0 <= context.sun_elevation_deg(start + 3600.0) <= 90.0
     assert calls["sun"] == 1
+
+
+def test_a_pass_on_each_of_many_sols_costs_in_proportion_to_the_reach(
+    calls: dict[str, int],
+) -> None:
+    """The sparse case: one pass a sol for 3,000 sols samples 94 blocks, not 3,000 sols."""
+    lat, lon = _site("opportunity")
+    start = t_s_for_sol_lmst("opportunity", 42, 8.0)
+    context = site_context("opportunity", lat, lon, start, aqf="Fine")
+    text = "".join(f"@ sol {sol} 11:00 LMST HGA_PASS\n" for sol in range(43, 3043))
+    result = validate(text, context)
+    assert result.ok
+    assert calls["earth"] <= math.ceil(3000 * SOL_S / (vc.COARSE_S * vc.BLOCK)) + 1
 
 
 def test_a_step_past_the_ephemeris_is_an_error_and_prediction_stops() -> None:
