@@ -53,10 +53,15 @@ _TAG_RE = re.compile(
     r")(?=[ \t]|$)",
     _A,
 )
-_TOKEN_RE = re.compile(r'(?:[^ \t"]|"(?:[^"\\]|\\.)*(?:"|$))+', _A)
+# A string runs to its closing quote or to the end of the line (a lone final backslash
+# included), so that the string branch cannot fail once started: a failing branch would be
+# retried from every later quote, quadratic in the line.
+_TOKEN_RE = re.compile(r'(?:[^ \t"]|"[^"\\]*(?:\\.[^"\\]*)*(?:"|\\?$))+', _A)
 _ARG_RE = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)=(.*)", re.S | _A)
 _INT_RE = re.compile(r"[+-]?\d+", _A)
-_FLOAT_RE = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?", _A)
+# One way to split the digits only (not ``\d+\.?\d*``, which tries every split of a long
+# digit run before failing on a letter after it: quadratic)
+_FLOAT_RE = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?", _A)
 _WORD_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_.\-]*", _A)
 _KEYWORD_RE = re.compile(r"[A-Z][A-Z0-9_]*", _A)
 _LINE_END_RE = re.compile(r"\r\n|\r|\n")
@@ -478,7 +483,7 @@ def parse_value(text: str) -> object:
         raise ValueError("missing value after '='")
     first = text[0]
     if first in "0123456789+-.":
-        if len(text) > MAX_NUMBER_CHARS and _FLOAT_RE.fullmatch(text):
+        if len(text) > MAX_NUMBER_CHARS:  # no word starts so: a number, or nothing
             raise ValueError(f"a number of {len(text)} characters (at most {MAX_NUMBER_CHARS})")
         if _INT_RE.fullmatch(text):
             return int(text)

@@ -244,6 +244,22 @@ def _growth(work: Callable[[str], object], make: Callable[[int], str], n: int) -
     return _cpu_s(lambda: work(large)) / max(_cpu_s(lambda: work(small)), 1e-4)
 
 
+def _unterminated_strings(n: int) -> str:
+    """One line of ``"\\`` pairs: each quote opens a string that never closes (the token
+    regex once rescanned the rest of the line from every quote)."""
+    return "WAIT " + '"\\' * n
+
+
+def _digits_then_letter(n: int) -> str:
+    """A long digit run ending in a letter (the float regex once tried every split of
+    the digits between its integer and fraction parts)."""
+    return "WAIT duration_s=" + "1" * n + "x"
+
+
+def _long_sol(n: int) -> str:
+    return "@ sol " + "1" * n + "x 10:00 LMST WAIT duration_s=1"
+
+
 _OLD_DECLARED = re.compile(r"^\s*SEQUENCE\s+([A-Za-z0-9_-]{1,64})\s*(?:#.*)?$", re.MULTILINE)
 
 
@@ -260,6 +276,9 @@ def test_the_ratio_test_catches_a_quadratic_scan() -> None:
         ("parse_text, blank lines", parse_text, _blank_then_command, 10_000),
         ("validate, blank lines", validate, _blank_then_command, 10_000),
         ("validate, commands", validate, _commands, 1_000),
+        ("validate, unterminated strings", validate, _unterminated_strings, 2_000),
+        ("validate, a digit run that is no number", validate, _digits_then_letter, 2_000),
+        ("validate, a sol of many digits", validate, _long_sol, 2_000),
     ],
 )
 def test_cpu_time_grows_linearly(
