@@ -7,8 +7,10 @@ the examples, text and JSON (and each in the other form), after one to four muta
 characters inserted (ASCII punctuation, digits, no-break spaces, fullwidth digits, line
 separators, control characters), spans deleted or duplicated, lines and tokens swapped,
 numbers replaced by huge, negative, NaN-like or over-long ones, brackets nested deep, a
-line repeated; and, for JSON, values of the decoded form replaced (a 5,000-digit integer, a
-list nested 10,000 deep, NaN, null, ...) and handed over decoded, as the server does.
+line repeated, a long run of one piece (quotes, digits, ``@``) on one line; and, for JSON,
+values of the decoded form replaced (a 5,000-digit integer, a list nested 10,000 deep,
+NaN, null, ...) and handed over decoded, as the server does. The slowest validation is
+reported with its input: a scan quadratic in a line shows there first.
 
 A *crash* is any exception. A diagnostic *without a line*: in a text source, a line outside
 1..lines+1; in a JSON source, line 0 with no location (``steps[3]``, ``name``, a top-level
@@ -94,7 +96,11 @@ PIECES: tuple[str, ...] = (
     "null",
     "true",
 )
-_TEXT_OPS = ("insert", "delete", "duplicate", "lines", "tokens", "number", "nest", "repeat")
+_TEXT_OPS = (
+    "insert", "delete", "duplicate", "lines", "tokens", "number", "nest", "repeat", "flood",
+)  # fmt: skip
+FLOOD = ('"\\', "1", "a", "a=", "x ", "@", "#", '"', "=", "\t", ".", "e", "-", "\u00a0", "[")
+FLOOD_TIMES = (100, 5000, 50_000)
 NESTING = (1, 2, 10, 63, 64, 65, 999, 5000, 100_000)
 REPEATS = (2, 10, 1000)
 _NUMBER_RE = re.compile(r"-?\d+(?:\.\d+)?(?:[eE][+-]?\d+)?", re.ASCII)
@@ -242,6 +248,8 @@ def _mutate_text(data: Any, st: Any, text: str) -> str:
             return text
         m = numbers[_int(data, st, 0, len(numbers) - 1)]
         return text[: m.start()] + _pick(data, st, NUMBERS) + text[m.end() :]
+    if op == "flood":  # a long run on one line: quadratic scanning shows in the time
+        return text[:i] + _pick(data, st, FLOOD) * _pick(data, st, FLOOD_TIMES) + text[i:]
     if op == "nest":
         return (
             text[:i] + _pick(data, st, ("[", "{", '{"a":[')) * _pick(data, st, NESTING) + text[i:]
