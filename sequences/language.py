@@ -225,25 +225,19 @@ def parse_text(text: str) -> ParseResult:
         body = _strip_comment(raw)
         stripped = body.lstrip(" \t")
         if not stripped:
-            if body:
-                bad = _not_grammar(body)
-                if bad is not None:
-                    out.error(number, bad + 1, "bad-character", _character_message(body[bad]))
+            continue
+        first_content, seen_content = not seen_content, True
+        bad = _not_grammar(body)
+        if bad is not None:  # the rest of the line is not read: it would only add noise
+            out.error(number, bad + 1, "bad-character", _character_message(body[bad]))
             continue
         col = len(body) - len(stripped) + 1
-        bad = _not_grammar(body)
-        if bad is not None:
-            out.error(number, bad + 1, "bad-character", _character_message(body[bad]))
-            seen_content = True
-            continue
         if stripped.startswith("SEQUENCE") and stripped[8:9] in ("", " ", "\t"):
-            if seen_content:
+            if not first_content:
                 out.error(number, col, "sequence-not-first", "SEQUENCE must be the first line")
             else:
                 name = _sequence_name(stripped[8:], number, col + 8, out)
-            seen_content = True
             continue
-        seen_content = True
         step = _parse_line(body, col, number, out)
         if step is not None:
             steps.append(step)
