@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import reprlib
 from collections.abc import Mapping
 from dataclasses import MISSING, dataclass, fields
 from typing import ClassVar, Literal
@@ -40,6 +41,35 @@ MIN_ARC_RADIUS_M = 0.6  # half the track; sim.drive refuses a tighter arc
 
 
 ArgKind = Literal["number", "boolean", "string", "number_or_boolean"]
+
+
+class _Short(reprlib.Repr):
+    """``repr`` cut short, for messages: strings and containers shortened, nesting depth
+    bounded, and an integer too long for ``repr`` (over 4,300 digits) described instead."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.maxstring = self.maxother = self.maxlong = 40
+        self.maxlevel = 3
+
+    def repr_int(self, x: int, level: int) -> str:
+        if x.bit_length() > 128:
+            sign = "a negative" if x < 0 else "an"
+            return f"{sign} integer of about {int(x.bit_length() * math.log10(2)) + 1} digits"
+        return super().repr_int(x, level)
+
+
+_SHORT = _Short()
+
+
+def shown(value: object) -> str:
+    """``value`` as a message shows it: its ``repr``, at most about 40 characters, for any
+    value (a 5,000-digit integer or a list nested a thousand deep included).
+
+    >>> shown(1.5), shown("x" * 100)[:12], shown(10**5000)
+    ('1.5', "'xxxxxxxxxxx", 'an integer of about 5001 digits')
+    """
+    return _SHORT.repr(value)
 
 
 @dataclass(frozen=True)
@@ -82,31 +112,31 @@ class ArgSpec:
         if self.kind == "number":
             _check_number(name, value, self)
         elif self.kind == "boolean" and not isinstance(value, bool):
-            raise ValueError(f"{name}: must be true or false, got {value!r}")
+            raise ValueError(f"{name}: must be true or false, got {shown(value)}")
         elif self.kind == "number_or_boolean" and not isinstance(value, bool):
             _finite_number_or_boolean(name, value)
 
 
 def _check_number(name: str, value: object, spec: ArgSpec) -> None:
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{name}: must be a number, got {value!r}")
+        raise ValueError(f"{name}: must be a number, got {shown(value)}")
     try:
         v = float(value)
     except OverflowError:  # an int beyond float
         v = math.inf
     if not spec.contains(v):
-        raise ValueError(f"{name}: must be in {spec.range_text()}, got {value!r}")
+        raise ValueError(f"{name}: must be in {spec.range_text()}, got {shown(value)}")
 
 
 def _finite_number_or_boolean(name: str, value: object) -> None:
     if not isinstance(value, numbers.Real):
-        raise ValueError(f"{name}: must be a number or true/false, got {value!r}")
+        raise ValueError(f"{name}: must be a number or true/false, got {shown(value)}")
     try:
         finite = math.isfinite(float(value))
     except OverflowError:
         finite = False
     if not finite:
-        raise ValueError(f"{name}: must be finite, got {value!r}")
+        raise ValueError(f"{name}: must be finite, got {shown(value)}")
 
 
 @dataclass(frozen=True)
@@ -275,7 +305,8 @@ class DriveArc(Command):
         r, a = float(self.radius_m), float(self.angle_deg)
         if abs(r) < MIN_ARC_RADIUS_M:
             raise ValueError(
-                f"radius_m: must be at least {MIN_ARC_RADIUS_M:g} m (half the track), got {r!r}"
+                f"radius_m: must be at least {MIN_ARC_RADIUS_M:g} m (half the track), "
+                f"got {shown(r)}"
             )
         if abs(r) * math.radians(a) > MAX_DRIVE_M:
             raise ValueError(f"angle_deg: the arc would be longer than {MAX_DRIVE_M:g} m")
@@ -475,7 +506,7 @@ class SetParam(Command):
 
     def _check_rules(self) -> None:
         if not isinstance(self.param, str) or not self.param.strip():
-            raise ValueError(f"param: must be a parameter name, got {self.param!r}")
+            raise ValueError(f"param: must be a parameter name, got {shown(self.param)}")
 
 
 COMMANDS: dict[str, type[Command]] = {

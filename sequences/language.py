@@ -26,32 +26,47 @@ import dataclasses
 import json
 import math
 import re
-from collections.abc import Mapping
+import unicodedata
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
-from sequences.commands import COMMANDS, MAX_WAIT_S, Command
+from sequences.commands import COMMANDS, MAX_WAIT_S, Command, shown
 
 Severity = Literal["error", "warning"]
 TagKind = Literal["none", "lmst", "sol_lmst", "relative"]
 
 LMST_DAY_S = 86_400  # LMST clock seconds in one sol (a Mars "second" is 1/86400 sol)
 MAX_SOL = 100_000  # far beyond any mission; catches typos such as a year for a sol
+MAX_NUMBER_CHARS = 100  # a number longer than this is refused before it is converted
+MAX_JSON_DEPTH = 64  # where a JSON too deep for the decoder is reported (a sequence needs 4)
 NAME_RE = re.compile(r"[A-Za-z0-9_-]{1,64}")
+# The grammar is ASCII (docs/sequences.md): re.ASCII keeps \d and \s from matching
+# fullwidth digits or a no-break space, which Python's Unicode classes would.
+_A = re.ASCII
 _CLOCK = r"(\d{1,2}):(\d{2})(?::(\d{2}))?"
-_CLOCK_RE = re.compile(_CLOCK)
+_CLOCK_RE = re.compile(_CLOCK, _A)
 _TAG_RE = re.compile(
-    r"@\s*(?:"
-    r"(?:sol\s+(?P<sol>\d+)\s+)?(?P<clock>\d{1,2}:\d{2}(?::\d{2})?)\s+LMST"
+    r"@[ \t]*(?:"
+    r"(?:sol[ \t]+(?P<sol>\d+)[ \t]+)?(?P<clock>\d{1,2}:\d{2}(?::\d{2})?)[ \t]+LMST"
     r"|\+(?:(?P<rel_clock>\d{1,3}:\d{2}:\d{2})|(?P<rel_s>\d+(?:\.\d*)?|\.\d+)s)"
-    r")(?=\s|$)"
+    r")(?=[ \t]|$)",
+    _A,
 )
-_TOKEN_RE = re.compile(r'(?:[^\s"]|"(?:[^"\\]|\\.)*(?:"|$))+')
-_ARG_RE = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)=(.*)", re.S)
-_INT_RE = re.compile(r"[+-]?\d+")
-_FLOAT_RE = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
-_WORD_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_.\-]*")
-_KEYWORD_RE = re.compile(r"[A-Z][A-Z0-9_]*")
+# A string runs to its closing quote or to the end of the line (a lone final backslash
+# included), so that the string branch cannot fail once started: a failing branch would be
+# retried from every later quote, quadratic in the line.
+_TOKEN_RE = re.compile(r'(?:[^ \t"]|"[^"\\]*(?:\\.[^"\\]*)*(?:"|\\?$))+', _A)
+_ARG_RE = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)=(.*)", re.S | _A)
+_INT_RE = re.compile(r"[+-]?\d+", _A)
+# One way to split the digits only (not ``\d+\.?\d*``, which tries every split of a long
+# digit run before failing on a letter after it: quadratic)
+_FLOAT_RE = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?", _A)
+_WORD_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_.\-]*", _A)
+_KEYWORD_RE = re.compile(r"[A-Z][A-Z0-9_]*", _A)
+_LINE_END_RE = re.compile(r"\r\n|\r|\n")
+_NOT_GRAMMAR_RE = re.compile(r"[^\t\x20-\x7e]")  # outside strings and comments
+_DECLARATION_RE = re.compile(r"[ \t]*SEQUENCE[ \t]+([A-Za-z0-9_-]{1,64})[ \t]*(?:#.*)?", _A)
 _BOOLEANS = {"on": True, "true": True, "off": False, "false": False}
 _FIELDS = {name: tuple(dataclasses.fields(kind)) for name, kind in COMMANDS.items()}
 
@@ -184,26 +199,45 @@ class _Lines:
         self.diagnostics.append(Diagnostic(line, column, "error", code, message))
 
 
+def split_lines(text: str) -> Iterator[str]:
+    """The lines of ``text``, ended by ``\\n``, ``\\r\\n`` or ``\\r`` (not by the other
+    Unicode breaks ``str.splitlines`` knows), lazily; a final line end opens no new line.
+
+    >>> list(split_lines("a\\r\\nb\\rc\\n")), list(split_lines("a\\u2028b"))
+    (['a', 'b', 'c'], ['a\\u2028b'])
+    """
+    start = 0
+    for end in _LINE_END_RE.finditer(text):
+        yield text[start : end.start()]
+        start = end.end()
+    if start < len(text):
+        yield text[start:]
+
+
 def parse_text(text: str) -> ParseResult:
-    """Parse the text form (grammar in docs/sequences.md), collecting every error."""
+    """Parse the text form (grammar in docs/sequences.md), collecting every error. Work is
+    linear in the length of ``text`` (one pass, per-line regular expressions)."""
     out = _Lines()
     steps: list[SequenceStep] = []
     name: str | None = None
     seen_content = False
-    for number, raw in enumerate(text.splitlines(), start=1):
+    for number, raw in enumerate(split_lines(text), start=1):
         body = _strip_comment(raw)
-        stripped = body.lstrip()
+        stripped = body.lstrip(" \t")
         if not stripped:
+            continue
+        first_content, seen_content = not seen_content, True
+        bad = _not_grammar(body)
+        if bad is not None:  # the rest of the line is not read: it would only add noise
+            out.error(number, bad + 1, "bad-character", _character_message(body[bad]))
             continue
         col = len(body) - len(stripped) + 1
         if stripped.startswith("SEQUENCE") and stripped[8:9] in ("", " ", "\t"):
-            if seen_content:
+            if not first_content:
                 out.error(number, col, "sequence-not-first", "SEQUENCE must be the first line")
             else:
                 name = _sequence_name(stripped[8:], number, col + 8, out)
-            seen_content = True
             continue
-        seen_content = True
         step = _parse_line(body, col, number, out)
         if step is not None:
             steps.append(step)
@@ -232,6 +266,61 @@ def _strip_comment(line: str) -> str:
             return line[:i]
         i += 1
     return line
+
+
+def _not_grammar(body: str) -> int | None:
+    """Index of the first character of ``body`` (a line without its comment) that the
+    grammar does not allow outside a quoted string: anything but printable ASCII and tab."""
+    found = _NOT_GRAMMAR_RE.search(body)
+    if found is None:
+        return None
+    if '"' not in body[: found.start()]:
+        return found.start()
+    quoted = False
+    i = 0
+    while i < len(body):
+        ch = body[i]
+        if ch == "\\" and quoted:
+            i += 2
+            continue
+        if ch == '"':
+            quoted = not quoted
+        elif not quoted and _NOT_GRAMMAR_RE.match(ch):
+            return i
+        i += 1
+    return None
+
+
+def _character_message(ch: str) -> str:
+    """Names a character the grammar refuses: ``non-ASCII character U+00A0 (NO-BREAK SPACE)``."""
+    kind = "non-ASCII character" if ord(ch) > 0x7E else "control character"
+    name = unicodedata.name(ch, "")
+    named = f" ({name})" if name else ""
+    return (
+        f"{kind} U+{ord(ch):04X}{named}: outside quoted strings and comments a sequence is "
+        "ASCII letters, digits, punctuation, spaces and tabs"
+    )
+
+
+def declared_name(source: str | Mapping[str, Any] | list[Any]) -> str | None:
+    """The name a sequence declares (its first ``SEQUENCE name`` line, or the JSON
+    ``name``) even when other lines have errors; ``None`` if it declares none. Linear in
+    the length of the source (one regular expression per line, anchored to it).
+
+    >>> declared_name("# sol 42\\n\\n  SEQUENCE sol42 # drive\\nPLANT_SITE"), declared_name([])
+    ('sol42', None)
+    """
+    if isinstance(source, Mapping):
+        name = source.get("name")
+        return name if isinstance(name, str) and NAME_RE.fullmatch(name) else None
+    if not isinstance(source, str):
+        return None
+    for line in split_lines(source):
+        if "SEQUENCE" in line:
+            found = _DECLARATION_RE.fullmatch(line)
+            if found is not None:
+                return found[1]
+    return None
 
 
 def _sequence_name(rest: str, line: int, col: int, out: _Lines) -> str | None:
@@ -295,18 +384,31 @@ def _tag_from_match(match: re.Match[str], number: int, col: int, out: _Lines) ->
             return NO_TAG
         if sol is None:
             return TimeTag("lmst", lmst_s=lmst_s)
-        if int(sol) > MAX_SOL:
-            out.error(number, col, "bad-time-tag", f"sol {sol} is beyond {MAX_SOL}")
+        sol = sol.lstrip("0") or "0"  # int() refuses over 4,300 digits: check the length first
+        if len(sol) > len(str(MAX_SOL)) or int(sol) > MAX_SOL:
+            out.error(number, col, "bad-time-tag", f"sol {_digits(sol)} is beyond {MAX_SOL}")
             return NO_TAG
-        return TimeTag("sol_lmst", lmst_s=lmst_s, sol=int(sol))
-    rel_clock = match.group("rel_clock")
-    after = _clock_s(rel_clock, hours_max=999) if rel_clock else float(match.group("rel_s"))
+        return TimeTag("sol_lmst", lmst_s=lmst_s, sol=int(sol))  # at most 6 digits here
+    rel_clock, rel_s = match.group("rel_clock"), match.group("rel_s")
+    too_long = rel_s is not None and len(rel_s) > MAX_NUMBER_CHARS
+    after: float | None
+    if rel_clock:
+        after = _clock_s(rel_clock, hours_max=999)
+    else:
+        after = math.inf if too_long else float(rel_s)
     if after is None or after > MAX_WAIT_S:
-        text = match.group()[1:].strip()
+        text = _digits(match.group()[1:].strip())
         why = "minutes and seconds are 00-59" if after is None else f"at most {MAX_WAIT_S:.3f} s"
         out.error(number, col, "bad-time-tag", f"relative tag {text}: {why}")
         return NO_TAG
     return TimeTag("relative", after_s=float(after))
+
+
+def _digits(text: str) -> str:
+    """``text`` for a message, a long run of digits cut to its ends and its length."""
+    if len(text) <= 24:
+        return text
+    return f"{text[:10]}...{text[-6:]} ({len(text)} characters)"
 
 
 def _clock_s(text: str, hours_max: int) -> int | None:
@@ -322,12 +424,12 @@ def _clock_s(text: str, hours_max: int) -> int | None:
 
 def _unknown_command(keyword: str) -> str:
     if keyword.upper() in COMMANDS:
-        return f"unknown command {keyword!r}: keywords are upper case ({keyword.upper()})"
+        return f"unknown command {shown(keyword)}: keywords are upper case ({keyword.upper()})"
     if keyword == "SEQUENCE":
         return "SEQUENCE must be alone on the first line, without a time tag"
     if keyword.startswith("@"):
-        return f"unknown command {keyword!r}: a time tag must start the line"
-    return f"unknown command {keyword!r}"
+        return f"unknown command {shown(keyword)}: a time tag must start the line"
+    return f"unknown command {shown(keyword)}"
 
 
 _UNREADABLE = object()  # a value that did not parse (already reported)
@@ -346,7 +448,7 @@ def _arguments(tokens: list[tuple[str, int]], number: int, out: _Lines) -> dict[
     for token, col in tokens:
         match = _ARG_RE.fullmatch(token)
         if match is None:
-            out.error(number, col, "syntax", f"expected name=value, got {token!r}")
+            out.error(number, col, "syntax", f"expected name=value, got {shown(token)}")
             continue
         arg, text = match[1], match[2]
         vcol = col + len(arg) + 1
@@ -374,7 +476,9 @@ def parse_value(text: str) -> object:
     if not text:
         raise ValueError("missing value after '='")
     first = text[0]
-    if first.isdigit() or first in "+-.":
+    if first in "0123456789+-.":
+        if len(text) > MAX_NUMBER_CHARS:  # no word starts so: a number, or nothing
+            raise ValueError(f"a number of {len(text)} characters (at most {MAX_NUMBER_CHARS})")
         if _INT_RE.fullmatch(text):
             return int(text)
         if _FLOAT_RE.fullmatch(text):
@@ -390,7 +494,7 @@ def parse_value(text: str) -> object:
         if _WORD_RE.fullmatch(text):
             return text
     raise ValueError(
-        f"{text!r} is not a number, on/off, true/false, word or quoted string "
+        f"{shown(text)} is not a number, on/off, true/false, word or quoted string "
         "(units go in the argument name, not the value)"
     )
 
@@ -499,14 +603,35 @@ def parse_json(source: str | Mapping[str, Any] | list[Any]) -> ParseResult:
     data: Any = source
     if isinstance(source, str):
         try:
-            data = json.loads(source, object_pairs_hook=_object_hook)
+            data = json.loads(
+                source,
+                object_pairs_hook=_object_hook,
+                parse_int=_json_int,
+                parse_float=_json_float,
+            )
         except json.JSONDecodeError as exc:
             out.error(exc.lineno, exc.colno, "bad-json", f"not valid JSON: {exc.msg}")
+            return empty
+        except _NumberTooLongError as exc:
+            line, col = _json_where(source, _json_scan(source, number=exc.text))
+            text = f"a number of {len(exc.text)} characters (at most {MAX_NUMBER_CHARS})"
+            out.error(line, col, "bad-value", text)
+            return empty
+        except RecursionError:
+            line, col = _json_where(source, _json_scan(source, number=None))
+            text = f"not valid JSON: nested deeper than {MAX_JSON_DEPTH} levels"
+            out.error(line, col, "bad-json", text)
             return empty
     if isinstance(data, list):
         data = {"steps": data}
     if not isinstance(data, Mapping):
-        out.error(0, 0, "bad-structure", "a JSON sequence is an object with 'steps' (a list)")
+        # decoded from text: the top-level value starts at the first non-blank character
+        line, col = (
+            _json_where(source, len(source) - len(source.lstrip(" \t\n\r")))
+            if isinstance(source, str)
+            else (0, 0)
+        )
+        out.error(line, col, "bad-structure", "a JSON sequence is an object with 'steps' (a list)")
         return empty
     _unknown_keys(data, ("name", "steps"), "", out)
     name = data.get("name")
@@ -523,16 +648,78 @@ def parse_json(source: str | Mapping[str, Any] | list[Any]) -> ParseResult:
     return ParseResult(Sequence(name, tuple(steps)), out.diagnostics)
 
 
+class _NumberTooLongError(ValueError):
+    """A JSON number longer than ``MAX_NUMBER_CHARS``, refused before ``int()`` (which
+    raises past 4,300 digits) or ``float()`` see it."""
+
+    def __init__(self, text: str) -> None:
+        super().__init__("number too long")
+        self.text = text
+
+
+def _json_int(text: str) -> int:
+    if len(text) > MAX_NUMBER_CHARS:
+        raise _NumberTooLongError(text)
+    return int(text)
+
+
+def _json_float(text: str) -> float:
+    if len(text) > MAX_NUMBER_CHARS:
+        raise _NumberTooLongError(text)
+    return float(text)
+
+
+# Strings (skipped whole), numbers and brackets of a JSON text: enough to find where a
+# decoder's error lies when the decoder cannot say (a too-long number, too deep nesting).
+_JSON_SCAN_RE = re.compile(r'"[^"\\]*(?:\\.[^"\\]*)*"|-?[0-9][0-9.eE+-]*|[\[{]|[\]}]', re.S | _A)
+
+
+def _json_scan(source: str, number: str | None) -> int:
+    """Offset in ``source`` of the number ``number`` (outside strings), or, when ``None``,
+    of the first bracket nested deeper than ``MAX_JSON_DEPTH``; 0 if there is none. One
+    pass: linear in the length of ``source``."""
+    depth = 0
+    for token in _JSON_SCAN_RE.finditer(source):
+        first = token.group()[0]
+        if number is not None:
+            if first in "-0123456789" and token.group() == number:
+                return token.start()
+        elif first in "[{":
+            depth += 1
+            if depth > MAX_JSON_DEPTH:
+                return token.start()
+        elif first in "]}":
+            depth -= 1
+    return 0
+
+
+def _json_where(source: str, offset: int) -> tuple[int, int]:
+    """1-based line and column of ``offset``, counted as the JSON decoder counts them."""
+    line = source.count("\n", 0, offset) + 1
+    return line, offset - source.rfind("\n", 0, offset)
+
+
 def _unknown_keys(
     obj: Mapping[str, Any], allowed: tuple[str, ...], where: str, out: _Lines
 ) -> None:
     for key in obj:
         if key not in allowed:
             out.error(
-                0, 0, "bad-structure", f"{where}{key}: unknown key (allowed: {', '.join(allowed)})"
+                0,
+                0,
+                "bad-structure",
+                f"{where}{_key(key)}: unknown key (allowed: {', '.join(allowed)})",
             )
     for key in getattr(obj, "duplicates", []):
-        out.error(0, 0, "bad-structure", f"{where}{key}: given more than once")
+        out.error(0, 0, "bad-structure", f"{where}{_key(key)}: given more than once")
+
+
+def _key(key: object) -> str:
+    """A JSON key in a location path: as it is if a plain name, else quoted and cut short."""
+    return key if isinstance(key, str) and _PLAIN_KEY_RE.fullmatch(key) else shown(key)
+
+
+_PLAIN_KEY_RE = re.compile(r"[A-Za-z0-9_]{1,40}", _A)
 
 
 def _json_step(raw: object, i: int, out: _Lines) -> SequenceStep | None:
@@ -550,7 +737,7 @@ def _json_step(raw: object, i: int, out: _Lines) -> SequenceStep | None:
         out.error(0, 0, "bad-structure", f"{where}.args: must be an object")
         return None
     for key in getattr(args, "duplicates", []):
-        out.error(0, 0, "duplicate-argument", f"{where}.args.{key}: given more than once")
+        out.error(0, 0, "duplicate-argument", f"{where}.args.{_key(key)}: given more than once")
     if not isinstance(keyword, str):
         out.error(0, 0, "bad-structure", f"{where}.command: must be a command keyword")
         return None
@@ -563,7 +750,7 @@ def _json_step(raw: object, i: int, out: _Lines) -> SequenceStep | None:
     for arg in args:
         if arg not in names:
             bad = True
-            message = _unknown_arg(keyword, str(arg))
+            message = _unknown_arg(keyword, _key(arg))
             out.error(0, 0, "unknown-argument", f"{where}.args.{message}")
     for f in _FIELDS[keyword]:
         required = f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
@@ -594,7 +781,8 @@ def _json_tag(raw: object, where: str, out: _Lines) -> TimeTag | None:
         if isinstance(after, bool) or not isinstance(after, int | float):
             out.error(0, 0, "bad-time-tag", f"{where}.after_s: must be a number of seconds")
             return None
-        if not (math.isfinite(after) and 0.0 <= after <= MAX_WAIT_S):
+        finite = isinstance(after, int) or math.isfinite(after)  # isfinite(10**400) raises
+        if not (finite and 0.0 <= after <= MAX_WAIT_S):
             out.error(0, 0, "bad-time-tag", f"{where}.after_s: must be 0 to {MAX_WAIT_S:.3f} s")
             return None
         return TimeTag("relative", after_s=float(after))

@@ -47,6 +47,7 @@ from sequences.language import (
 
 __all__ = [
     "CODES",
+    "MAX_EPHEMERIS_SOL",
     "Diagnostic",
     "ValidationContext",
     "ValidationResult",
@@ -69,7 +70,9 @@ CODES: dict[str, str] = {
     "empty": "error",
     "bad-json": "error",
     "bad-structure": "error",
+    "bad-character": "error",
     # from this module
+    "beyond-ephemeris": "error",
     "time-backwards": "error",
     "refused-in-articulate": "error",
     "not-articulating": "error",
@@ -99,6 +102,13 @@ GYROCOMPASS_S = 1800.0  # NATE's gyrocompass_duration_s default
 FINE_TO_COARSE_S = 900.0  # seed 000 sec. 2.4: "currently 15 minutes"
 IMU_TIME_LIMIT_S = 10_000.0  # seed 000 sec. 4: the operators' limit since the last Sungaze
 _EPS_S = 1e-6
+MAX_EPHEMERIS_SOL = 17_668
+"""The last sol whose every LMST lies inside the ephemeris the rover runs on (the bundled
+DE421, which ends 2053-10-08, less the simulator's spare day) for both missions:
+Opportunity's, since it landed 21 days after Spirit (whose last sol is 17,689). Without a
+rover context a ``@ sol N`` tag beyond it is an error (``beyond-ephemeris``): the rover
+would refuse it. ``sequences`` may not import ``sim``, so this is a constant;
+tests/test_validation_context.py ties it to the ephemeris and both missions' clocks."""
 
 _DRIVES = (cmd.DriveStraight, cmd.DriveArc, cmd.TurnInPlace, cmd.DriveTo)
 _ALLOWED_IN_ARTICULATE = (cmd.ArticulateStop, cmd.Wait, cmd.HgaPass)
@@ -131,7 +141,10 @@ class ValidationContext:
     ``lmst_h(t_s)`` and ``sol(t_s)`` the rover's clock; ``t_s_for(sol, lmst_h)`` its inverse;
     ``earth_elevation_deg(t_s)`` Earth above the rover's horizon. ``aqf`` the flag and
     ``imu_integration_s`` the IMU time since the last Sungaze at the start; ``articulating``
-    whether NATE is in Articulate then (without a context: Idle).
+    whether NATE is in Articulate then (without a context: Idle). ``ephemeris_end_t_s``: the
+    last instant the rover's ephemeris covers; a step predicted to run past it is an error
+    and nothing after it is predicted (the elevation functions are never asked beyond it).
+    ``sun_elevation_deg(t_s)``: the sun above the horizon, when the context has it.
     """
 
     start_t_s: float
@@ -142,12 +155,16 @@ class ValidationContext:
     aqf: AqfName = "Unknown"
     imu_integration_s: float = 0.0
     articulating: bool = False
+    ephemeris_end_t_s: float = math.inf
+    sun_elevation_deg: Callable[[float], float] | None = None
 
     def __post_init__(self) -> None:
         if self.aqf not in AQF_RANK:
             raise ValueError(f"aqf: must be one of {', '.join(AQF_RANK)}, got {self.aqf!r}")
         if not (math.isfinite(self.start_t_s) and math.isfinite(self.imu_integration_s)):
             raise ValueError("start_t_s, imu_integration_s: must be finite")
+        if math.isnan(self.ephemeris_end_t_s):
+            raise ValueError("ephemeris_end_t_s: must be a time or inf, got nan")
 
     def clock(self, t_s: float) -> str:
         """``sol N hh:mm LMST`` at ``t_s``, for messages."""
@@ -187,7 +204,9 @@ def validate(
     sequence = parsed.sequence
     _check_time_order(sequence, result)
     _check_articulate(sequence, context, result)
-    if context is not None and sequence.steps:
+    if context is None:
+        _check_ephemeris_sols(sequence, result)
+    elif sequence.steps:
         _Prediction(context, result).walk(sequence.steps)
     result.errors.sort(key=_order)  # stable: JSON diagnostics (all at 0:0) keep step order
     result.warnings.sort(key=_order)
@@ -205,7 +224,9 @@ def _diag(
 ) -> Diagnostic:
     """A diagnostic about ``step``: at its time tag for the time codes, else its keyword; a
     JSON step's location (``steps[3].time: ``) starts the message."""
-    tagged = code.startswith("time") or code.startswith("tag")
+    tagged = code.startswith(("time", "tag")) or (
+        code == "beyond-ephemeris" and step.time_tag.kind == "sol_lmst"
+    )
     column = step.tag_column if tagged and step.tag_column else step.column
     prefix = f"{step.where}{'.time' if tagged else ''}: " if step.where else ""
     return Diagnostic(step.line, column, severity, code, prefix + text)
@@ -235,6 +256,18 @@ def _check_time_order(sequence: Sequence, result: ValidationResult) -> None:
             ):
                 result.errors.append(_diag(step, "error", "time-backwards", before))
         last = (tag, step)
+
+
+def _check_ephemeris_sols(sequence: Sequence, result: ValidationResult) -> None:
+    """Without a rover context: a ``@ sol N`` tag past ``MAX_EPHEMERIS_SOL`` is refused."""
+    for step in sequence.steps:
+        sol = step.time_tag.sol
+        if step.time_tag.kind == "sol_lmst" and sol is not None and sol > MAX_EPHEMERIS_SOL:
+            text = (
+                f"sol {sol} is beyond the rover's ephemeris (DE421, to 2053-10-08): "
+                f"sol {MAX_EPHEMERIS_SOL} is the last one both missions reach"
+            )
+            result.errors.append(_diag(step, "error", "beyond-ephemeris", text))
 
 
 def _tag_words(tag: TimeTag) -> str:
@@ -337,6 +370,9 @@ class _Prediction:
         for i, step in enumerate(steps):
             start = self.start_of(step, i)
             duration = estimate_duration_s(step.command, self.gyrocompass_s)
+            if start + duration > self.ctx.ephemeris_end_t_s:
+                self.beyond_ephemeris(step, start, duration)
+                return  # nothing past the ephemeris can be predicted
             self.check_start(step, start, duration)
             self.advance(step, duration)
             self.t_s = start + duration
@@ -367,6 +403,15 @@ class _Prediction:
                 )
                 self.warn(step, "tag-next-sol", text)
         return at
+
+    def beyond_ephemeris(self, step: SequenceStep, start: float, duration: float) -> None:
+        ctx, end = self.ctx, self.ctx.ephemeris_end_t_s
+        when = f"starts at {ctx.clock(start)}" if start > end else "would run"
+        text = (
+            f"{step.command.name} {when} past the end of the rover's ephemeris "
+            f"({ctx.clock(end)}): the rover cannot run it"
+        )
+        self.result.errors.append(_diag(step, "error", "beyond-ephemeris", text))
 
     def check_start(self, step: SequenceStep, start: float, duration: float) -> None:
         c, ctx = step.command, self.ctx

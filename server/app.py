@@ -17,7 +17,6 @@ import csv
 import io
 import json
 import math
-import re
 import time
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
@@ -35,7 +34,7 @@ from starlette.concurrency import run_in_threadpool
 from starlette.websockets import WebSocketDisconnect
 
 from sequences import commands as cmd
-from sequences.language import Sequence, SequenceStep
+from sequences.language import Sequence, SequenceStep, declared_name
 from sequences.validate import ValidationContext, ValidationResult, validate
 from server.accounts import (
     DEFAULT_EXPIRY_DAYS,
@@ -54,9 +53,8 @@ from server.runtime import MAX_SPEED, ROVERS, RoverRuntime
 from server.scene3d import RoverScene
 from server.storage import BatchWriter, Store
 from server.timeline import sol_timeline
+from server.validation_context import validation_context
 from server.viser_proxy import fetch, relay
-from sim.mars_frames import earth_ll_truth, elevation_rad
-from sim.marsclock import t_s_for_sol_lmst
 from sim.side_estimators import ESTIMATORS
 
 MAX_UPLOAD_BYTES = 1_000_000
@@ -240,24 +238,7 @@ class Server:
 
     def context(self, runtime: RoverRuntime) -> ValidationContext:
         """What validation warnings need to know of a rover, from its state now."""
-        sim = runtime.session.sim
-        frame = runtime.last_frame or {}
-        lat, lon = sim.lat_rad, sim.lon_east_rad
-        mission = runtime.spec.mission
-
-        def earth_elevation_deg(t_s: float) -> float:
-            return math.degrees(float(elevation_rad(earth_ll_truth(t_s, lat, lon))))
-
-        return ValidationContext(
-            start_t_s=runtime.t_s,
-            lmst_h=runtime.lmst_h,
-            sol=runtime.sol,
-            t_s_for=lambda sol, lmst_h: t_s_for_sol_lmst(mission, sol, lmst_h),
-            earth_elevation_deg=earth_elevation_deg,
-            aqf=frame.get("aqf", runtime.session.nate.aqf.paper_name),
-            imu_integration_s=float(frame.get("imu_integration_s", 0.0)),
-            articulating=runtime.session.nate.mode.value == "Articulate",
-        )
+        return validation_context(runtime)
 
 
 def _diagnostics(result: ValidationResult) -> dict[str, Any]:
@@ -390,7 +371,9 @@ def create_app(config: ServerConfig) -> FastAPI:
         source, fmt = await _read_upload(request)
         result = await run_in_threadpool(validate, source, server.context(runtime))
         text = source if isinstance(source, str) else json.dumps(source)
-        name = (result.sequence.name if result.sequence else None) or _declared_name(source)
+        name = (result.sequence.name if result.sequence else None) or (
+            declared_name(source) or "unnamed"
+        )
         diags = _diagnostics(result)
         if result.errors or result.sequence is None:
             seq_id = await run_in_threadpool(
@@ -757,19 +740,6 @@ def _utc(value: datetime | None) -> datetime | None:
     if value is None:
         return None
     return value.replace(tzinfo=UTC) if value.tzinfo is None else value.astimezone(UTC)
-
-
-_SEQUENCE_LINE = re.compile(r"^\s*SEQUENCE\s+([A-Za-z0-9_-]{1,64})\s*(?:#.*)?$", re.MULTILINE)
-
-
-def _declared_name(source: str | dict[str, Any]) -> str:
-    """The name a sequence declares (its SEQUENCE line, or JSON ``name``), even when other
-    lines have errors; ``unnamed`` if it declares none."""
-    if isinstance(source, dict):
-        name = source.get("name")
-        return name if isinstance(name, str) and 0 < len(name) <= 64 else "unnamed"
-    found = _SEQUENCE_LINE.search(source)
-    return found.group(1) if found else "unnamed"
 
 
 def _decode(data: bytes, name: str) -> str:

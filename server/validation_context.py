@@ -1,0 +1,166 @@
+"""The rover's side of sequence validation: a ``ValidationContext`` from ``sim``.
+
+``sequences.validate`` predicts when each command starts and asks the context for Earth's
+elevation there (HGA passes: at the start and end of each). One DE421 evaluation per
+question made a 40,000-line upload cost minutes of CPU. Here the ephemeris is sampled
+coarsely, and only what changes slowly is interpolated:
+
+- ``sim.mars_frames.body_ll_truth`` is ``R_ll_mf (Rz(W) Q p + parallax, aberration)``:
+  the light-time corrected position ``p`` of the body from Mars (J2000) and Mars' velocity
+  come from DE421; ``Q`` is Mars' pole orientation (IAU: a tenth of a degree per century);
+  ``W``, the prime meridian, turns 351 deg a day, exactly linearly (IAU 2009).
+- So ``Q p`` and ``Q v`` are sampled every ``COARSE_S`` (a quarter sol), ``BLOCK`` samples
+  (32 sols) per ephemeris call, computed when first needed and kept for the request; a
+  question interpolates them linearly (the body's motion over a quarter sol curves by a
+  few hundred km in 55 million: 1e-5 rad) and applies ``W``, the parallax and the
+  aberration exactly, in plain Python (microseconds).
+
+A sequence therefore costs one ephemeris call per 32 sols it reaches, however often it
+asks: 40,000 HGA passes (406 sols) take 13 calls, and one HGA pass on each of the 17,600
+sols the ephemeris covers ~550. tests/test_validation_context.py checks the elevations
+against ``body_ll_truth`` (within 0.05 deg over a sol at both landing sites) and counts
+the calls. The context also carries the ephemeris' last instant, past which
+``sequences.validate`` refuses a step instead of asking.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sequences.validate import AqfName, ValidationContext
+from server.runtime import RoverRuntime
+from sim.ephemeris import C_KM_S, Body, astrometric_from_mars_j2000_km, coverage_t_s
+from sim.ephemeris import mars_velocity_j2000_km_s as mars_velocity
+from sim.mars_frames import R_ll_mf, R_mf_j2000, iau_mars_angles_rad, site_mf_m
+from sim.marsclock import (
+    SOL_S,
+    get_mission,
+    lmst_h_from_t_s,
+    sol_number_t_s,
+    t_s_for_sol_lmst,
+)
+
+COARSE_S = SOL_S / 4.0  # s between ephemeris samples
+BLOCK = 128  # samples per ephemeris call: 32 sols
+
+_Vec = tuple[float, float, float]
+
+
+class SampledElevation:
+    """Elevation (deg, positive up) of ``body`` ("earth" or "sun") above a site
+    (planetographic ``lat_rad``, ``lon_east_rad``) at TT seconds ``t_s``: what
+    ``elevation_rad(body_ll_truth(...))`` gives, from ephemeris samples (module docstring)
+    taken in blocks from ``origin_t_s`` on. ``end_t_s`` is the last instant that may be
+    asked (the ephemeris' end): no sample lies beyond it; a later ``t_s`` is a ValueError.
+    """
+
+    def __init__(
+        self, body: Body, lat_rad: float, lon_east_rad: float, origin_t_s: float, end_t_s: float
+    ) -> None:
+        if not origin_t_s <= end_t_s:
+            raise ValueError(f"origin_t_s: must be at most end_t_s, got {origin_t_s}")
+        self._body = body
+        self._origin, self._end = origin_t_s, end_t_s
+        site_km = site_mf_m(lat_rad, lon_east_rad) / 1000.0
+        self._site_km: _Vec = (float(site_km[0]), float(site_km[1]), float(site_km[2]))
+        down = R_ll_mf(lat_rad, lon_east_rad)[2]
+        self._down: _Vec = (float(down[0]), float(down[1]), float(down[2]))
+        # block index -> (times, W unwrapped, Q p, Q v) at BLOCK + 1 samples
+        self._blocks: dict[int, tuple[list[float], list[float], list[_Vec], list[_Vec]]] = {}
+
+    @property
+    def blocks_sampled(self) -> int:
+        """How many blocks have been computed (each one call per ephemeris function)."""
+        return len(self._blocks)
+
+    def __call__(self, t_s: float) -> float:
+        if not t_s <= self._end:
+            raise ValueError(f"t_s: {t_s} is past the end of the samples ({self._end})")
+        k = math.floor((t_s - self._origin) / (COARSE_S * BLOCK))
+        times, w, qp, qv = self._blocks.get(k) or self._sample(k)
+        i = max(0, min(int((t_s - times[0]) / COARSE_S), BLOCK - 1))
+        t0, t1 = times[i], times[i + 1]
+        f = (t_s - t0) / (t1 - t0) if t1 > t0 else 0.0
+        angle = w[i] + f * (w[i + 1] - w[i])  # W is linear in t (IAU 2009)
+        c, s = math.cos(angle), math.sin(angle)
+        (a0, a1, a2), (b0, b1, b2) = qp[i], qp[i + 1]
+        x, y, z = a0 + f * (b0 - a0), a1 + f * (b1 - a1), a2 + f * (b2 - a2)
+        sx, sy, sz = self._site_km
+        px, py, pz = c * x + s * y - sx, -s * x + c * y - sy, z - sz  # Rz(W) Q p - site
+        (a0, a1, a2), (b0, b1, b2) = qv[i], qv[i + 1]
+        x, y, z = a0 + f * (b0 - a0), a1 + f * (b1 - a1), a2 + f * (b2 - a2)
+        vx, vy, vz = c * x + s * y, -s * x + c * y, z
+        norm = math.sqrt(px * px + py * py + pz * pz)
+        ux, uy, uz = px / norm + vx / C_KM_S, py / norm + vy / C_KM_S, pz / norm + vz / C_KM_S
+        dx, dy, dz = self._down
+        sin_elev = -(dx * ux + dy * uy + dz * uz) / math.sqrt(ux * ux + uy * uy + uz * uz)
+        return math.degrees(math.asin(max(-1.0, min(1.0, sin_elev))))
+
+    def _sample(self, k: int) -> tuple[list[float], list[float], list[_Vec], list[_Vec]]:
+        start = self._origin + k * COARSE_S * BLOCK
+        t = np.minimum(start + COARSE_S * np.arange(BLOCK + 1), self._end)
+        w = iau_mars_angles_rad(t)[2]
+        c, s = np.cos(w), np.sin(w)
+        zero, one = np.zeros_like(c), np.ones_like(c)
+        rz_t = np.stack(  # Rz(W) transposed: Q = Rz(W)^T R_mf_j2000
+            [np.stack(r, axis=-1) for r in ([c, -s, zero], [s, c, zero], [zero, zero, one])],
+            axis=-2,
+        )
+        q = rz_t @ R_mf_j2000(t)
+        qp = (q @ astrometric_from_mars_j2000_km(self._body, t)[:, :, None])[:, :, 0]
+        qv = (q @ mars_velocity(t)[:, :, None])[:, :, 0]
+        block = (
+            t.tolist(),
+            np.unwrap(w).tolist(),
+            [(float(a), float(b), float(c)) for a, b, c in qp],
+            [(float(a), float(b), float(c)) for a, b, c in qv],
+        )
+        self._blocks[k] = block
+        return block
+
+
+def site_context(
+    mission: str,
+    lat_rad: float,
+    lon_east_rad: float,
+    start_t_s: float,
+    aqf: AqfName = "Unknown",
+    imu_integration_s: float = 0.0,
+    articulating: bool = False,
+) -> ValidationContext:
+    """A context for a rover of ``mission`` (its sol clock) at a site (planetographic
+    latitude, East longitude, rad) from ``start_t_s`` (TT s since J2000), with Earth's and
+    the sun's elevation sampled (``SampledElevation``) up to the end of DE421."""
+    lon_west_deg = get_mission(mission).lon_west_deg
+    end_t_s = coverage_t_s()[1]
+    origin = min(start_t_s, end_t_s)
+
+    return ValidationContext(
+        start_t_s=start_t_s,
+        lmst_h=lambda t_s: float(lmst_h_from_t_s(t_s, lon_west_deg)),
+        sol=lambda t_s: int(sol_number_t_s(mission, t_s)),
+        t_s_for=lambda sol, lmst_h: t_s_for_sol_lmst(mission, sol, lmst_h),
+        earth_elevation_deg=SampledElevation("earth", lat_rad, lon_east_rad, origin, end_t_s),
+        aqf=aqf,
+        imu_integration_s=imu_integration_s,
+        articulating=articulating,
+        ephemeris_end_t_s=end_t_s,
+        sun_elevation_deg=SampledElevation("sun", lat_rad, lon_east_rad, origin, end_t_s),
+    )
+
+
+def validation_context(runtime: RoverRuntime) -> ValidationContext:
+    """What validation needs to know of a rover, from its state now."""
+    sim = runtime.session.sim
+    frame = runtime.last_frame or {}
+    return site_context(
+        runtime.spec.mission,
+        sim.lat_rad,
+        sim.lon_east_rad,
+        runtime.t_s,
+        aqf=frame.get("aqf", runtime.session.nate.aqf.paper_name),
+        imu_integration_s=float(frame.get("imu_integration_s", 0.0)),
+        articulating=runtime.session.nate.mode.value == "Articulate",
+    )
