@@ -7,21 +7,23 @@ reader never blocks the server). The delays come from one seeded ``random.Random
 
 - Kills: ``kills`` SIGKILLs while Spirit runs ``SEQUENCE`` (six steps, about 100
   simulated s) at speed ``KILL_SPEED``; every other kill at a random moment (up to
-  ``KILL_WINDOW_S`` after the server answers), the others as soon as a new command row is
-  stored (the moment a step could be stored twice). A sequence that completes is followed
-  by another. ``restart_duplicate_step_rows``: rows beyond one per (sequence, step),
-  counted after every restart and at the end (target 0); ``restart_lost_steps``: steps of
-  the sequences, all completed at the end, without their row, or with another step's
-  command in it (target 0); ``restart_rerun_steps``: re-runs of steps the rows count
-  (``reruns``), reported. ``restart_median_s``: from starting the process to its first
-  answer of ``GET /api/rovers``, median over every restart of the bench.
+  ``KILL_WINDOW_S`` after the server answers), the others as soon as a step's row is
+  stored, new or re-run (the moment a step could be stored twice). A sequence that
+  completes is followed by another. ``restart_duplicate_step_rows``: rows beyond one per
+  (sequence, step) at the end (rows are never deleted; target 0); ``restart_lost_steps``:
+  steps of the sequences, all completed at the end, without a row with their own command
+  (target 0); ``restart_rerun_steps``: re-runs the rows
+  count (``reruns``), reported. ``restart_median_s``: from starting the process to its
+  first answer of ``GET /api/rovers``, median over every restart of the bench.
 - Pauses: Spirit mid-drive at ``KILL_SPEED`` is paused at a random moment, then killed at
   once (SIGKILL) or stopped (SIGTERM), alternately; ``restart_paused_kept_pct``: restarts
   that find it still paused (target 100).
-- SIGTERM: ``restart_sigterm_rewind_s``, the most a stopped rover's clock went back: for a
-  paused rover, its ``t_s`` before the stop minus the restarted one's; for a rover
-  mid-drive at speed ``SIGTERM_SPEED``, its last stored frame minus the ``t_s`` its
-  checkpoint resumes at (target: at most one frame, ``FRAME_EVERY_S``).
+- SIGTERM: ``restart_sigterm_rewind_s``, the most a stopped rover's clock went back: the
+  ``t_s`` it had when stopped minus the ``t_s`` its checkpoint resumes at, read from the
+  database once the process has ended. A paused rover (the SIGTERMs above) had the
+  ``t_s`` the API showed once the pause took effect; a rover mid-drive at speed
+  ``SIGTERM_SPEED``, the ``t_s`` of its last stored frame (target: at most one frame,
+  ``FRAME_EVERY_S``).
 
 Output contract: ``sim.bench._result`` (DESIGN.md "Benchmarks").
 """
@@ -148,10 +150,10 @@ def measure_kills(data_dir: Path, kills: int, rng: random.Random) -> KillRun:
             for k in range(kills):
                 if not run.sequences or _status(server, run.sequences[-1]) == "completed":
                     run.sequences.append(upload(server, ROVER, SEQUENCE))
-                if k % 2:  # right after a new row is stored
-                    stored = len(_rows(store))
+                if k % 2:  # right after a step's row is stored (new, or updated by a re-run)
+                    stored = _recorded(store)
                     with contextlib.suppress(RuntimeError):  # none came: kill anyway
-                        wait_for(partial(_more_rows, store, stored), ROW_TIMEOUT_S, "a row")
+                        wait_for(partial(_recorded_more, store, stored), ROW_TIMEOUT_S, "a row")
                         run.targeted += 1
                 else:
                     time.sleep(rng.uniform(0.0, KILL_WINDOW_S))
@@ -175,8 +177,13 @@ def measure_kills(data_dir: Path, kills: int, rng: random.Random) -> KillRun:
     return run
 
 
-def _more_rows(store: Store, than: int) -> bool:
-    return len(_rows(store)) > than
+def _recorded(store: Store) -> int:
+    """How many times steps were recorded: rows and their re-runs."""
+    return sum(1 + int(r["reruns"]) for r in _rows(store))
+
+
+def _recorded_more(store: Store, than: int) -> bool:
+    return _recorded(store) > than
 
 
 def _ended(server: RunningServer, sequence_id: int) -> bool:
@@ -198,14 +205,14 @@ def kill_metrics(run: KillRun) -> dict[str, Any]:
     """The figures of a ``KillRun`` (module docstring)."""
     expected = list(enumerate(expected_steps()))
     final = Counter((s, i) for s, rows in run.final_rows.items() for i, _c, _r in rows)
-    duplicates = sum(n - 1 for c in [*run.rows_after_restart, final] for n in c.values())
+    duplicates = sum(n - 1 for n in final.values())  # rows are never deleted
     lost = 0
     for sequence_id in run.sequences:
-        got = [(i, c) for i, c, _r in run.final_rows.get(sequence_id, [])]
+        got = {(i, c) for i, c, _r in run.final_rows.get(sequence_id, [])}
         if run.statuses.get(sequence_id) != "completed":
             lost += len(expected)
         else:
-            lost += sum(1 for step in expected if got.count(step) != 1)
+            lost += sum(1 for step in expected if step not in got)
     return {
         "restart_kills": run.kills,
         "restart_kills_after_a_row": run.targeted,
@@ -248,11 +255,11 @@ def measure_pauses(data_dir: Path, trials: int, rng: random.Random) -> dict[str,
             sig = signal.SIGTERM if k % 2 else signal.SIGKILL
             paused_t_s = _settled_t_s(server) if sig == signal.SIGTERM else None
             restarts.end(sig)
+            if paused_t_s is not None:
+                rewinds.append(paused_t_s - _resumes_at(restarts.url)[1])
             server = restarts.start()
             state = server.ok("GET", f"/api/rovers/{ROVER}/state")
             kept.append(state["clock"]["running"] is False)
-            if paused_t_s is not None:
-                rewinds.append(paused_t_s - float(state["t_s"]))
             _clock(server, {"action": "resume"})
     finally:
         restarts.close()
@@ -261,6 +268,24 @@ def measure_pauses(data_dir: Path, trials: int, rng: random.Random) -> dict[str,
         "rewinds_s": rewinds,
         "restart_s": restarts.restart_s,
     }
+
+
+def _driving(server: RunningServer) -> bool:
+    state = server.ok("GET", f"/api/rovers/{ROVER}/state")
+    return bool(state["frame"]) and str(state["executing"]).startswith("DRIVE_STRAIGHT")
+
+
+def _resumes_at(url: str) -> tuple[float, float]:
+    """Of a stopped server's database: the last stored frame's ``t_s`` and the ``t_s``
+    the rover's checkpoint resumes at."""
+    store = Store(url)
+    try:
+        last, saved = store.last_frame(ROVER), store.load_checkpoint(ROVER)
+    finally:
+        store.close()
+    if last is None or saved is None:
+        raise RuntimeError("no frame or no checkpoint stored")
+    return float(last["t_s"]), RoverRuntime.restore(ROVERS[ROVER], saved[1]).t_s
 
 
 def measure_sigterm(data_dir: Path, trials: int, rng: random.Random) -> dict[str, Any]:
@@ -273,16 +298,11 @@ def measure_sigterm(data_dir: Path, trials: int, rng: random.Random) -> dict[str
         _clock(server, {"speed": SIGTERM_SPEED})
         upload(server, ROVER, LONG_DRIVE)
         for _ in range(trials):
-            time.sleep(rng.uniform(0.5, KILL_WINDOW_S))
+            wait_for(partial(_driving, server), 60.0, "the drive's frames")
+            time.sleep(rng.uniform(0.0, KILL_WINDOW_S))
             restarts.end(signal.SIGTERM)
-            store = Store(restarts.url)
-            try:
-                last, saved = store.last_frame(ROVER), store.load_checkpoint(ROVER)
-            finally:
-                store.close()
-            if last is not None and saved is not None:
-                resumed_t_s = RoverRuntime.restore(ROVERS[ROVER], saved[1]).t_s
-                rewinds.append(float(last["t_s"]) - resumed_t_s)
+            last_t_s, resumed_t_s = _resumes_at(restarts.url)
+            rewinds.append(last_t_s - resumed_t_s)
             server = restarts.start()
     finally:
         restarts.close()
