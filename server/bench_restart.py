@@ -31,6 +31,7 @@ Output contract: ``sim.bench._result`` (DESIGN.md "Benchmarks").
 from __future__ import annotations
 
 import contextlib
+import math
 import random
 import signal
 import statistics
@@ -276,16 +277,17 @@ def _driving(server: RunningServer) -> bool:
 
 
 def _resumes_at(url: str) -> tuple[float, float]:
-    """Of a stopped server's database: the last stored frame's ``t_s`` and the ``t_s``
-    the rover's checkpoint resumes at."""
+    """Of a stopped server's database: the last stored frame's ``t_s`` (``-inf`` if none)
+    and the ``t_s`` the rover's checkpoint resumes at."""
     store = Store(url)
     try:
         last, saved = store.last_frame(ROVER), store.load_checkpoint(ROVER)
     finally:
         store.close()
-    if last is None or saved is None:
-        raise RuntimeError("no frame or no checkpoint stored")
-    return float(last["t_s"]), RoverRuntime.restore(ROVERS[ROVER], saved[1]).t_s
+    if saved is None:
+        raise RuntimeError("no checkpoint stored")
+    last_t_s = -math.inf if last is None else float(last["t_s"])
+    return last_t_s, RoverRuntime.restore(ROVERS[ROVER], saved[1]).t_s
 
 
 def measure_sigterm(data_dir: Path, trials: int, rng: random.Random) -> dict[str, Any]:
@@ -331,10 +333,10 @@ def bench_restart(
     metrics.update(
         {
             "restart_paused_trials": len(kept),
-            "restart_paused_kept_pct": 100.0 * sum(kept) / len(kept) if kept else float("nan"),
+            "restart_paused_kept_pct": 100.0 * sum(kept) / len(kept) if kept else math.nan,
             "restart_sigterm_trials": len(rewinds),
-            "restart_sigterm_rewind_s": max(0.0, *rewinds) if rewinds else float("nan"),
-            "restart_median_s": statistics.median(restart_s) if restart_s else float("nan"),
+            "restart_sigterm_rewind_s": max(0.0, *rewinds) if rewinds else math.nan,
+            "restart_median_s": statistics.median(restart_s) if restart_s else math.nan,
             "restart_restarts": len(restart_s),
         }
     )
