@@ -152,10 +152,7 @@ def measure_kills(data_dir: Path, kills: int, rng: random.Random) -> KillRun:
                 if not run.sequences or _status(server, run.sequences[-1]) == "completed":
                     run.sequences.append(upload(server, ROVER, SEQUENCE))
                 if k % 2:  # right after a step's row is stored (new, or updated by a re-run)
-                    stored = _recorded(store)
-                    with contextlib.suppress(RuntimeError):  # none came: kill anyway
-                        wait_for(partial(_recorded_more, store, stored), ROW_TIMEOUT_S, "a row")
-                        run.targeted += 1
+                    run.targeted += _until_a_row(store, server, run.sequences[-1])
                 else:
                     time.sleep(rng.uniform(0.0, KILL_WINDOW_S))
                 restarts.end(signal.SIGKILL)
@@ -183,8 +180,16 @@ def _recorded(store: Store) -> int:
     return sum(1 + int(r["reruns"]) for r in _rows(store))
 
 
-def _recorded_more(store: Store, than: int) -> bool:
-    return _recorded(store) > than
+def _until_a_row(store: Store, server: RunningServer, sequence_id: int) -> bool:
+    """Wait until a step is recorded (True), or the sequence ends without one (False)."""
+    stored = _recorded(store)
+
+    def recorded_or_ended() -> int:
+        return 1 if _recorded(store) > stored else 2 if _ended(server, sequence_id) else 0
+
+    with contextlib.suppress(RuntimeError):
+        return bool(wait_for(recorded_or_ended, ROW_TIMEOUT_S, "a row") == 1)
+    return False
 
 
 def _ended(server: RunningServer, sequence_id: int) -> bool:
