@@ -124,7 +124,8 @@ class Server:
 
     def _resume(self, runtime: RoverRuntime) -> None:
         """After a restart: no frame stored twice, and every accepted sequence the
-        checkpoint does not hold (accepted or started after it) queued again, in order."""
+        checkpoint does not hold (accepted or started after it) queued again, in order, an
+        immediate command (format ``command``) first as when it was sent."""
         rover = runtime.spec.name
         last = self.store.last_frame(rover)
         if last is not None:
@@ -145,7 +146,7 @@ class Server:
             if result.sequence is None:  # cannot happen: it was accepted
                 self.store.set_sequence_status(summary["id"], "failed", "unreadable after restart")
                 continue
-            runtime.enqueue(summary["id"], result.sequence)
+            runtime.enqueue(summary["id"], result.sequence, stored["format"] == "command")
 
     def _frames(self, rover: str, frames: list[dict[str, Any]]) -> None:
         self.writer.frames(rover, frames)

@@ -105,3 +105,20 @@ def test_kills_at_random_moments_leave_one_row_per_step(tmp_path: Path) -> None:
     for seq_id in run.sequences:  # at the end: each step once, in order, with its command
         assert run.statuses[seq_id] == "completed"
         assert [(i, c) for i, c, _reruns in run.final_rows[seq_id]] == expected
+
+
+def test_an_immediate_command_stays_first_after_a_restart(tmp_path: Path) -> None:
+    """An immediate command sent after the last checkpoint is queued again on restart
+    from its stored record, and still runs before the queued sequence, as it would have."""
+    url = f"sqlite:///{tmp_path / 'roverops.db'}"
+    first, runtime = _server(url)
+    seq_id = _queue(first, runtime, SEQ)
+    runtime.checkpoint()
+    first.writer.flush()
+    cmd_id = _queue(first, runtime, {"steps": [{"command": "SUNFIND"}]}, immediate=True)
+    assert runtime.queued_ids() == [cmd_id, seq_id]
+    first.store.close()  # killed before the next checkpoint
+
+    second, runtime = _server(url)
+    assert runtime.queued_ids() == [cmd_id, seq_id]
+    second.stop()
