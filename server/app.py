@@ -171,6 +171,7 @@ class Server:
             runtime.on_command = self._command
             runtime.on_sequence = self._sequence
             runtime.on_checkpoint = self.writer.checkpoint
+            runtime.commit = self.writer.flush  # a clock change is stored when it answers
             self.rovers[name] = runtime
         self.scenes: dict[str, RoverScene] = {}
         if config.viewer_3d:
@@ -178,7 +179,8 @@ class Server:
 
     def _resume(self, runtime: RoverRuntime) -> None:
         """After a restart: no frame stored twice, and every accepted sequence the
-        checkpoint does not hold (accepted or started after it) queued again, in order."""
+        checkpoint does not hold (accepted or started after it) queued again, in order, an
+        immediate command (format ``command``) first as when it was sent."""
         rover = runtime.spec.name
         last = self.store.last_frame(rover)
         if last is not None:
@@ -199,7 +201,7 @@ class Server:
             if result.sequence is None:  # cannot happen: it was accepted
                 self.store.set_sequence_status(summary["id"], "failed", "unreadable after restart")
                 continue
-            runtime.enqueue(summary["id"], result.sequence)
+            runtime.enqueue(summary["id"], result.sequence, stored["format"] == "command")
 
     def _frames(self, rover: str, frames: list[dict[str, Any]]) -> None:
         self.writer.frames(rover, frames)
@@ -224,6 +226,8 @@ class Server:
                 runtime.start()
 
     def stop(self) -> None:
+        """Each rover's clock stopped and checkpointed where it stopped, then everything
+        written: a graceful stop (SIGTERM) loses nothing."""
         for runtime in self.rovers.values():
             runtime.stop()
         for scene in self.scenes.values():

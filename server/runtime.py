@@ -25,7 +25,14 @@ The whole runtime state (session, queue, clock, frames still to play out) is che
 (pickled, about 10 kB) once per wall second through the storage writer, in the same
 transaction as the frames published before it. A runtime restored from a checkpoint
 resumes there; frames it publishes again up to the last stored one (``watermark_t_s``) are
-dropped, so storage has no duplicates.
+dropped, so storage has no duplicates. Steps it runs again (those after the checkpoint)
+report again, and storage keeps one row per step (``server.storage``).
+
+The clock is the operators' intent, so it survives any restart (issue 13, defect 7): a
+clock change (pause, resume, speed) is checkpointed at once, as the last checkpoint with
+the new clock (``commit`` then stores it before ``set_clock`` returns), and again by the
+clock thread where the change takes effect, paused or not; and ``stop`` checkpoints the
+state the clock thread stopped in, so a graceful stop loses nothing.
 """
 
 from __future__ import annotations
@@ -118,7 +125,9 @@ Listener = Callable[[str, list[dict[str, Any]]], None]
 class RoverRuntime:
     """One rover on its own clock (module docstring). ``listeners`` receive every frame
     batch as it is played out (storage, WebSocket hub); ``on_command`` every command
-    report; ``on_sequence`` sequence status changes; ``on_checkpoint`` pickled state."""
+    report; ``on_sequence`` sequence status changes; ``on_checkpoint`` pickled state (called
+    under ``lock``, so checkpoints arrive in the order they were taken); ``commit`` stores
+    what ``on_checkpoint`` queued, at once (a clock change)."""
 
     def __init__(
         self,
@@ -137,6 +146,7 @@ class RoverRuntime:
         self.on_command: Callable[[str, dict[str, Any]], None] | None = None
         self.on_sequence: Callable[[int, str, str | None], None] | None = None
         self.on_checkpoint: Callable[[str, float, bytes], None] | None = None
+        self.commit: Callable[[], None] | None = None
         self.executing: str = ""
         self._playout: deque[dict[str, Any]] = deque()
         self._clock_t_s = self.session.sim.t_s  # the published clock (<= the session's)
@@ -144,6 +154,8 @@ class RoverRuntime:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._last_checkpoint_wall = 0.0
+        self._last_blob: bytes | None = None  # the last checkpoint taken (or restored)
+        self._clock_changed = False  # since the clock thread's last checkpoint
         self.last_frame: dict[str, Any] | None = None
         self.watermark_t_s = -math.inf  # frames up to here are stored already (restore)
 
@@ -162,18 +174,39 @@ class RoverRuntime:
         self._thread.start()
 
     def stop(self) -> None:
-        """Stop the clock thread (at the next tick)."""
+        """Stop the clock thread (at the next tick) and checkpoint the state it stopped in:
+        a graceful stop loses nothing, not even the last second."""
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=30.0)
+            if self._thread.is_alive():  # a command still computing: its state is not whole
+                log.warning(
+                    "rover %s: clock thread still busy; no final checkpoint", self.spec.name
+                )
+                return
+        self.checkpoint()
 
     def set_clock(self, running: bool | None = None, speed: float | None = None) -> None:
-        """Pause/resume and set the speed (validated by the caller)."""
+        """Pause/resume and set the speed (validated by the caller). A change is stored
+        before this returns: the last checkpoint again, with the new clock (the session
+        may be mid-command in the clock thread, so it is not pickled from here); the clock
+        thread checkpoints the state the change took effect in at its next tick."""
         with self.lock:
+            before = (self.clock.running, self.clock.speed)
             if running is not None:
                 self.clock.running = running
             if speed is not None:
                 self.clock.speed = speed
+            if (self.clock.running, self.clock.speed) == before:
+                return
+            self._clock_changed = True
+            if self._last_blob is None or self.on_checkpoint is None:
+                return
+            state = pickle.loads(self._last_blob)
+            state["clock"] = ClockState(self.clock.running, self.clock.speed)
+            self._save(state)
+        if self.commit is not None:
+            self.commit()
 
     def enqueue(self, sequence_id: int, sequence: Sequence, immediate: bool = False) -> None:
         """Queue an accepted sequence (an immediate command goes first)."""
@@ -258,13 +291,16 @@ class RoverRuntime:
 
     def _tick(self, dt_wall: float) -> None:
         with self.lock:
-            if not self.clock.running:
-                return
-            speed = self.clock.speed
+            running, speed, changed = self.clock.running, self.clock.speed, self._clock_changed
+        if changed or (
+            running and time.monotonic() - self._last_checkpoint_wall >= CHECKPOINT_EVERY_S
+        ):
+            self.checkpoint()  # a paused clock is checkpointed once, where it stopped
+        if not running:
+            return
         # A tick that came late (a command took seconds to compute) does not burst: the
         # clock catches up at most MAX_TICK_S of wall time.
         budget = math.inf if math.isinf(speed) else speed * min(dt_wall, MAX_TICK_S)
-        self._maybe_checkpoint()
         # 1. play out frames of the last command
         if self._playout:
             self._advance_playout(budget)
@@ -410,23 +446,32 @@ class RoverRuntime:
         if self.on_sequence is not None:
             self.on_sequence(sequence_id, status, detail)
 
-    def _maybe_checkpoint(self) -> None:
-        now = time.monotonic()
-        if self.on_checkpoint is None or now - self._last_checkpoint_wall < CHECKPOINT_EVERY_S:
+    def checkpoint(self) -> None:
+        """Checkpoint the whole state now. Only from the clock thread, or when it is not
+        running: the session must not be in the middle of a command."""
+        self._last_checkpoint_wall = time.monotonic()
+        if self.on_checkpoint is None:
             return
-        self._last_checkpoint_wall = now
         with self.lock:
-            state = {
-                "session": self.session,
-                "queue": list(self.queue),
-                "clock": self.clock,
-                "last_done_t_s": self._last_done_t_s,
-                "playout": list(self._playout),
-                "clock_t_s": self._clock_t_s,
-                "executing": self.executing,
-            }
-            blob = pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
-        self.on_checkpoint(self.spec.name, self.session.sim.t_s, blob)
+            self._clock_changed = False
+            self._save(
+                {
+                    "session": self.session,
+                    "queue": list(self.queue),
+                    "clock": self.clock,
+                    "last_done_t_s": self._last_done_t_s,
+                    "playout": list(self._playout),
+                    "clock_t_s": self._clock_t_s,
+                    "executing": self.executing,
+                }
+            )
+
+    def _save(self, state: dict[str, Any]) -> None:
+        """Pickle ``state`` and hand it to ``on_checkpoint`` (the caller holds ``lock``)."""
+        assert self.on_checkpoint is not None
+        blob = pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
+        self._last_blob = blob
+        self.on_checkpoint(self.spec.name, state["session"].sim.t_s, blob)
 
     @classmethod
     def restore(cls, spec: RoverSpec, blob: bytes) -> RoverRuntime:
@@ -439,6 +484,7 @@ class RoverRuntime:
         runtime._playout = deque(state["playout"])
         runtime._clock_t_s = state["clock_t_s"]
         runtime.executing = state["executing"]
+        runtime._last_blob = blob
         return runtime
 
 

@@ -18,6 +18,14 @@ Choices worth knowing:
   for "no value" (a tilt before the first estimate), so non-finite floats are stored as
   ``null`` on every database and read back as ``None``.
 - Timestamps are wall-clock UTC, returned as ISO 8601 strings with ``+00:00``.
+- A step of a sequence has one command row, whatever the restarts (issue 13, defect 8): a
+  server killed after a step's row was stored but before a checkpoint after that step runs
+  the step again from its checkpoint, and recording it again updates the row and counts
+  the re-run (``reruns``). The rule lives in the write path, not in a unique index, so a
+  database that already holds such duplicates opens as before.
+- The schema grows in place: opening a database adds the columns and indexes this version
+  declares and it lacks (``_upgrade_schema``), so a database of an older version keeps
+  working; a column added this way must be nullable or have a ``server_default``.
 
 >>> store = Store("sqlite://")
 >>> store.add_events("spirit", [(10.0, "Site planted")])
@@ -57,11 +65,12 @@ from sqlalchemy import (
     insert,
     inspect,
     select,
+    text,
     update,
 )
-from sqlalchemy import text as sql_text
 from sqlalchemy.engine import Connection, Engine, RowMapping, make_url
 from sqlalchemy.pool import StaticPool
+from sqlalchemy.schema import CreateColumn
 
 log = logging.getLogger(__name__)
 
@@ -105,7 +114,10 @@ commands = Table(
     Column("end_t_s", Double, nullable=False),
     Column("events", JSON, nullable=False),
     Column("created_at", DateTime(timezone=True), nullable=False, default=_now),
+    # times the step ran again after a restart (module docstring)
+    Column("reruns", Integer, nullable=False, default=0, server_default="0"),
     Index("ix_commands_rover_start", "rover", "start_t_s"),
+    Index("ix_commands_sequence_step", "sequence_id", "step_index"),
 )
 
 events = Table(
@@ -182,37 +194,6 @@ audit_log = Table(
 )
 
 
-def add_missing_columns(engine: Engine) -> list[str]:
-    """Bring a database made by an older version up to ``metadata``: every column the code
-    declares and the table lacks is added (``ALTER TABLE ... ADD COLUMN``, nullable, on
-    SQLite and PostgreSQL alike). New tables come from ``create_all``; this covers the
-    columns later versions add to existing tables. Returns ``table.column`` added."""
-    inspector = inspect(engine)
-    added: list[str] = []
-    with engine.begin() as conn:
-        for table in metadata.sorted_tables:
-            if not inspector.has_table(table.name):
-                continue
-            have = {c["name"] for c in inspector.get_columns(table.name)}
-            for column in table.columns:
-                if column.name in have:
-                    continue
-                if not column.nullable:
-                    raise RuntimeError(f"cannot add NOT NULL column {table.name}.{column.name}")
-                kind = column.type.compile(dialect=engine.dialect)
-                preparer = engine.dialect.identifier_preparer
-                conn.execute(
-                    sql_text(
-                        f"ALTER TABLE {preparer.quote(table.name)} "
-                        f"ADD COLUMN {preparer.quote(column.name)} {kind}"
-                    )
-                )
-                added.append(f"{table.name}.{column.name}")
-    if added:
-        log.warning("storage: upgraded the schema, added %s", ", ".join(added))
-    return added
-
-
 def _finite(value: Any) -> Any:
     """``value`` with every non-finite float (NaN, ±inf) replaced by ``None``."""
     if isinstance(value, float):
@@ -270,7 +251,7 @@ class Store:
         if self.is_sqlite:
             event.listen(self.engine, "connect", _sqlite_pragmas)
         metadata.create_all(self.engine)
-        add_missing_columns(self.engine)
+        _upgrade_schema(self.engine)
 
     def close(self) -> None:
         """Close every pooled connection (the store is not usable afterwards)."""
@@ -358,13 +339,12 @@ class Store:
         end_t_s: float,
         events: list[str],
     ) -> int:
-        """Store one executed or refused command; its new id."""
+        """Store one executed or refused command; its row's id. A step of a sequence
+        already stored (run again after a restart) updates its row (module docstring)."""
         row = _command_row(rover, sequence_id, step_index, command, status, reason,
                            start_t_s, end_t_s, events)  # fmt: skip
         with self.engine.begin() as conn:
-            key = conn.execute(insert(commands).values(**row)).inserted_primary_key
-            assert key is not None
-            return int(key[0])
+            return _record_command(conn, row)
 
     def commands(self, rover: str, t_from: float, t_to: float) -> list[dict[str, Any]]:
         """Commands whose [start, end] overlaps [t_from, t_to], by start time."""
@@ -490,9 +470,9 @@ class Store:
                 insert(events), [{"rover": r, "t_s": float(t), "text": x} for r, t, x in rows]
             )
 
-    def _insert_commands(self, conn: Connection, rows: list[dict[str, Any]]) -> None:
-        if rows:
-            conn.execute(insert(commands), rows)
+    def _record_commands(self, conn: Connection, rows: list[dict[str, Any]]) -> None:
+        for row in rows:  # a few per flush: one per step completed
+            _record_command(conn, row)
 
     def _replace_checkpoints(self, conn: Connection, saved: dict[str, tuple[float, bytes]]) -> None:
         # Delete-then-insert in one transaction is the portable upsert; only the writer
@@ -513,6 +493,63 @@ def _sqlite_pragmas(dbapi_connection: Any, _record: Any) -> None:
     cursor.execute("PRAGMA synchronous=NORMAL")
     cursor.execute("PRAGMA foreign_keys=ON")
     cursor.close()
+
+
+def _record_command(conn: Connection, row: dict[str, Any]) -> int:
+    """Insert a command row, or update the row of the same step (``sequence_id``,
+    ``step_index``) and count the re-run: every row of it, should a database of an older
+    version hold the step twice. The id of the (first) row."""
+    c = commands.c
+    if row["sequence_id"] is not None and row["step_index"] is not None:
+        same_step = (c.sequence_id == row["sequence_id"], c.step_index == row["step_index"])
+        found = conn.execute(select(func.min(c.id)).where(*same_step)).scalar()
+        if found is not None:
+            report = {k: v for k, v in row.items() if k != "created_at"}
+            conn.execute(update(commands).where(*same_step).values(**report, reruns=c.reruns + 1))
+            return int(found)
+    key = conn.execute(insert(commands).values(**row)).inserted_primary_key
+    assert key is not None
+    return int(key[0])
+
+
+def _upgrade_schema(engine: Engine) -> None:
+    """Bring an existing database up to ``metadata``: missing columns, then missing indexes
+    (``create_all`` only creates missing tables, with their indexes). A unique index added
+    to an existing table would fail on rows that break it: migrate those by hand."""
+    _add_missing_columns(engine)
+    with engine.begin() as conn:
+        for table in metadata.sorted_tables:
+            for index in table.indexes:
+                index.create(conn, checkfirst=True)
+
+
+def _add_missing_columns(engine: Engine, meta: MetaData = metadata) -> list[str]:
+    """``ALTER TABLE ... ADD COLUMN`` each column a table of ``meta`` declares and the
+    database's table lacks (tables the database lacks are ``create_all``'s). The column is
+    written as ``CREATE TABLE`` would write it (type, ``server_default``, ``NOT NULL``), so
+    one that is not nullable needs a ``server_default`` for the rows already there
+    (``ValueError`` naming it otherwise, before anything changes). The names added, as
+    ``table.column``; works on SQLite and PostgreSQL."""
+    with engine.begin() as conn:
+        inspector = inspect(conn)
+        present = set(inspector.get_table_names())
+        missing: list[tuple[Table, Column[Any]]] = []
+        for table in meta.sorted_tables:
+            if table.name in present:
+                have = {col["name"] for col in inspector.get_columns(table.name)}
+                missing += [(table, col) for col in table.columns if col.name not in have]
+        for table, column in missing:
+            if not column.nullable and column.server_default is None:
+                raise ValueError(
+                    f"{table.name}.{column.name}: cannot add a NOT NULL column without a "
+                    "server_default to an existing table"
+                )
+        quote = engine.dialect.identifier_preparer.format_table
+        for table, column in missing:
+            ddl = CreateColumn(column).compile(dialect=engine.dialect)
+            conn.execute(text(f"ALTER TABLE {quote(table)} ADD COLUMN {ddl}"))
+            log.info("storage: added column %s.%s", table.name, column.name)
+    return [f"{table.name}.{column.name}" for table, column in missing]
 
 
 def _command_row(
@@ -611,7 +648,7 @@ class BatchWriter:
             parts: list[tuple[str, Callable[[Connection], None]]] = [
                 ("frames", lambda conn: store._insert_frames(conn, frames)),
                 ("events", lambda conn: store._insert_events(conn, events)),
-                ("commands", lambda conn: store._insert_commands(conn, commands_)),
+                ("commands", lambda conn: store._record_commands(conn, commands_)),
                 ("checkpoints", lambda conn: store._replace_checkpoints(conn, saved)),
             ]
             try:

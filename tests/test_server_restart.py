@@ -1,6 +1,11 @@
 """A server killed with SIGKILL mid-drive and restarted on the same database loses at most
 the last second: every accepted sequence and every frame stored a second before the kill
-are still there, and the rover resumes and finishes its drive (issue 4, item 5)."""
+are still there, and the rover resumes and finishes its drive (issue 4, item 5).
+
+The clock survives restarts too (issue 13, defect 7): a paused rover comes back paused
+after SIGKILL (a clock change is stored when the request answers) and after SIGTERM, and a
+graceful stop checkpoints each rover where its clock stopped, so the rover resumes at the
+``t_s`` it had, not at its last periodic checkpoint."""
 
 from __future__ import annotations
 
@@ -17,6 +22,9 @@ from typing import Any
 import httpx
 import pytest
 
+from server.runtime import FRAME_EVERY_S, ROVERS, RoverRuntime
+from server.storage import Store
+
 TOKEN = "restart-test-token"
 AUTH = {"Authorization": f"Bearer {TOKEN}"}
 DRIVE = "SEQUENCE long_drive\nDRIVE_STRAIGHT distance_m=20\n"
@@ -30,11 +38,15 @@ def _free_port() -> int:
 
 
 def _start(
-    data_dir: Path, port: int, token: str = TOKEN, estimators: str = "sapp"
+    data_dir: Path,
+    port: int,
+    token: str = TOKEN,
+    estimators: str = "sapp",
+    three_d: bool = True,
 ) -> subprocess.Popen[bytes]:
     """``roverops serve`` as its own process (the real server, as an operator runs it,
-    with ``--estimators``); its output goes to ``server.log`` in ``data_dir`` (a pipe nobody
-    reads would fill up and stall the server)."""
+    with ``--estimators``, and ``--no-3d`` unless ``three_d``); its output goes to
+    ``server.log`` in ``data_dir`` (a pipe nobody reads would fill up and stall the server)."""
     env = dict(os.environ, ROVEROPS_OPERATOR_TOKEN=token)
     cmd = [
         sys.executable,
@@ -47,6 +59,7 @@ def _start(
         str(data_dir),
         "--estimators",
         estimators,
+        *([] if three_d else ["--no-3d"]),
     ]
     with open(data_dir / "server.log", "ab") as log:
         return subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT)
@@ -112,3 +125,107 @@ def test_sigkill_mid_drive_then_restart_loses_at_most_a_second(
         lambda: (s := c.get("/api/rovers/spirit/state").json())["executing"] == "" and s["frame"]
     )
     assert 19.0 < frame["p_s_est"][0] < 21.5  # resumed and finished the 20 m
+
+
+def _up(tmp_path: Path, port: int, servers: list[subprocess.Popen[bytes]]) -> httpx.Client:
+    """A server (no 3D view) on ``port`` over ``tmp_path``'s database, answering."""
+    servers.append(_start(tmp_path, port, three_d=False))
+    c = httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=10.0)
+    _wait(lambda: c.get("/api/rovers").status_code == 200)
+    return c
+
+
+def _end(servers: list[subprocess.Popen[bytes]], sig: int) -> None:
+    servers[-1].send_signal(sig)
+    assert servers[-1].wait(timeout=30) == -sig
+
+
+def _clock(c: httpx.Client, body: dict[str, Any]) -> dict[str, Any]:
+    r = c.post("/api/rovers/spirit/clock", json=body, headers=AUTH)
+    r.raise_for_status()
+    clock: dict[str, Any] = r.json()
+    return clock
+
+
+def _stopped_t_s(c: httpx.Client) -> float:
+    """Spirit's ``t_s`` once a pause has taken effect (two reads apart agree)."""
+
+    def settled() -> float | None:
+        first = float(c.get("/api/rovers/spirit/state").json()["t_s"])
+        time.sleep(0.3)
+        second = float(c.get("/api/rovers/spirit/state").json()["t_s"])
+        return first if first == second else None
+
+    t_s: float = _wait(settled)
+    return t_s
+
+
+def test_a_paused_rover_stays_paused_after_sigkill(
+    tmp_path: Path, servers: list[subprocess.Popen[bytes]]
+) -> None:
+    port = _free_port()
+    c = _up(tmp_path, port, servers)
+    _clock(c, {"speed": 20})
+    assert _clock(c, {"action": "pause"})["running"] is False
+    _end(servers, signal.SIGKILL)  # at once: a clock change is stored when it answers
+
+    c = _up(tmp_path, port, servers)
+    rovers = {r["rover"]: r["clock"] for r in c.get("/api/rovers").json()}
+    assert rovers["spirit"] == {"running": False, "speed": 20}
+    assert rovers["opportunity"]["running"] is True  # only the rover that was paused
+    t_s = c.get("/api/rovers/spirit/state").json()["t_s"]
+    time.sleep(0.5)
+    assert c.get("/api/rovers/spirit/state").json()["t_s"] == t_s  # and its clock stands
+
+
+def test_a_paused_rover_stays_paused_where_it_was_after_sigterm(
+    tmp_path: Path, servers: list[subprocess.Popen[bytes]]
+) -> None:
+    port = _free_port()
+    c = _up(tmp_path, port, servers)
+    _clock(c, {"speed": 20})
+    _clock(c, {"action": "pause"})
+    paused_t_s = _stopped_t_s(c)
+    _end(servers, signal.SIGTERM)
+
+    c = _up(tmp_path, port, servers)
+    state = c.get("/api/rovers/spirit/state").json()
+    assert state["clock"] == {"running": False, "speed": 20}
+    assert abs(state["t_s"] - paused_t_s) <= FRAME_EVERY_S  # not rewound
+    assert state["t_s"] == paused_t_s  # indeed not moved at all
+
+
+def test_a_running_rover_resumes_where_sigterm_stopped_it(
+    tmp_path: Path, servers: list[subprocess.Popen[bytes]]
+) -> None:
+    """Mid-drive at speed 100 (5 simulated s a tick): the checkpoint a graceful stop leaves
+    is at or after the last frame it stored, where a periodic checkpoint lags by a tick or
+    more; and the restarted rover goes on from there with its drive."""
+    port = _free_port()
+    c = _up(tmp_path, port, servers)
+    _clock(c, {"speed": 100})
+    r = c.post("/api/rovers/spirit/sequences", content=DRIVE, headers=AUTH)
+    assert r.status_code == 201, r.text
+    _wait(
+        lambda: (
+            (f := c.get("/api/rovers/spirit/state").json()["frame"])
+            and 2.0 < f["p_s_est"][0] < 15.0
+        )
+    )
+    _end(servers, signal.SIGTERM)
+
+    store = Store(f"sqlite:///{tmp_path / 'roverops.db'}")
+    try:
+        last = store.last_frame("spirit")
+        saved = store.load_checkpoint("spirit")
+    finally:
+        store.close()
+    assert last is not None and saved is not None
+    resumed = RoverRuntime.restore(ROVERS["spirit"], saved[1])
+    assert resumed.t_s >= last["t_s"]  # nothing stored lies beyond where it resumes
+    assert resumed.t_s - last["t_s"] <= FRAME_EVERY_S  # nor does it skip ahead
+    assert resumed.executing.startswith("DRIVE_STRAIGHT")
+
+    c = _up(tmp_path, port, servers)
+    state = c.get("/api/rovers/spirit/state").json()
+    assert state["t_s"] >= resumed.t_s and state["clock"]["speed"] == 100

@@ -145,6 +145,120 @@ def test_commands_round_trip_and_overlap(store: Store) -> None:
     assert refused["reason"] == "sun too low" and refused["sequence_id"] is None
 
 
+def test_a_step_recorded_twice_is_one_row_marked_as_a_rerun(store: Store) -> None:
+    """Issue 13, defect 8: a step run again after a restart (its checkpoint older than its
+    row) updates its row and counts the re-run; only a step of a sequence has a key."""
+    seq = store.add_sequence("spirit", "s", "", "text", "running", [], [], [])
+    first = store.add_command("spirit", seq, 0, "WAIT", "completed", None, 10.0, 20.0, [])
+    other = store.add_command("spirit", seq, 1, "SUNFIND", "failed", "no sun", 20.0, 30.0, [])
+    again = store.add_command("spirit", seq, 0, "WAIT", "completed", None, 10.0, 20.5, ["e"])
+    assert again == first != other
+    rows = store.commands("spirit", 0.0, 100.0)
+    assert [(r["step_index"], r["reruns"]) for r in rows] == [(0, 1), (1, 0)]
+    assert (rows[0]["end_t_s"], rows[0]["events"]) == (20.5, ["e"])  # the re-run's report
+    store.add_command("spirit", seq, 0, "WAIT", "completed", None, 10.0, 20.0, [])
+    assert store.commands("spirit", 0.0, 100.0)[0]["reruns"] == 2
+    for _ in range(2):  # without a sequence, a command has no key: every one is a row
+        store.add_command("spirit", None, None, "WAIT", "completed", None, 50.0, 60.0, [])
+    assert len(store.commands("spirit", 0.0, 100.0)) == 4
+
+
+def test_the_batch_writer_records_a_step_once(store: Store) -> None:
+    seq = store.add_sequence("spirit", "s", "", "text", "running", [], [], [])
+    writer = BatchWriter(store, interval_s=3600.0)
+
+    def step(index: int, end_t_s: float) -> None:
+        writer.command(
+            "spirit", sequence_id=seq, step_index=index, command="WAIT", status="completed",
+            reason=None, start_t_s=float(index), end_t_s=end_t_s, events=[],
+        )  # fmt: skip
+
+    step(0, 1.0)
+    step(0, 1.5)  # twice in one batch
+    step(1, 2.0)
+    writer.flush()
+    step(1, 2.5)  # and again in a later one
+    writer.flush()
+    rows = store.commands("spirit", 0.0, 10.0)
+    assert [(r["step_index"], r["reruns"], r["end_t_s"]) for r in rows] == [
+        (0, 1, 1.5),
+        (1, 1, 2.5),
+    ]
+
+
+def test_an_old_database_is_upgraded_and_keeps_its_duplicates_working(store_url: str) -> None:
+    """A database of the previous version: no ``reruns`` column, no index on the step, and
+    a step already stored twice. Opening it adds both; its rows read back as not re-run, and
+    recording that step again updates both of its rows rather than adding a third."""
+    from sqlalchemy import inspect, text
+
+    store = Store(store_url)
+    seq = store.add_sequence("spirit", "s", "", "text", "running", [], [], [])
+    with store.engine.begin() as conn:
+        conn.execute(text("DROP INDEX ix_commands_sequence_step"))
+        conn.execute(text("ALTER TABLE commands DROP COLUMN reruns"))
+        for _ in range(2):  # the defect's duplicate
+            conn.execute(
+                text(
+                    "INSERT INTO commands (rover, sequence_id, step_index, command, status,"
+                    " start_t_s, end_t_s, events, created_at) VALUES ('spirit', :seq, 0,"
+                    " 'WAIT', 'completed', 1.0, 2.0, '[]', :now)"
+                ),
+                {"seq": seq, "now": datetime.now(UTC)},
+            )
+    store.close()
+
+    store = Store(store_url)
+    try:
+        inspector = inspect(store.engine)
+        assert "reruns" in {c["name"] for c in inspector.get_columns("commands")}
+        assert "ix_commands_sequence_step" in {i["name"] for i in inspector.get_indexes("commands")}
+        assert [r["reruns"] for r in store.commands("spirit", 0.0, 10.0)] == [0, 0]
+        store.add_command("spirit", seq, 0, "WAIT", "completed", None, 1.0, 2.0, [])
+        store.add_command("spirit", seq, 1, "WAIT", "completed", None, 2.0, 3.0, [])
+        rows = store.commands("spirit", 0.0, 10.0)
+        assert [(r["step_index"], r["reruns"]) for r in rows] == [(0, 1), (0, 1), (1, 0)]
+    finally:
+        store.close()
+    Store(store_url).close()  # and opening it again changes nothing
+
+
+def test_missing_columns_are_added_to_any_table(store_url: str) -> None:
+    """The schema upgrade is generic: any nullable or server-defaulted column a table of the
+    metadata has and the database lacks is added, existing rows taking its default."""
+    from sqlalchemy import Column, Integer, MetaData, String, Table, Text, insert, select
+
+    from server.storage import _add_missing_columns
+
+    def gadgets(*extra: Column[Any]) -> tuple[MetaData, Table]:
+        meta = MetaData()
+        table = Table("gadgets", meta, Column("id", Integer, primary_key=True), *extra)
+        return meta, table
+
+    store = Store(store_url)
+    try:
+        v1, table = gadgets(Column("name", String(16)))
+        v1.create_all(store.engine)
+        with store.engine.begin() as conn:
+            conn.execute(insert(table).values(name="old"))
+        v2, table = gadgets(
+            Column("name", String(16)),
+            Column("count", Integer, nullable=False, server_default="7"),
+            Column("note", Text),
+        )
+        assert _add_missing_columns(store.engine, v2) == ["gadgets.count", "gadgets.note"]
+        assert _add_missing_columns(store.engine, v2) == []
+        with store.engine.begin() as conn:
+            conn.execute(insert(table).values(name="new", note="n"))
+            rows = conn.execute(select(table).order_by(table.c.id)).all()
+        assert [tuple(r) for r in rows] == [(1, "old", 7, None), (2, "new", 7, "n")]
+        v3, _ = gadgets(Column("name", String(16)), Column("size", Integer, nullable=False))
+        with pytest.raises(ValueError, match=r"gadgets\.size"):
+            _add_missing_columns(store.engine, v3)
+    finally:
+        store.close()
+
+
 def test_events_round_trip(store: Store) -> None:
     store.add_events("spirit", [(20.0, "Site planted"), (10.0, "Sunfind failed")])
     store.add_events("opportunity", [(15.0, "HGA pass, margin 1.2 deg")])
