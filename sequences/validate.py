@@ -55,6 +55,8 @@ __all__ = [
     "validate",
 ]
 
+MAX_DIAGNOSTICS = 1000  # of each severity in one result (``_capped``)
+
 CODES: dict[str, str] = {
     # from the parser (sequences.language)
     "syntax": "error",
@@ -68,6 +70,7 @@ CODES: dict[str, str] = {
     "sequence-not-first": "error",
     "bad-name": "error",
     "empty": "error",
+    "too-many": "error",  # or a warning: the severity of what it counts
     "bad-json": "error",
     "bad-structure": "error",
     "bad-character": "error",
@@ -210,9 +213,32 @@ def validate(
         _Prediction(context, result).walk(sequence.steps)
     result.errors.sort(key=_order)  # stable: JSON diagnostics (all at 0:0) keep step order
     result.warnings.sort(key=_order)
+    result.errors = _capped(result.errors, "error")
+    result.warnings = _capped(result.warnings, "warning")
     if result.ok:
         result.sequence = sequence
     return result
+
+
+def _capped(found: list[Diagnostic], severity: Literal["error", "warning"]) -> list[Diagnostic]:
+    """The first ``MAX_DIAGNOSTICS`` of ``found`` and, if there were more, one more saying
+    how many were left out, where the first of them is: one hostile megabyte
+    (``x x x ...``) would otherwise answer with half a million diagnostics.
+
+    >>> many = [Diagnostic(i, 1, "error", "syntax", "x") for i in range(1, 1003)]
+    >>> capped = _capped(many, "error")
+    >>> len(capped), capped[-1].line, capped[-1].message
+    (1001, 1001, '2 more errors not listed (the first 1000 are)')
+    """
+    if len(found) <= MAX_DIAGNOSTICS:
+        return found
+    left_out = found[MAX_DIAGNOSTICS]
+    more = len(found) - MAX_DIAGNOSTICS
+    text = f"{more} more {severity}s not listed (the first {MAX_DIAGNOSTICS} are)"
+    if left_out.line == 0:  # a JSON problem: its location starts its message (steps[3]...)
+        text = f"{left_out.message.split(':', 1)[0]}: {text}"
+    summary = Diagnostic(left_out.line, left_out.column, severity, "too-many", text)
+    return [*found[:MAX_DIAGNOSTICS], summary]
 
 
 def _order(d: Diagnostic) -> tuple[int, int]:

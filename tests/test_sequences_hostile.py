@@ -300,3 +300,14 @@ def test_declared_name_finds_the_first_sequence_line() -> None:
     assert declared_name({"name": "j", "steps": []}) == "j"
     assert declared_name({"name": "not a name"}) is None
     assert declared_name([{"command": "PLANT_SITE"}]) is None
+
+
+def test_a_flood_of_errors_is_listed_up_to_a_cap_with_a_count_of_the_rest() -> None:
+    """One line of 200,000 stray words was 200,000 diagnostics (a response of tens of MB):
+    the first 1,000 are listed, then one ``too-many`` counting the rest, with its line."""
+    result = validate("SEQUENCE flood\nNADIR_UPDATE " + "x " * 200_000 + "\n")
+    assert len(result.errors) == 1001
+    last = result.errors[-1]
+    assert (last.code, last.line) == ("too-many", 2)
+    assert last.message.startswith("199000 more errors not listed")
+    assert all(d.code == "syntax" for d in result.errors[:-1])
