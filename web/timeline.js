@@ -207,7 +207,8 @@
     bar.dataset.status = c.status;
     const reason = c.reason ? `: ${c.reason}` : "";
     const by = c.submitted_by ? `\nsent by ${c.submitted_by}` : "";
-    bar.title = `${c.command}\n${c.status}${reason}\n${hhmmss(c.start.lmst_h)}–${hhmmss(c.end.lmst_h)} LMST${by}`;
+    const rerun = c.reruns ? `\nrun again after a restart (${c.reruns}×)` : "";
+    bar.title = `${c.command}\n${c.status}${reason}\n${hhmmss(c.start.lmst_h)}–${hhmmss(c.end.lmst_h)} LMST${by}${rerun}`;
     return withLabel(bar, c.command);
   }
 
