@@ -3,8 +3,12 @@
 ``create_app(config)`` builds the app; ``roverops serve`` runs it with uvicorn. Viewing
 needs no token; uploading, commanding and clock control need the operator token
 (``Authorization: Bearer <token>`` or ``X-Operator-Token``): missing 401, wrong 403, and
-nothing changes. Request bodies are validated (422 with the reason); uploads above
-``max_upload_bytes`` get 413. OpenAPI at ``/docs``.
+nothing changes; the token is checked before the body is read (``server.routing``).
+Request bodies are validated: every 422's ``detail`` is a list of ``{"loc", "msg",
+"type"}`` (FastAPI's shape), except a rejected upload, which is stored and answered with
+its diagnostics (``SequenceReport``). Bodies above ``max_upload_bytes`` get 413 while they
+stream in; a client running ``max_concurrent_validations`` validations at once gets 429
+(``server.uploads``). OpenAPI at ``/docs``.
 """
 
 from __future__ import annotations
@@ -26,8 +30,10 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import anyio
-from fastapi import Depends, FastAPI, Header, HTTPException, Query, Request, WebSocket
+from fastapi import Depends, FastAPI, HTTPException, Query, Request, Security, WebSocket
+from fastapi import Path as PathParam
 from fastapi.responses import FileResponse, JSONResponse, RedirectResponse, Response
+from fastapi.security import APIKeyHeader, HTTPAuthorizationCredentials, HTTPBearer
 from fastapi.staticfiles import StaticFiles
 from pydantic import BaseModel, ConfigDict, Field
 from starlette.concurrency import run_in_threadpool
@@ -37,16 +43,21 @@ from sequences import commands as cmd
 from sequences.language import Sequence, SequenceStep
 from sequences.validate import ValidationContext, ValidationResult, validate
 from server.hub import MAX_RATE_HZ, TelemetryHub, next_message
+from server.routing import AuthFirstRoute, auth_check
 from server.runtime import MAX_SPEED, ROVERS, RoverRuntime
 from server.scene3d import RoverScene
 from server.storage import BatchWriter, Store
 from server.timeline import sol_timeline
+from server.uploads import ValidationSlots, read_body, read_source, request_error
 from server.viser_proxy import fetch, relay
 from sim.mars_frames import earth_ll_truth, elevation_rad
 from sim.marsclock import t_s_for_sol_lmst
 from sim.side_estimators import ESTIMATORS
 
 MAX_UPLOAD_BYTES = 1_000_000
+MAX_CONCURRENT_VALIDATIONS = 2  # per client address, and per token
+MAX_ID = 2**31 - 1  # ids are PostgreSQL's int4 (storage: Integer columns)
+MAX_SOL = 100_000  # 270 Earth years of a mission; the bundled ephemeris covers fewer
 WEB_DIR = Path(__file__).resolve().parent.parent / "web"  # the console, served as is
 
 
@@ -56,7 +67,8 @@ class ServerConfig:
 
     database_url: str
     operator_token: str = field(default_factory=lambda: secrets.token_urlsafe(18))
-    max_upload_bytes: int = MAX_UPLOAD_BYTES
+    max_upload_bytes: int = MAX_UPLOAD_BYTES  # every request body, uploads or not
+    max_concurrent_validations: int = MAX_CONCURRENT_VALIDATIONS
     start_clocks: bool = True
     initial_speed: float = 1.0
     viewer_3d: bool = False  # a viser 3D view per rover under /viser/{rover}/
@@ -66,30 +78,125 @@ class ServerConfig:
 
 
 class ClockBody(BaseModel):
-    """``POST /api/rovers/{rover}/clock``: pause/resume and the speed factor."""
+    """``POST /api/rovers/{rover}/clock``: pause/resume and the speed factor. Strict: a
+    boolean is not a speed (``{"speed": true}`` is a 422, not 1.0)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", strict=True)
     action: Literal["pause", "resume"] | None = None
-    speed: float | Literal["max"] | None = Field(
-        default=None, description=f"speed factor, 1 to {MAX_SPEED:g}, or 'max'"
-    )
+    speed: (
+        Annotated[float, Field(ge=1.0, le=MAX_SPEED, allow_inf_nan=False)] | Literal["max"] | None
+    ) = Field(default=None, description=f"speed factor, 1 to {MAX_SPEED:g}, or 'max'")
 
 
 class CommandBody(BaseModel):
     """``POST /api/rovers/{rover}/commands``: one immediate command."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", strict=True)
     command: str = Field(description="a keyword of the command dictionary, e.g. DRIVE_STRAIGHT")
     args: dict[str, Any] = Field(default_factory=dict)
 
 
-class ValidateBody(BaseModel):
-    """``POST /api/sequences/validate`` (and JSON uploads): text or JSON sequence."""
+class Diagnostic(BaseModel):
+    """One problem in a sequence (``sequences.language.Diagnostic``)."""
 
-    model_config = ConfigDict(extra="forbid")
-    text: str | None = None
-    sequence: dict[str, Any] | None = None
-    rover: str | None = Field(default=None, description="validate against this rover's state")
+    line: int
+    column: int
+    code: str
+    message: str
+
+
+class ValidationReport(BaseModel):
+    """``POST /api/sequences/validate``: nothing stored."""
+
+    valid: bool
+    errors: list[Diagnostic]
+    warnings: list[Diagnostic]
+
+
+class SequenceReport(BaseModel):
+    """An uploaded sequence as stored: ``queued`` (201), or ``rejected`` with its errors
+    (422; it is stored, to be looked at later)."""
+
+    id: int
+    status: Literal["queued", "rejected"]
+    errors: list[Diagnostic]
+    warnings: list[Diagnostic]
+
+
+class ErrorMessage(BaseModel):
+    """Every error but a 422: what went wrong, in one sentence."""
+
+    detail: str
+
+
+class RequestError(BaseModel):
+    """One problem with a request (FastAPI's validation-error item; it may carry more)."""
+
+    model_config = ConfigDict(extra="allow")
+    loc: list[str | int]
+    msg: str
+    type: str
+
+
+class RequestErrors(BaseModel):
+    """A 422: every problem found with the request."""
+
+    detail: list[RequestError]
+
+
+def _error(text: str) -> dict[str, Any]:
+    return {"model": ErrorMessage, "description": text}
+
+
+AUTH_ERRORS: dict[int | str, dict[str, Any]] = {
+    401: _error("no operator token (Authorization: Bearer, or X-Operator-Token)"),
+    403: _error("wrong operator token"),
+}
+NOT_FOUND: dict[int | str, dict[str, Any]] = {404: _error("no such rover or record")}
+TOO_LARGE: dict[int | str, dict[str, Any]] = {413: _error("body over the server's limit")}
+BUSY: dict[int | str, dict[str, Any]] = {
+    429: {
+        **_error("this client already runs the most validations allowed at once"),
+        "headers": {"Retry-After": {"schema": {"type": "integer"}, "description": "seconds"}},
+    }
+}
+BAD_REQUEST: dict[int | str, dict[str, Any]] = {
+    422: {"model": RequestErrors, "description": "the request's problems"}
+}
+SEQUENCE_BODY: dict[str, Any] = {
+    "required": True,
+    "description": 'A sequence: its text, JSON, or a file. JSON may be `{"text": ...}`, '
+    '`{"sequence": ...}`, a sequence object (`name`, `steps`), or a list of steps; JSON '
+    "nested deeper than server.uploads.MAX_JSON_DEPTH is refused.",
+    "content": {
+        "text/plain": {"schema": {"type": "string"}},
+        "application/json": {
+            "schema": {
+                "anyOf": [
+                    {
+                        "type": "object",
+                        "properties": {
+                            "text": {"type": "string"},
+                            "sequence": {"type": ["object", "array"]},
+                            "name": {"type": "string"},
+                            "steps": {"type": "array", "items": {"type": "object"}},
+                        },
+                    },
+                    {"type": "array", "items": {"type": "object"}},
+                ]
+            }
+        },
+        "multipart/form-data": {
+            "schema": {
+                "type": "object",
+                "properties": {"file": {"type": "string", "format": "binary"}},
+                "required": ["file"],
+            }
+        },
+    },
+}
+SequenceId = Annotated[int, PathParam(ge=1, le=MAX_ID, description="a sequence's id")]
+Sol = Annotated[int, PathParam(ge=0, le=MAX_SOL, description="a sol of the mission")]
 
 
 class Server:
@@ -213,6 +320,31 @@ def _diagnostics(result: ValidationResult) -> dict[str, Any]:
     return {"errors": as_list(result.errors), "warnings": as_list(result.warnings)}
 
 
+def _request_errors(result: ValidationResult) -> list[dict[str, Any]]:
+    """A sequence's errors as a 422 ``detail`` (``RequestErrors``): the diagnostic's code as
+    ``type``, its message as ``msg``."""
+    return [
+        {"loc": ["body"], "msg": d.message, "type": d.code, "line": d.line, "column": d.column}
+        for d in result.errors
+    ]
+
+
+@dataclass
+class Checked:
+    """An upload read and validated: its source as stored, format, name and result."""
+
+    text: str
+    fmt: str
+    name: str
+    result: ValidationResult
+
+
+CSV_FILE: dict[str, Any] = {
+    "description": "CSV, one row per frame",
+    "content": {"text/csv": {"schema": {"type": "string"}}},
+}
+
+
 def _steps_json(sequence: Sequence) -> list[dict[str, Any]]:
     return [_step_json(s) for s in sequence.steps]
 
@@ -226,14 +358,24 @@ def _step_json(step: SequenceStep) -> dict[str, Any]:
     }
 
 
+BEARER = HTTPBearer(auto_error=False, description="the operator token")
+TOKEN_HEADER = APIKeyHeader(
+    name="X-Operator-Token", auto_error=False, description="the operator token"
+)
+
+
+@auth_check
 def operator(
     request: Request,
-    authorization: Annotated[str | None, Header()] = None,
-    x_operator_token: Annotated[str | None, Header()] = None,
+    _bearer: Annotated[HTTPAuthorizationCredentials | None, Security(BEARER)] = None,
+    _header: Annotated[str | None, Security(TOKEN_HEADER)] = None,
 ) -> None:
-    """The operator token check: missing 401, wrong 403 (before anything changes)."""
+    """The operator token check: missing 401, wrong 403 (before anything changes). Run by
+    ``AuthFirstRoute`` with the request alone, before the body is read; the two security
+    schemes only declare the headers in the OpenAPI."""
     expected: str = request.app.state.server.config.operator_token
-    token = x_operator_token
+    token = request.headers.get("x-operator-token")
+    authorization = request.headers.get("authorization")
     if authorization and authorization.lower().startswith("bearer "):
         token = authorization[7:].strip()
     if not token:
@@ -262,7 +404,10 @@ def create_app(config: ServerConfig) -> FastAPI:
         description="Ground operations for a simulated Mars Exploration Rover",
         lifespan=lifespan,
     )
+    app.router.route_class = AuthFirstRoute  # the token before the body, for every route
     app.state.server = server
+    app.state.max_body_bytes = config.max_upload_bytes
+    slots = ValidationSlots(config.max_concurrent_validations)
 
     @app.get("/", include_in_schema=False)
     def console_page() -> FileResponse:
@@ -278,7 +423,7 @@ def create_app(config: ServerConfig) -> FastAPI:
             {k: v for k, v in r.state().items() if k != "frame"} for r in server.rovers.values()
         ]
 
-    @app.get("/api/rovers/{rover}/state")
+    @app.get("/api/rovers/{rover}/state", responses=NOT_FOUND)
     def rover_state(rover: str) -> dict[str, Any]:
         """Clock, queue, the executing command and the latest telemetry frame."""
         return server.rover(rover).state()
@@ -313,91 +458,102 @@ def create_app(config: ServerConfig) -> FastAPI:
             for name, kind in cmd.COMMANDS.items()
         ]
 
-    async def _read_upload(request: Request) -> tuple[str | dict[str, Any], str]:
-        size = int(request.headers.get("content-length") or 0)
-        if size > config.max_upload_bytes:
-            raise HTTPException(413, f"upload over {config.max_upload_bytes} bytes")
-        body = await request.body()
-        if len(body) > config.max_upload_bytes:
-            raise HTTPException(413, f"upload over {config.max_upload_bytes} bytes")
-        ctype = request.headers.get("content-type", "")
-        if ctype.startswith("multipart/form-data"):
-            form = await request.form()
-            upload = form.get("file")
-            if upload is None or isinstance(upload, str):
-                raise HTTPException(422, "multipart upload needs a 'file' part")
-            data = await upload.read()
-            name = upload.filename or "upload"
-            return _decode(data, name), "json" if name.endswith(".json") else "text"
-        if ctype.startswith("application/json"):
-            try:
-                parsed = json.loads(body)
-            except json.JSONDecodeError as exc:
-                raise HTTPException(422, f"body: not JSON: {exc}") from exc
-            if isinstance(parsed, dict) and "text" in parsed and isinstance(parsed["text"], str):
-                return parsed["text"], "text"
-            if isinstance(parsed, dict) and isinstance(parsed.get("sequence"), (dict, list)):
-                return parsed["sequence"], "json"
-            if isinstance(parsed, (dict, list)):
-                return parsed if isinstance(parsed, dict) else {"steps": parsed}, "json"
-            raise HTTPException(422, "body: a sequence object, or {'text': ...}")
-        return _decode(body, "body"), "text"
+    def check_upload(
+        body: bytes, content_type: str, runtime: RoverRuntime | None, named: bool
+    ) -> Checked:
+        """Everything that grows with an upload, in one threadpool call (never on the event
+        loop): decoding, JSON parsing, the rover's context, validation and the name."""
+        source, fmt = read_source(body, content_type)
+        result = validate(source, server.context(runtime) if runtime else None)
+        name = (result.sequence.name if result.sequence else None) or (
+            _declared_name(source) if named else "unnamed"
+        )
+        text = source if isinstance(source, str) else json.dumps(source)
+        return Checked(text, fmt, name, result)
 
-    @app.post("/api/rovers/{rover}/sequences", status_code=201)
+    async def read_and_check(
+        request: Request, runtime: RoverRuntime | None, named: bool = False
+    ) -> Checked:
+        """The body read (413 past the limit) and checked, in one of the client's
+        validation slots (429 when it has none left)."""
+        with slots.hold(request):
+            body = await read_body(request, config.max_upload_bytes)
+            content_type = request.headers.get("content-type", "")
+            return await run_in_threadpool(check_upload, body, content_type, runtime, named)
+
+    @app.post(
+        "/api/rovers/{rover}/sequences",
+        status_code=201,
+        response_model=SequenceReport,
+        responses={
+            **AUTH_ERRORS,
+            **NOT_FOUND,
+            **TOO_LARGE,
+            422: {
+                "model": SequenceReport | RequestErrors,
+                "description": "a sequence with errors (stored as rejected), or a body "
+                "that is not a sequence",
+            },
+            **BUSY,
+        },
+        openapi_extra={"requestBody": SEQUENCE_BODY},
+    )
     async def upload_sequence(rover: str, request: Request, _: Operator) -> JSONResponse:
         """Validate, store and queue a sequence (text, JSON, or a multipart file)."""
         runtime = server.rover(rover)
-        source, fmt = await _read_upload(request)
-        result = await run_in_threadpool(validate, source, server.context(runtime))
-        text = source if isinstance(source, str) else json.dumps(source)
-        name = (result.sequence.name if result.sequence else None) or _declared_name(source)
-        diags = _diagnostics(result)
+        checked = await read_and_check(request, runtime, named=True)
+        result, diags = checked.result, _diagnostics(checked.result)
         if result.errors or result.sequence is None:
             seq_id = await run_in_threadpool(
                 server.store.add_sequence,
-                rover, name, text, fmt, "rejected", diags["errors"], diags["warnings"], [],
+                rover, checked.name, checked.text, checked.fmt, "rejected", diags["errors"],
+                diags["warnings"], [],
             )  # fmt: skip
             return JSONResponse({"id": seq_id, "status": "rejected", **diags}, status_code=422)
         steps = _steps_json(result.sequence)
         seq_id = await run_in_threadpool(
             server.store.add_sequence,
-            rover,
-            name,
-            text,
-            fmt,
-            "queued",
-            [],
-            diags["warnings"],
-            steps,
-        )
+            rover, checked.name, checked.text, checked.fmt, "queued", [], diags["warnings"], steps,
+        )  # fmt: skip
         runtime.enqueue(seq_id, result.sequence)
         return JSONResponse({"id": seq_id, "status": "queued", **diags}, status_code=201)
 
-    @app.post("/api/sequences/validate")
-    async def validate_only(request: Request) -> dict[str, Any]:
+    @app.post(
+        "/api/sequences/validate",
+        response_model=ValidationReport,
+        responses={**NOT_FOUND, **TOO_LARGE, **BAD_REQUEST, **BUSY},
+        openapi_extra={"requestBody": SEQUENCE_BODY},
+    )
+    async def validate_only(
+        request: Request,
+        rover: Annotated[
+            str | None, Query(description="add this rover's warnings (its state now)")
+        ] = None,
+    ) -> dict[str, Any]:
         """Validation only: nothing stored. ``?rover=`` adds that rover's warnings."""
-        source, _fmt = await _read_upload(request)
-        rover = request.query_params.get("rover")
-        context = server.context(server.rover(rover)) if rover else None
-        result = await run_in_threadpool(validate, source, context)
-        return {"valid": not result.errors, **_diagnostics(result)}
+        runtime = server.rover(rover) if rover is not None else None
+        checked = await read_and_check(request, runtime)
+        return {"valid": not checked.result.errors, **_diagnostics(checked.result)}
 
-    @app.get("/api/rovers/{rover}/sequences")
+    @app.get("/api/rovers/{rover}/sequences", responses=NOT_FOUND)
     def list_sequences(rover: str) -> list[dict[str, Any]]:
         """Sequences of a rover, newest first."""
         server.rover(rover)
         return server.store.list_sequences(rover)
 
-    @app.get("/api/sequences/{sequence_id}")
-    def get_sequence(sequence_id: int) -> dict[str, Any]:
+    @app.get("/api/sequences/{sequence_id:int}", responses=NOT_FOUND)
+    def get_sequence(sequence_id: SequenceId) -> dict[str, Any]:
         """One sequence with its source, steps, status, errors and warnings."""
         found = server.store.get_sequence(sequence_id)
         if found is None:
             raise HTTPException(404, f"no sequence {sequence_id}")
         return found
 
-    @app.delete("/api/sequences/{sequence_id}")
-    def cancel_sequence(sequence_id: int, _: Operator) -> dict[str, Any]:
+    @app.delete(
+        "/api/sequences/{sequence_id:int}",
+        responses={**AUTH_ERRORS, **NOT_FOUND, 409: _error("the sequence is not queued")},
+    )
+    def cancel_sequence(sequence_id: SequenceId, _: Operator) -> dict[str, Any]:
         """Cancel a queued sequence (a running one stops after its current command)."""
         found = server.store.get_sequence(sequence_id)
         if found is None:
@@ -408,7 +564,11 @@ def create_app(config: ServerConfig) -> FastAPI:
         server.store.set_sequence_status(sequence_id, "cancelled", "cancelled by an operator")
         return {"id": sequence_id, "status": "cancelled"}
 
-    @app.post("/api/rovers/{rover}/commands", status_code=201)
+    @app.post(
+        "/api/rovers/{rover}/commands",
+        status_code=201,
+        responses={**AUTH_ERRORS, **NOT_FOUND, **TOO_LARGE, **BAD_REQUEST},
+    )
     def immediate_command(rover: str, body: CommandBody, _: Operator) -> dict[str, Any]:
         """One command, run before the next queued step."""
         runtime = server.rover(rover)
@@ -418,7 +578,7 @@ def create_app(config: ServerConfig) -> FastAPI:
         }
         result = validate(source, server.context(runtime))
         if result.errors or result.sequence is None:
-            raise HTTPException(422, _diagnostics(result))
+            raise HTTPException(422, _request_errors(result))
         seq_id = server.store.add_sequence(
             rover,
             f"immediate_{body.command}",
@@ -432,7 +592,10 @@ def create_app(config: ServerConfig) -> FastAPI:
         runtime.enqueue(seq_id, result.sequence, immediate=True)
         return {"id": seq_id, "status": "queued", **_diagnostics(result)}
 
-    @app.post("/api/rovers/{rover}/clock")
+    @app.post(
+        "/api/rovers/{rover}/clock",
+        responses={**AUTH_ERRORS, **NOT_FOUND, **TOO_LARGE, **BAD_REQUEST},
+    )
     def set_clock(rover: str, body: ClockBody, _: Operator) -> dict[str, Any]:
         """Pause, resume, or set the speed factor (1 to MAX_SPEED, or 'max')."""
         runtime = server.rover(rover)
@@ -440,23 +603,21 @@ def create_app(config: ServerConfig) -> FastAPI:
         if body.speed == "max":
             speed = math.inf
         elif body.speed is not None:
-            if not (isinstance(body.speed, (int, float)) and 1.0 <= body.speed <= MAX_SPEED):
-                raise HTTPException(422, f"speed: must be 1 to {MAX_SPEED:g} or 'max'")
-            speed = float(body.speed)
+            speed = float(body.speed)  # ClockBody bounds it
         running = None if body.action is None else body.action == "resume"
         runtime.set_clock(running=running, speed=speed)
         clock: dict[str, Any] = runtime.state()["clock"]
         return clock
 
-    @app.get("/api/rovers/{rover}/sols")
+    @app.get("/api/rovers/{rover}/sols", responses=NOT_FOUND)
     def sols(rover: str) -> list[int]:
         """Sols with telemetry."""
         server.rover(rover)
         server.writer.flush()
         return server.store.sols(rover)
 
-    @app.get("/api/rovers/{rover}/sols/{sol}/timeline")
-    def timeline(rover: str, sol: int) -> dict[str, Any]:
+    @app.get("/api/rovers/{rover}/sols/{sol:int}/timeline", responses=NOT_FOUND)
+    def timeline(rover: str, sol: Sol) -> dict[str, Any]:
         """One sol: commands, NATE mode and AQF intervals, events, distance, summary."""
         runtime = server.rover(rover)
         server.writer.flush()
@@ -465,10 +626,14 @@ def create_app(config: ServerConfig) -> FastAPI:
             raise HTTPException(404, f"no telemetry on sol {sol}")
         return found
 
-    @app.get("/api/rovers/{rover}/sols/{sol}/telemetry.csv", response_class=Response)
+    @app.get(
+        "/api/rovers/{rover}/sols/{sol:int}/telemetry.csv",
+        response_class=Response,
+        responses={200: CSV_FILE, **NOT_FOUND},
+    )
     def sol_telemetry_csv(
         rover: str,
-        sol: int,
+        sol: Sol,
         every: Annotated[float, Query(ge=0.0, le=86400.0)] = 0.0,
     ) -> Response:
         """One sol's frames as a CSV file to download (one per ``every`` s; frames with
@@ -484,7 +649,21 @@ def create_app(config: ServerConfig) -> FastAPI:
             _csv(frames), media_type="text/csv", headers={"Content-Disposition": disposition}
         )
 
-    @app.get("/api/rovers/{rover}/telemetry", response_model=None)
+    @app.get(
+        "/api/rovers/{rover}/telemetry",
+        response_model=None,
+        responses={
+            200: {
+                "description": "frames (JSON), or CSV on Accept: text/csv",
+                "content": {
+                    "application/json": {"schema": {"type": "array", "items": {"type": "object"}}},
+                    **CSV_FILE["content"],
+                },
+            },
+            **NOT_FOUND,
+            **BAD_REQUEST,
+        },
+    )
     def telemetry(
         rover: str,
         request: Request,
@@ -499,7 +678,7 @@ def create_app(config: ServerConfig) -> FastAPI:
         lo = -math.inf if t_from is None else t_from
         hi = runtime.t_s if t_to is None else t_to
         if not (math.isfinite(hi) and lo <= hi):
-            raise HTTPException(422, "from/to: need from <= to")
+            raise request_error(("query", "to"), "from/to: need from <= to, to finite", "range")
         frames = server.store.frames(rover, lo, hi, every, limit)
         if "text/csv" in request.headers.get("accept", ""):
             return Response(_csv(frames), media_type="text/csv")
@@ -530,7 +709,7 @@ def create_app(config: ServerConfig) -> FastAPI:
             return
         await relay(websocket, server.scenes[rover].port)
 
-    @app.get("/api/rovers/{rover}/scene")
+    @app.get("/api/rovers/{rover}/scene", responses=NOT_FOUND)
     def scene_state(rover: str) -> dict[str, Any]:
         """The 3D view: its URL on this origin and how many frames it has drawn."""
         scene_port(rover)
@@ -586,13 +765,6 @@ def _declared_name(source: str | dict[str, Any]) -> str:
         return name if isinstance(name, str) and 0 < len(name) <= 64 else "unnamed"
     found = _SEQUENCE_LINE.search(source)
     return found.group(1) if found else "unnamed"
-
-
-def _decode(data: bytes, name: str) -> str:
-    try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise HTTPException(422, f"{name}: not UTF-8 text ({exc.reason})") from exc
 
 
 CSV_COLUMNS = (
