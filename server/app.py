@@ -616,7 +616,7 @@ def create_app(config: ServerConfig) -> FastAPI:
         server.writer.flush()
         return server.store.sols(rover)
 
-    @app.get("/api/rovers/{rover}/sols/{sol:int}/timeline", responses=NOT_FOUND)
+    @app.get("/api/rovers/{rover}/sols/{sol}/timeline", responses=NOT_FOUND)
     def timeline(rover: str, sol: Sol) -> dict[str, Any]:
         """One sol: commands, NATE mode and AQF intervals, events, distance, summary."""
         runtime = server.rover(rover)
@@ -627,7 +627,7 @@ def create_app(config: ServerConfig) -> FastAPI:
         return found
 
     @app.get(
-        "/api/rovers/{rover}/sols/{sol:int}/telemetry.csv",
+        "/api/rovers/{rover}/sols/{sol}/telemetry.csv",
         response_class=Response,
         responses={200: CSV_FILE, **NOT_FOUND},
     )
