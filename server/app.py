@@ -43,7 +43,7 @@ from sequences import commands as cmd
 from sequences.language import Sequence, SequenceStep
 from sequences.validate import ValidationContext, ValidationResult, validate
 from server.hub import MAX_RATE_HZ, TelemetryHub, next_message
-from server.routing import AuthFirstRoute, auth_check
+from server.routing import AuthFirstRoute, allow_every_method, auth_check
 from server.runtime import MAX_SPEED, ROVERS, RoverRuntime
 from server.scene3d import RoverScene
 from server.storage import BatchWriter, Store
@@ -195,6 +195,9 @@ SEQUENCE_BODY: dict[str, Any] = {
         },
     },
 }
+RoverName = Annotated[
+    str, PathParam(description="a rover's name (GET /api/rovers)", examples=list(ROVERS))
+]
 SequenceId = Annotated[int, PathParam(ge=1, le=MAX_ID, description="a sequence's id")]
 Sol = Annotated[int, PathParam(ge=0, le=MAX_SOL, description="a sol of the mission")]
 
@@ -405,6 +408,7 @@ def create_app(config: ServerConfig) -> FastAPI:
         lifespan=lifespan,
     )
     app.router.route_class = AuthFirstRoute  # the token before the body, for every route
+    allow_every_method(app)
     app.state.server = server
     app.state.max_body_bytes = config.max_upload_bytes
     slots = ValidationSlots(config.max_concurrent_validations)
@@ -424,7 +428,7 @@ def create_app(config: ServerConfig) -> FastAPI:
         ]
 
     @app.get("/api/rovers/{rover}/state", responses=NOT_FOUND)
-    def rover_state(rover: str) -> dict[str, Any]:
+    def rover_state(rover: RoverName) -> dict[str, Any]:
         """Clock, queue, the executing command and the latest telemetry frame."""
         return server.rover(rover).state()
 
@@ -498,7 +502,7 @@ def create_app(config: ServerConfig) -> FastAPI:
         },
         openapi_extra={"requestBody": SEQUENCE_BODY},
     )
-    async def upload_sequence(rover: str, request: Request, _: Operator) -> JSONResponse:
+    async def upload_sequence(rover: RoverName, request: Request, _: Operator) -> JSONResponse:
         """Validate, store and queue a sequence (text, JSON, or a multipart file)."""
         runtime = server.rover(rover)
         checked = await read_and_check(request, runtime, named=True)
@@ -536,7 +540,7 @@ def create_app(config: ServerConfig) -> FastAPI:
         return {"valid": not checked.result.errors, **_diagnostics(checked.result)}
 
     @app.get("/api/rovers/{rover}/sequences", responses=NOT_FOUND)
-    def list_sequences(rover: str) -> list[dict[str, Any]]:
+    def list_sequences(rover: RoverName) -> list[dict[str, Any]]:
         """Sequences of a rover, newest first."""
         server.rover(rover)
         return server.store.list_sequences(rover)
@@ -569,7 +573,7 @@ def create_app(config: ServerConfig) -> FastAPI:
         status_code=201,
         responses={**AUTH_ERRORS, **NOT_FOUND, **TOO_LARGE, **BAD_REQUEST},
     )
-    def immediate_command(rover: str, body: CommandBody, _: Operator) -> dict[str, Any]:
+    def immediate_command(rover: RoverName, body: CommandBody, _: Operator) -> dict[str, Any]:
         """One command, run before the next queued step."""
         runtime = server.rover(rover)
         source = {
@@ -596,7 +600,7 @@ def create_app(config: ServerConfig) -> FastAPI:
         "/api/rovers/{rover}/clock",
         responses={**AUTH_ERRORS, **NOT_FOUND, **TOO_LARGE, **BAD_REQUEST},
     )
-    def set_clock(rover: str, body: ClockBody, _: Operator) -> dict[str, Any]:
+    def set_clock(rover: RoverName, body: ClockBody, _: Operator) -> dict[str, Any]:
         """Pause, resume, or set the speed factor (1 to MAX_SPEED, or 'max')."""
         runtime = server.rover(rover)
         speed: float | None = None
@@ -610,14 +614,14 @@ def create_app(config: ServerConfig) -> FastAPI:
         return clock
 
     @app.get("/api/rovers/{rover}/sols", responses=NOT_FOUND)
-    def sols(rover: str) -> list[int]:
+    def sols(rover: RoverName) -> list[int]:
         """Sols with telemetry."""
         server.rover(rover)
         server.writer.flush()
         return server.store.sols(rover)
 
     @app.get("/api/rovers/{rover}/sols/{sol}/timeline", responses=NOT_FOUND)
-    def timeline(rover: str, sol: Sol) -> dict[str, Any]:
+    def timeline(rover: RoverName, sol: Sol) -> dict[str, Any]:
         """One sol: commands, NATE mode and AQF intervals, events, distance, summary."""
         runtime = server.rover(rover)
         server.writer.flush()
@@ -632,7 +636,7 @@ def create_app(config: ServerConfig) -> FastAPI:
         responses={200: CSV_FILE, **NOT_FOUND},
     )
     def sol_telemetry_csv(
-        rover: str,
+        rover: RoverName,
         sol: Sol,
         every: Annotated[float, Query(ge=0.0, le=86400.0)] = 0.0,
     ) -> Response:
@@ -665,7 +669,7 @@ def create_app(config: ServerConfig) -> FastAPI:
         },
     )
     def telemetry(
-        rover: str,
+        rover: RoverName,
         request: Request,
         t_from: Annotated[float | None, Query(alias="from")] = None,
         t_to: Annotated[float | None, Query(alias="to")] = None,
@@ -710,7 +714,7 @@ def create_app(config: ServerConfig) -> FastAPI:
         await relay(websocket, server.scenes[rover].port)
 
     @app.get("/api/rovers/{rover}/scene", responses=NOT_FOUND)
-    def scene_state(rover: str) -> dict[str, Any]:
+    def scene_state(rover: RoverName) -> dict[str, Any]:
         """The 3D view: its URL on this origin and how many frames it has drawn."""
         scene_port(rover)
         return {"url": f"/viser/{rover}/", "frames_drawn": server.scenes[rover].frames_drawn}

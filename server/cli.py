@@ -184,7 +184,7 @@ def _print_validation(result: dict[str, Any], as_json: bool) -> None:
 
 
 def _cmd_bench(args: argparse.Namespace) -> dict[str, Any]:
-    # `server` and `view3d` are dispatched here: sim (sim.bench) must not import server.
+    # `server`, `view3d` and `fuzz` are dispatched here: sim (sim.bench) must not import server.
     if args.name == "server":
         from server.bench_server import bench_server
 
@@ -193,10 +193,14 @@ def _cmd_bench(args: argparse.Namespace) -> dict[str, Any]:
         from server.bench_view3d import bench_view3d
 
         return bench_view3d()
+    if args.name == "fuzz":
+        from server.bench_fuzz import bench_fuzz
+
+        return bench_fuzz()
     from sim.bench import BENCHES, run_bench
 
     if args.name not in BENCHES:
-        choices = ", ".join([*BENCHES, "server", "view3d"])
+        choices = ", ".join([*BENCHES, "server", "view3d", "fuzz"])
         raise InputError("name", f"unknown benchmark {args.name!r}; choose one of {choices}")
     return run_bench(args.name)
 
@@ -299,7 +303,7 @@ def build_parser() -> argparse.ArgumentParser:
     serve.set_defaults(handler=_cmd_serve, printer=lambda result, as_json: None, json=False)
 
     bench = sub.add_parser("bench", help="run a benchmark and print its figures")
-    bench.add_argument("name", help="benchmark name: sim, sapp, vo, fusion, server or view3d")
+    bench.add_argument("name", help="benchmark name: sim, sapp, vo, fusion, server, view3d or fuzz")
     bench.add_argument("--json", action="store_true", help="print JSON (one object)")
     bench.set_defaults(handler=_cmd_bench)
     return parser

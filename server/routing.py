@@ -15,10 +15,13 @@ import functools
 from collections.abc import Callable, Coroutine
 from typing import Any, TypeVar
 
-from fastapi import Request, params
+from fastapi import FastAPI, Request, params
 from fastapi.dependencies.models import Dependant
+from fastapi.exception_handlers import http_exception_handler
+from fastapi.responses import JSONResponse
 from fastapi.routing import APIRoute
 from starlette.concurrency import run_in_threadpool
+from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.responses import Response
 
 from server.uploads import parse_json, read_body
@@ -85,3 +88,24 @@ class AuthFirstRoute(APIRoute):
             return await handler(request)
 
         return auth_first
+
+
+def allow_every_method(app: FastAPI) -> None:
+    """A 405's ``Allow`` lists every method of every route at that path. Starlette answers
+    with the methods of the first route whose path matched, and this API puts GET and POST
+    (or GET and DELETE) of one path in two routes, so it named only one of them."""
+
+    async def method_not_allowed(request: Request, exc: Exception) -> Response:
+        assert isinstance(exc, StarletteHTTPException)
+        if exc.status_code != 405:
+            return await http_exception_handler(request, exc)
+        methods = {
+            method
+            for route in app.routes
+            if isinstance(route, APIRoute) and route.path_regex.match(request.url.path)
+            for method in route.methods or ()
+        }
+        headers = {**(exc.headers or {}), "Allow": ", ".join(sorted(methods))}
+        return JSONResponse({"detail": exc.detail}, 405, headers)
+
+    app.add_exception_handler(StarletteHTTPException, method_not_allowed)

@@ -376,3 +376,10 @@ def test_a_chunked_body_is_refused_after_the_limit(
     status, pulled = asyncio.run(_chunked_post(_app(tmp_path), path, headers, first))
     assert status == 413
     assert pulled <= LIMIT + CHUNK
+
+
+def test_a_405_allows_every_method_of_the_path(client: TestClient) -> None:
+    r = client.request("OPTIONS", "/api/rovers/spirit/sequences")
+    assert r.status_code == 405 and set(r.headers["Allow"].split(", ")) >= {"GET", "POST"}
+    r = client.put("/api/sequences/1")
+    assert r.status_code == 405 and set(r.headers["Allow"].split(", ")) >= {"GET", "DELETE"}
