@@ -160,10 +160,15 @@ def read_source(body: bytes, content_type: str) -> tuple[str | dict[str, Any], s
         return decode(data, name), "json" if name.endswith(".json") else "text"
     if content_type.startswith("application/json"):
         parsed = parse_json(body)
-        if isinstance(parsed, dict) and isinstance(parsed.get("text"), str):
+        if isinstance(parsed, dict) and "text" in parsed:
+            if not isinstance(parsed["text"], str):
+                raise request_error(("body", "text"), "body.text: must be a string", "string_type")
             return parsed["text"], "text"
-        if isinstance(parsed, dict) and isinstance(parsed.get("sequence"), dict | list):
+        if isinstance(parsed, dict) and "sequence" in parsed:
             inner = parsed["sequence"]
+            if not isinstance(inner, dict | list):
+                message = "body.sequence: must be a sequence object or a list of steps"
+                raise request_error(("body", "sequence"), message, "json_type")
             return inner if isinstance(inner, dict) else {"steps": inner}, "json"
         if isinstance(parsed, dict | list):
             return parsed if isinstance(parsed, dict) else {"steps": parsed}, "json"

@@ -383,3 +383,10 @@ def test_a_405_allows_every_method_of_the_path(client: TestClient) -> None:
     assert r.status_code == 405 and set(r.headers["Allow"].split(", ")) >= {"GET", "POST"}
     r = client.put("/api/sequences/1")
     assert r.status_code == 405 and set(r.headers["Allow"].split(", ")) >= {"GET", "DELETE"}
+
+
+@pytest.mark.parametrize("body", [{"text": 5}, {"text": None}, {"sequence": "NADIR_UPDATE"}])
+def test_a_json_wrapper_of_the_wrong_type_is_a_422(client: TestClient, body: Any) -> None:
+    """What the declared schema refuses, the server refuses (found by schemathesis)."""
+    r = client.post("/api/sequences/validate", json=body)
+    assert r.status_code == 422 and r.json()["detail"][0]["loc"][0] == "body"
