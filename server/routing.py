@@ -38,7 +38,9 @@ def auth_check(fn: F) -> F:
 
     @functools.wraps(fn)
     def check(request: Request, *args: Any, **kwargs: Any) -> Any:
-        done: dict[Any, Any] = request.state.__dict__.setdefault("_auth_checks", {})
+        done: dict[Any, Any] | None = getattr(request.state, "auth_checks", None)
+        if done is None:
+            done = request.state.auth_checks = {}
         if fn not in done:
             done[fn] = fn(request, *args, **kwargs)
         return done[fn]

@@ -111,7 +111,10 @@ def parse_json(data: bytes, where: str = "body") -> Any:
     except UnicodeDecodeError as exc:
         raise request_error((where,), f"{where}: not UTF-8 ({exc.reason})", "json_invalid") from exc
     except (ValueError, RecursionError) as exc:  # over 4,300 digits; NaN; 1e999
-        raise request_error((where,), f"{where}: {exc}", "json_invalid") from exc
+        reason = str(exc)
+        if "4300 digits" in reason:  # Python's int conversion limit (sys.int_info)
+            reason = "an integer of more than 4300 digits"
+        raise request_error((where,), f"{where}: {reason}", "json_invalid") from exc
 
 
 def decode(data: bytes, where: str) -> str:
