@@ -31,7 +31,9 @@ an interpreter lock and the figures include the network stack.
   ``STALL_POLL_S`` from another thread while a 1 MB sequence (the examples' commands, as
   ``validate_10k_lines_s``) is validated against Spirit (``/validate?rover=spirit``, the
   heaviest validation a client can ask for); ``upload_1mb_validate_s`` how long that took
-  and ``event_loop_stall_samples`` how many polls it covered.
+  and ``event_loop_stall_samples`` how many polls it covered; ``event_loop_idle_p99_ms``
+  the p99 of ``STALL_IDLE_POLLS`` polls just before, with nothing validating (on a shared
+  machine, the part of the stall that is not the server's).
 
 Output contract: ``sim.bench._result`` (DESIGN.md "Benchmarks").
 """
@@ -90,6 +92,7 @@ TARGETS: dict[str, dict[str, float]] = {
 BLANK_LINES = 100_000
 UPLOAD_BYTES = 990_000  # under the server's 1,000,000-byte limit
 STALL_POLL_S = 0.01
+STALL_IDLE_POLLS = 200
 
 
 # ---- a real server in a subprocess ---------------------------------------------------------
@@ -498,6 +501,12 @@ def measure_stall(server: RunningServer, size_bytes: int = UPLOAD_BYTES) -> dict
     text = validation_text(int(size_bytes / per_line))
     while len(text.encode()) > size_bytes:
         text = validation_text(len(text.splitlines()) - 100)
+    idle: list[float] = []  # the same polls with nothing validating: the machine's own noise
+    for _ in range(STALL_IDLE_POLLS):
+        t0 = time.perf_counter()
+        server.ok("GET", "/api/rovers")
+        idle.append(time.perf_counter() - t0)
+        time.sleep(STALL_POLL_S)
     answer: list[tuple[int, Any]] = []
 
     def upload() -> None:
@@ -525,6 +534,7 @@ def measure_stall(server: RunningServer, size_bytes: int = UPLOAD_BYTES) -> dict
         "event_loop_stall_ms_during_upload": float(np.percentile(lat_ms, 99)) if have else math.nan,
         "event_loop_stall_max_ms": float(lat_ms.max()) if have else math.nan,
         "event_loop_stall_samples": int(lat_ms.size),
+        "event_loop_idle_p99_ms": float(np.percentile(np.asarray(idle) * 1000.0, 99)),
         "upload_1mb_validate_s": elapsed,
         "upload_1mb_bytes": len(text.encode()),
     }
