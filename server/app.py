@@ -4,9 +4,13 @@
 needs a role (``server.accounts``: viewer, operator, conductor, admin; ``server.auth``):
 viewing needs no token while ``public_read`` is on; uploading, commanding and clock control
 need an operator's token (``Authorization: Bearer <token>``): missing 401, wrong or too low
-403, and nothing changes. Every mutating request is audited (``server.audit``). Request
-bodies are validated (422 with the reason); uploads above ``max_upload_bytes`` get 413.
-OpenAPI at ``/docs``.
+403, and nothing changes; the token is checked before the body is read
+(``server.routing``). Every mutating request is audited (``server.audit``).
+Request bodies are validated: every 422's ``detail`` is a list of ``{"loc", "msg",
+"type"}`` (FastAPI's shape), except a rejected upload, which is stored and answered with
+its diagnostics (``SequenceReport``). Bodies above ``max_upload_bytes`` get 413 while they
+stream in; a client running ``max_concurrent_validations`` validations at once gets 429
+(``server.uploads``). OpenAPI at ``/docs``.
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ from typing import Annotated, Any, Literal
 
 import anyio
 from fastapi import FastAPI, HTTPException, Query, Request, WebSocket
+from fastapi import Path as PathParam
 from fastapi.responses import FileResponse, JSONResponse, RedirectResponse, Response
 from fastapi.staticfiles import StaticFiles
 from pydantic import BaseModel, ConfigDict, Field
@@ -47,17 +52,29 @@ from server.accounts import (
     UserExistsError,
 )
 from server.audit import AuditLog, AuditMiddleware, as_csv
-from server.auth import COOKIE, Admin, Operator, Viewer, websocket_principal
+from server.auth import (
+    COOKIE,
+    Admin,
+    Operator,
+    Viewer,
+    document_public_reads,
+    websocket_principal,
+)
 from server.hub import MAX_RATE_HZ, TelemetryHub, next_message
+from server.routing import AuthFirstRoute, allow_every_method
 from server.runtime import MAX_SPEED, ROVERS, RoverRuntime
 from server.scene3d import RoverScene
 from server.storage import BatchWriter, Store
 from server.timeline import sol_timeline
+from server.uploads import ValidationSlots, read_body, read_source, request_error
 from server.validation_context import validation_context
 from server.viser_proxy import fetch, relay
 from sim.side_estimators import ESTIMATORS
 
 MAX_UPLOAD_BYTES = 1_000_000
+MAX_CONCURRENT_VALIDATIONS = 2  # per client address, and per token
+MAX_ID = 2**31 - 1  # ids are PostgreSQL's int4 (storage: Integer columns)
+MAX_SOL = 100_000  # 270 Earth years of a mission; the bundled ephemeris covers fewer
 WEB_DIR = Path(__file__).resolve().parent.parent / "web"  # the console, served as is
 
 
@@ -71,7 +88,8 @@ class ServerConfig:
     operator_token: str | None = None
     # reading (telemetry, sequences, timelines, the 3D view) needs no token while on
     public_read: bool = True
-    max_upload_bytes: int = MAX_UPLOAD_BYTES
+    max_upload_bytes: int = MAX_UPLOAD_BYTES  # every request body, uploads or not
+    max_concurrent_validations: int = MAX_CONCURRENT_VALIDATIONS
     start_clocks: bool = True
     initial_speed: float = 1.0
     viewer_3d: bool = False  # a viser 3D view per rover under /viser/{rover}/
@@ -81,30 +99,128 @@ class ServerConfig:
 
 
 class ClockBody(BaseModel):
-    """``POST /api/rovers/{rover}/clock``: pause/resume and the speed factor."""
+    """``POST /api/rovers/{rover}/clock``: pause/resume and the speed factor. Strict: a
+    boolean is not a speed (``{"speed": true}`` is a 422, not 1.0)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", strict=True)
     action: Literal["pause", "resume"] | None = None
-    speed: float | Literal["max"] | None = Field(
-        default=None, description=f"speed factor, 1 to {MAX_SPEED:g}, or 'max'"
-    )
+    speed: (
+        Annotated[float, Field(ge=1.0, le=MAX_SPEED, allow_inf_nan=False)] | Literal["max"] | None
+    ) = Field(default=None, description=f"speed factor, 1 to {MAX_SPEED:g}, or 'max'")
 
 
 class CommandBody(BaseModel):
     """``POST /api/rovers/{rover}/commands``: one immediate command."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", strict=True)
     command: str = Field(description="a keyword of the command dictionary, e.g. DRIVE_STRAIGHT")
     args: dict[str, Any] = Field(default_factory=dict)
 
 
-class ValidateBody(BaseModel):
-    """``POST /api/sequences/validate`` (and JSON uploads): text or JSON sequence."""
+class Diagnostic(BaseModel):
+    """One problem in a sequence (``sequences.language.Diagnostic``)."""
 
-    model_config = ConfigDict(extra="forbid")
-    text: str | None = None
-    sequence: dict[str, Any] | None = None
-    rover: str | None = Field(default=None, description="validate against this rover's state")
+    line: int
+    column: int
+    code: str
+    message: str
+
+
+class ValidationReport(BaseModel):
+    """``POST /api/sequences/validate``: nothing stored."""
+
+    valid: bool
+    errors: list[Diagnostic]
+    warnings: list[Diagnostic]
+
+
+class SequenceReport(BaseModel):
+    """An uploaded sequence as stored: ``queued`` (201), or ``rejected`` with its errors
+    (422; it is stored, to be looked at later)."""
+
+    id: int
+    status: Literal["queued", "rejected"]
+    errors: list[Diagnostic]
+    warnings: list[Diagnostic]
+
+
+class ErrorMessage(BaseModel):
+    """Every error but a 422: what went wrong, in one sentence."""
+
+    detail: str
+
+
+class RequestError(BaseModel):
+    """One problem with a request (FastAPI's validation-error item; it may carry more)."""
+
+    model_config = ConfigDict(extra="allow")
+    loc: list[str | int]
+    msg: str
+    type: str
+
+
+class RequestErrors(BaseModel):
+    """A 422: every problem found with the request."""
+
+    detail: list[RequestError]
+
+
+def _error(text: str) -> dict[str, Any]:
+    return {"model": ErrorMessage, "description": text}
+
+
+AUTH_ERRORS: dict[int | str, dict[str, Any]] = {
+    401: _error("no token where the route needs one (Authorization: Bearer <token>)"),
+    403: _error("a wrong, expired or revoked token, or a role too low for the route"),
+}
+NOT_FOUND: dict[int | str, dict[str, Any]] = {404: _error("no such rover or record")}
+TOO_LARGE: dict[int | str, dict[str, Any]] = {413: _error("body over the server's limit")}
+BUSY: dict[int | str, dict[str, Any]] = {
+    429: {
+        **_error("this client already runs the most validations allowed at once"),
+        "headers": {"Retry-After": {"schema": {"type": "integer"}, "description": "seconds"}},
+    }
+}
+BAD_REQUEST: dict[int | str, dict[str, Any]] = {
+    422: {"model": RequestErrors, "description": "the request's problems"}
+}
+SEQUENCE_BODY: dict[str, Any] = {
+    "required": True,
+    "description": 'A sequence: its text, JSON, or a file. JSON may be `{"text": ...}`, '
+    '`{"sequence": ...}`, a sequence object (`name`, `steps`), or a list of steps; JSON '
+    "nested deeper than server.uploads.MAX_JSON_DEPTH is refused.",
+    "content": {
+        "text/plain": {"schema": {"type": "string"}},
+        "application/json": {
+            "schema": {
+                # what the validator judges (a sequence's name and steps) is not
+                # constrained here: a wrong one is a sequence with errors, not a bad request
+                "anyOf": [
+                    {
+                        "type": "object",
+                        "properties": {
+                            "text": {"type": "string"},
+                            "sequence": {"type": ["object", "array"]},
+                        },
+                    },
+                    {"type": "array"},
+                ]
+            }
+        },
+        "multipart/form-data": {
+            "schema": {
+                "type": "object",
+                "properties": {"file": {"type": "string", "format": "binary"}},
+                "required": ["file"],
+            }
+        },
+    },
+}
+RoverName = Annotated[
+    str, PathParam(description="a rover's name (GET /api/rovers)", examples=list(ROVERS))
+]
+SequenceId = Annotated[int, PathParam(ge=1, le=MAX_ID, description="a sequence's id")]
+Sol = Annotated[int, PathParam(ge=0, le=MAX_SOL, description="a sol of the mission")]
 
 
 class SessionBody(BaseModel):
@@ -142,7 +258,7 @@ def _account_error(error: AccountError) -> HTTPException:
         return HTTPException(404, str(error))
     if isinstance(error, UserExistsError):
         return HTTPException(409, str(error))
-    return HTTPException(422, str(error))
+    return request_error(("body",), str(error), "account")
 
 
 class Server:
@@ -255,6 +371,31 @@ def _diagnostics(result: ValidationResult) -> dict[str, Any]:
     return {"errors": as_list(result.errors), "warnings": as_list(result.warnings)}
 
 
+def _request_errors(result: ValidationResult) -> list[dict[str, Any]]:
+    """A sequence's errors as a 422 ``detail`` (``RequestErrors``): the diagnostic's code as
+    ``type``, its message as ``msg``."""
+    return [
+        {"loc": ["body"], "msg": d.message, "type": d.code, "line": d.line, "column": d.column}
+        for d in result.errors
+    ]
+
+
+@dataclass
+class Checked:
+    """An upload read and validated: its source as stored, format, name and result."""
+
+    text: str
+    fmt: str
+    name: str
+    result: ValidationResult
+
+
+CSV_FILE: dict[str, Any] = {
+    "description": "CSV, one row per frame",
+    "content": {"text/csv": {"schema": {"type": "string"}}},
+}
+
+
 def _steps_json(sequence: Sequence) -> list[dict[str, Any]]:
     return [_step_json(s) for s in sequence.steps]
 
@@ -284,9 +425,16 @@ def create_app(config: ServerConfig) -> FastAPI:
         title="roverops",
         description="Ground operations for a simulated Mars Exploration Rover",
         lifespan=lifespan,
+        responses=AUTH_ERRORS,  # any route: a bad token, or no token where reading needs one
     )
+    app.router.route_class = AuthFirstRoute  # the token before the body, for every route
+    allow_every_method(app)
     app.state.server = server
     app.add_middleware(AuditMiddleware, server=server)
+    if config.public_read:
+        document_public_reads(app)
+    app.state.max_body_bytes = config.max_upload_bytes
+    slots = ValidationSlots(config.max_concurrent_validations)
 
     @app.get("/", include_in_schema=False)
     def console_page() -> FileResponse:
@@ -302,8 +450,8 @@ def create_app(config: ServerConfig) -> FastAPI:
             {k: v for k, v in r.state().items() if k != "frame"} for r in server.rovers.values()
         ]
 
-    @app.get("/api/rovers/{rover}/state")
-    def rover_state(rover: str, _: Viewer) -> dict[str, Any]:
+    @app.get("/api/rovers/{rover}/state", responses=NOT_FOUND)
+    def rover_state(rover: RoverName, _: Viewer) -> dict[str, Any]:
         """Clock, queue, the executing command and the latest telemetry frame."""
         return server.rover(rover).state()
 
@@ -337,98 +485,108 @@ def create_app(config: ServerConfig) -> FastAPI:
             for name, kind in cmd.COMMANDS.items()
         ]
 
-    async def _read_upload(request: Request) -> tuple[str | dict[str, Any], str]:
-        size = int(request.headers.get("content-length") or 0)
-        if size > config.max_upload_bytes:
-            raise HTTPException(413, f"upload over {config.max_upload_bytes} bytes")
-        body = await request.body()
-        if len(body) > config.max_upload_bytes:
-            raise HTTPException(413, f"upload over {config.max_upload_bytes} bytes")
-        ctype = request.headers.get("content-type", "")
-        if ctype.startswith("multipart/form-data"):
-            form = await request.form()
-            upload = form.get("file")
-            if upload is None or isinstance(upload, str):
-                raise HTTPException(422, "multipart upload needs a 'file' part")
-            data = await upload.read()
-            name = upload.filename or "upload"
-            return _decode(data, name), "json" if name.endswith(".json") else "text"
-        if ctype.startswith("application/json"):
-            try:
-                parsed = json.loads(body)
-            except json.JSONDecodeError as exc:
-                raise HTTPException(422, f"body: not JSON: {exc}") from exc
-            if isinstance(parsed, dict) and "text" in parsed and isinstance(parsed["text"], str):
-                return parsed["text"], "text"
-            if isinstance(parsed, dict) and isinstance(parsed.get("sequence"), (dict, list)):
-                return parsed["sequence"], "json"
-            if isinstance(parsed, (dict, list)):
-                return parsed if isinstance(parsed, dict) else {"steps": parsed}, "json"
-            raise HTTPException(422, "body: a sequence object, or {'text': ...}")
-        return _decode(body, "body"), "text"
+    def check_upload(
+        body: bytes, content_type: str, runtime: RoverRuntime | None, named: bool
+    ) -> Checked:
+        """Everything that grows with an upload, in one threadpool call (never on the event
+        loop): decoding, JSON parsing, the rover's context, validation and the name."""
+        source, fmt = read_source(body, content_type)
+        result = validate(source, server.context(runtime) if runtime else None)
+        name = (result.sequence.name if result.sequence else None) or (
+            (declared_name(source) or "unnamed") if named else "unnamed"
+        )
+        text = source if isinstance(source, str) else json.dumps(source)
+        return Checked(text, fmt, name, result)
 
-    @app.post("/api/rovers/{rover}/sequences", status_code=201)
-    async def upload_sequence(rover: str, request: Request, who: Operator) -> JSONResponse:
+    async def read_and_check(
+        request: Request, runtime: RoverRuntime | None, named: bool = False
+    ) -> Checked:
+        """The body read (413 past the limit) and checked, in one of the client's
+        validation slots (429 when it has none left)."""
+        with slots.hold(request):
+            body = await read_body(request, config.max_upload_bytes)
+            content_type = request.headers.get("content-type", "")
+            return await run_in_threadpool(check_upload, body, content_type, runtime, named)
+
+    @app.post(
+        "/api/rovers/{rover}/sequences",
+        status_code=201,
+        response_model=SequenceReport,
+        responses={
+            **AUTH_ERRORS,
+            **NOT_FOUND,
+            **TOO_LARGE,
+            422: {
+                "model": SequenceReport | RequestErrors,
+                "description": "a sequence with errors (stored as rejected), or a body "
+                "that is not a sequence",
+            },
+            **BUSY,
+        },
+        openapi_extra={"requestBody": SEQUENCE_BODY},
+    )
+    async def upload_sequence(rover: RoverName, request: Request, who: Operator) -> JSONResponse:
         """Validate, store and queue a sequence (text, JSON, or a multipart file)."""
         runtime = server.rover(rover)
         request.state.audit_action = "upload a sequence"
-        source, fmt = await _read_upload(request)
-        result = await run_in_threadpool(validate, source, server.context(runtime))
-        text = source if isinstance(source, str) else json.dumps(source)
-        name = (result.sequence.name if result.sequence else None) or (
-            declared_name(source) or "unnamed"
-        )
-        diags = _diagnostics(result)
+        checked = await read_and_check(request, runtime, named=True)
+        name = checked.name
+        result, diags = checked.result, _diagnostics(checked.result)
         if result.errors or result.sequence is None:
             seq_id = await run_in_threadpool(
                 server.store.add_sequence,
-                rover, name, text, fmt, "rejected", diags["errors"], diags["warnings"], [],
-                who.name,
+                rover, name, checked.text, checked.fmt, "rejected", diags["errors"],
+                diags["warnings"], [], who.name,
             )  # fmt: skip
             request.state.audit_action = f"upload sequence {name} (#{seq_id}): rejected"
             return JSONResponse({"id": seq_id, "status": "rejected", **diags}, status_code=422)
         steps = _steps_json(result.sequence)
         seq_id = await run_in_threadpool(
             server.store.add_sequence,
-            rover,
-            name,
-            text,
-            fmt,
-            "queued",
-            [],
-            diags["warnings"],
-            steps,
+            rover, name, checked.text, checked.fmt, "queued", [], diags["warnings"], steps,
             who.name,
-        )
+        )  # fmt: skip
         runtime.enqueue(seq_id, result.sequence)
         request.state.audit_action = f"upload sequence {name} (#{seq_id}): queued"
         return JSONResponse({"id": seq_id, "status": "queued", **diags}, status_code=201)
 
-    @app.post("/api/sequences/validate")
-    async def validate_only(request: Request, _: Viewer) -> dict[str, Any]:
+    @app.post(
+        "/api/sequences/validate",
+        response_model=ValidationReport,
+        responses={**NOT_FOUND, **TOO_LARGE, **BAD_REQUEST, **BUSY},
+        openapi_extra={"requestBody": SEQUENCE_BODY},
+    )
+    async def validate_only(
+        request: Request,
+        _: Viewer,
+        rover: Annotated[
+            str | None, Query(description="add this rover's warnings (its state now)")
+        ] = None,
+    ) -> dict[str, Any]:
         """Validation only: nothing stored. ``?rover=`` adds that rover's warnings."""
-        source, _fmt = await _read_upload(request)
-        rover = request.query_params.get("rover")
-        context = server.context(server.rover(rover)) if rover else None
-        result = await run_in_threadpool(validate, source, context)
-        return {"valid": not result.errors, **_diagnostics(result)}
+        runtime = server.rover(rover) if rover is not None else None
+        checked = await read_and_check(request, runtime)
+        return {"valid": not checked.result.errors, **_diagnostics(checked.result)}
 
-    @app.get("/api/rovers/{rover}/sequences")
-    def list_sequences(rover: str, _: Viewer) -> list[dict[str, Any]]:
+    @app.get("/api/rovers/{rover}/sequences", responses=NOT_FOUND)
+    def list_sequences(rover: RoverName, _: Viewer) -> list[dict[str, Any]]:
         """Sequences of a rover, newest first, each with who submitted it."""
         server.rover(rover)
         return server.store.list_sequences(rover)
 
-    @app.get("/api/sequences/{sequence_id}")
-    def get_sequence(sequence_id: int, _: Viewer) -> dict[str, Any]:
+    @app.get("/api/sequences/{sequence_id:int}", responses=NOT_FOUND)
+    def get_sequence(sequence_id: SequenceId, _: Viewer) -> dict[str, Any]:
         """One sequence with its source, steps, status, errors and warnings."""
         found = server.store.get_sequence(sequence_id)
         if found is None:
             raise HTTPException(404, f"no sequence {sequence_id}")
         return found
 
-    @app.delete("/api/sequences/{sequence_id}")
-    def cancel_sequence(sequence_id: int, request: Request, _: Operator) -> dict[str, Any]:
+    @app.delete(
+        "/api/sequences/{sequence_id:int}",
+        responses={**AUTH_ERRORS, **NOT_FOUND, 409: _error("the sequence is not queued")},
+    )
+    def cancel_sequence(sequence_id: SequenceId, request: Request, _: Operator) -> dict[str, Any]:
         """Cancel a queued sequence (a running one stops after its current command)."""
         request.state.audit_action = f"cancel sequence #{sequence_id}"
         found = server.store.get_sequence(sequence_id)
@@ -441,9 +599,13 @@ def create_app(config: ServerConfig) -> FastAPI:
         server.store.set_sequence_status(sequence_id, "cancelled", "cancelled by an operator")
         return {"id": sequence_id, "status": "cancelled"}
 
-    @app.post("/api/rovers/{rover}/commands", status_code=201)
+    @app.post(
+        "/api/rovers/{rover}/commands",
+        status_code=201,
+        responses={**AUTH_ERRORS, **NOT_FOUND, **TOO_LARGE, **BAD_REQUEST},
+    )
     def immediate_command(
-        rover: str, body: CommandBody, request: Request, who: Operator
+        rover: RoverName, body: CommandBody, request: Request, who: Operator
     ) -> dict[str, Any]:
         """One command, run before the next queued step."""
         runtime = server.rover(rover)
@@ -454,7 +616,7 @@ def create_app(config: ServerConfig) -> FastAPI:
         }
         result = validate(source, server.context(runtime))
         if result.errors or result.sequence is None:
-            raise HTTPException(422, _diagnostics(result))
+            raise HTTPException(422, _request_errors(result))
         seq_id = server.store.add_sequence(
             rover,
             f"immediate_{body.command}",
@@ -470,8 +632,13 @@ def create_app(config: ServerConfig) -> FastAPI:
         request.state.audit_action = f"immediate command {body.command} (#{seq_id}): queued"
         return {"id": seq_id, "status": "queued", **_diagnostics(result)}
 
-    @app.post("/api/rovers/{rover}/clock")
-    def set_clock(rover: str, body: ClockBody, request: Request, _: Operator) -> dict[str, Any]:
+    @app.post(
+        "/api/rovers/{rover}/clock",
+        responses={**AUTH_ERRORS, **NOT_FOUND, **TOO_LARGE, **BAD_REQUEST},
+    )
+    def set_clock(
+        rover: RoverName, body: ClockBody, request: Request, _: Operator
+    ) -> dict[str, Any]:
         """Pause, resume, or set the speed factor (1 to MAX_SPEED, or 'max')."""
         runtime = server.rover(rover)
         request.state.audit_action = "clock " + " ".join(
@@ -481,23 +648,21 @@ def create_app(config: ServerConfig) -> FastAPI:
         if body.speed == "max":
             speed = math.inf
         elif body.speed is not None:
-            if not (isinstance(body.speed, (int, float)) and 1.0 <= body.speed <= MAX_SPEED):
-                raise HTTPException(422, f"speed: must be 1 to {MAX_SPEED:g} or 'max'")
-            speed = float(body.speed)
+            speed = float(body.speed)  # ClockBody bounds it
         running = None if body.action is None else body.action == "resume"
         runtime.set_clock(running=running, speed=speed)
         clock: dict[str, Any] = runtime.state()["clock"]
         return clock
 
-    @app.get("/api/rovers/{rover}/sols")
-    def sols(rover: str, _: Viewer) -> list[int]:
+    @app.get("/api/rovers/{rover}/sols", responses=NOT_FOUND)
+    def sols(rover: RoverName, _: Viewer) -> list[int]:
         """Sols with telemetry."""
         server.rover(rover)
         server.writer.flush()
         return server.store.sols(rover)
 
-    @app.get("/api/rovers/{rover}/sols/{sol}/timeline")
-    def timeline(rover: str, sol: int, _: Viewer) -> dict[str, Any]:
+    @app.get("/api/rovers/{rover}/sols/{sol}/timeline", responses=NOT_FOUND)
+    def timeline(rover: RoverName, sol: Sol, _: Viewer) -> dict[str, Any]:
         """One sol: commands, NATE mode and AQF intervals, events, distance, summary."""
         runtime = server.rover(rover)
         server.writer.flush()
@@ -506,10 +671,14 @@ def create_app(config: ServerConfig) -> FastAPI:
             raise HTTPException(404, f"no telemetry on sol {sol}")
         return found
 
-    @app.get("/api/rovers/{rover}/sols/{sol}/telemetry.csv", response_class=Response)
+    @app.get(
+        "/api/rovers/{rover}/sols/{sol}/telemetry.csv",
+        response_class=Response,
+        responses={200: CSV_FILE, **NOT_FOUND},
+    )
     def sol_telemetry_csv(
-        rover: str,
-        sol: int,
+        rover: RoverName,
+        sol: Sol,
         _: Viewer,
         every: Annotated[float, Query(ge=0.0, le=86400.0)] = 0.0,
     ) -> Response:
@@ -526,9 +695,23 @@ def create_app(config: ServerConfig) -> FastAPI:
             _csv(frames), media_type="text/csv", headers={"Content-Disposition": disposition}
         )
 
-    @app.get("/api/rovers/{rover}/telemetry", response_model=None)
+    @app.get(
+        "/api/rovers/{rover}/telemetry",
+        response_model=None,
+        responses={
+            200: {
+                "description": "frames (JSON), or CSV on Accept: text/csv",
+                "content": {
+                    "application/json": {"schema": {"type": "array", "items": {"type": "object"}}},
+                    **CSV_FILE["content"],
+                },
+            },
+            **NOT_FOUND,
+            **BAD_REQUEST,
+        },
+    )
     def telemetry(
-        rover: str,
+        rover: RoverName,
         request: Request,
         _: Viewer,
         t_from: Annotated[float | None, Query(alias="from")] = None,
@@ -542,7 +725,7 @@ def create_app(config: ServerConfig) -> FastAPI:
         lo = -math.inf if t_from is None else t_from
         hi = runtime.t_s if t_to is None else t_to
         if not (math.isfinite(hi) and lo <= hi):
-            raise HTTPException(422, "from/to: need from <= to")
+            raise request_error(("query", "to"), "from/to: need from <= to, to finite", "range")
         frames = server.store.frames(rover, lo, hi, every, limit)
         if "text/csv" in request.headers.get("accept", ""):
             return Response(_csv(frames), media_type="text/csv")
@@ -575,8 +758,8 @@ def create_app(config: ServerConfig) -> FastAPI:
             return
         await relay(websocket, server.scenes[rover].port)
 
-    @app.get("/api/rovers/{rover}/scene")
-    def scene_state(rover: str, _: Viewer) -> dict[str, Any]:
+    @app.get("/api/rovers/{rover}/scene", responses=NOT_FOUND)
+    def scene_state(rover: RoverName, _: Viewer) -> dict[str, Any]:
         """The 3D view: its URL on this origin and how many frames it has drawn."""
         scene_port(rover)
         return {"url": f"/viser/{rover}/", "frames_drawn": server.scenes[rover].frames_drawn}
@@ -645,7 +828,7 @@ def create_app(config: ServerConfig) -> FastAPI:
         token), and whether reading needs a token on this server."""
         return _principal_json(who)
 
-    @app.post("/api/session")
+    @app.post("/api/session", responses=BAD_REQUEST)
     def sign_in(body: SessionBody, request: Request) -> JSONResponse:
         """Sign this browser in: the token is checked and kept in an HttpOnly cookie that
         the 3D view and the telemetry WebSocket send (it counts for reading only)."""
@@ -673,7 +856,7 @@ def create_app(config: ServerConfig) -> FastAPI:
         """Every user: name, role, creation time and how many live tokens it holds."""
         return server.accounts.list_users()
 
-    @app.post("/api/users", status_code=201)
+    @app.post("/api/users", status_code=201, responses={409: _error("the user exists")})
     def add_user(body: NewUserBody, request: Request, _: Admin) -> dict[str, Any]:
         """A new user and its first token (shown in this answer only; stored hashed)."""
         request.state.audit_action = f"add user {body.name} as {body.role}"
@@ -684,7 +867,7 @@ def create_app(config: ServerConfig) -> FastAPI:
         return {"name": issued.name, "role": issued.role, "token": issued.token,
                 "expires_at": issued.expires_at.isoformat()}  # fmt: skip
 
-    @app.patch("/api/users/{name}")
+    @app.patch("/api/users/{name}", responses=NOT_FOUND)
     def change_role(name: str, body: RoleBody, request: Request, _: Admin) -> dict[str, Any]:
         """Give a user another role."""
         request.state.audit_action = f"set the role of {name} to {body.role}"
@@ -694,7 +877,7 @@ def create_app(config: ServerConfig) -> FastAPI:
             raise _account_error(error) from None
         return {"name": name, "role": body.role}
 
-    @app.post("/api/users/{name}/tokens", status_code=201)
+    @app.post("/api/users/{name}/tokens", status_code=201, responses=NOT_FOUND)
     def new_token(name: str, body: TokenBody, request: Request, _: Admin) -> dict[str, Any]:
         """Another token for a user (shown in this answer only)."""
         request.state.audit_action = f"issue a token to {name}"
@@ -705,7 +888,7 @@ def create_app(config: ServerConfig) -> FastAPI:
         return {"name": issued.name, "role": issued.role, "token": issued.token,
                 "expires_at": issued.expires_at.isoformat()}  # fmt: skip
 
-    @app.delete("/api/users/{name}/tokens")
+    @app.delete("/api/users/{name}/tokens", responses=NOT_FOUND)
     def revoke_tokens(name: str, request: Request, _: Admin) -> dict[str, Any]:
         """Revoke every live token of a user."""
         request.state.audit_action = f"revoke the tokens of {name}"
@@ -715,7 +898,20 @@ def create_app(config: ServerConfig) -> FastAPI:
             raise _account_error(error) from None
         return {"name": name, "revoked": revoked}
 
-    @app.get("/api/audit", response_model=None)
+    @app.get(
+        "/api/audit",
+        response_model=None,
+        responses={
+            200: {
+                "description": "audit rows, newest first (JSON), or CSV",
+                "content": {
+                    "application/json": {"schema": {"type": "array", "items": {"type": "object"}}},
+                    **CSV_FILE["content"],
+                },
+            },
+            **BAD_REQUEST,
+        },
+    )
     def audit(
         request: Request,
         _: Admin,
@@ -723,15 +919,16 @@ def create_app(config: ServerConfig) -> FastAPI:
         rover: Annotated[str | None, Query(max_length=64)] = None,
         result: Literal["accepted", "refused"] | None = None,
         method: Literal["POST", "PUT", "PATCH", "DELETE"] | None = None,
-        since: datetime | None = None,
-        until: datetime | None = None,
+        since: Annotated[str | None, Query(max_length=40, json_schema_extra=ISO_TIME)] = None,
+        until: Annotated[str | None, Query(max_length=40, json_schema_extra=ISO_TIME)] = None,
         limit: Annotated[int, Query(ge=1, le=10_000)] = 1000,
         format: Literal["json", "csv"] | None = None,  # the query parameter's own name
     ) -> Response | list[dict[str, Any]]:
         """The audit log, newest first: every accepted or refused mutating request with who,
         when (UTC and the rover's sol and LMST), what and the result. Filters combine; CSV
         with ``format=csv`` or ``Accept: text/csv``."""
-        rows = server.audit.query(user, rover, result, method, _utc(since), _utc(until), limit)
+        lo, hi = _utc(since, "since"), _utc(until, "until")
+        rows = server.audit.query(user, rover, result, method, lo, hi, limit)
         if format == "csv" or (format is None and "text/csv" in request.headers.get("accept", "")):
             return Response(as_csv(rows), media_type="text/csv")
         return rows
@@ -739,18 +936,23 @@ def create_app(config: ServerConfig) -> FastAPI:
     return app
 
 
-def _utc(value: datetime | None) -> datetime | None:
-    """A query's datetime as aware UTC (a naive one is taken as UTC)."""
-    if value is None:
+ISO_TIME = {"format": "date-time", "examples": ["2026-12-02T05:00:00+00:00"]}
+
+
+def _utc(text: str | None, name: str) -> datetime | None:
+    """A query's ISO 8601 date and time as aware UTC (without an offset: UTC); a number or
+    a date alone is refused, as the schema's ``date-time`` says."""
+    if text is None:
         return None
-    return value.replace(tzinfo=UTC) if value.tzinfo is None else value.astimezone(UTC)
-
-
-def _decode(data: bytes, name: str) -> str:
     try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise HTTPException(422, f"{name}: not UTF-8 text ({exc.reason})") from exc
+        if "T" not in text.upper():
+            raise ValueError("no time")
+        value = datetime.fromisoformat(text)
+    except ValueError:
+        raise request_error(
+            ("query", name), f"{name}: an ISO 8601 date and time", "datetime"
+        ) from None
+    return value.replace(tzinfo=UTC) if value.tzinfo is None else value.astimezone(UTC)
 
 
 CSV_COLUMNS = (

@@ -19,8 +19,9 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import Annotated, Any
 
-from fastapi import Depends, HTTPException, Request
-from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
+from fastapi import Depends, FastAPI, HTTPException, Request
+from fastapi.routing import APIRoute
+from fastapi.security import APIKeyHeader, HTTPAuthorizationCredentials, HTTPBearer
 from starlette.datastructures import Headers
 
 from server.accounts import ANONYMOUS, RANK, Accounts, Principal, TokenRefusedError
@@ -31,14 +32,23 @@ SAFE_METHODS = ("GET", "HEAD")
 # Declares the bearer scheme in OpenAPI (so /docs has an Authorize button); the check
 # itself reads the headers, so it runs the same whether FastAPI or server.routing calls it.
 bearer_scheme = HTTPBearer(auto_error=False, description="an API token (roverops users token)")
+legacy_scheme = APIKeyHeader(
+    name="X-Operator-Token", auto_error=False, description="the same token, the older header"
+)
 
 
 def presented_token(
     headers: Headers | Mapping[str, str], cookies: Mapping[str, str], cookie_ok: bool
 ) -> tuple[str | None, bool]:
     """The token a request presents and whether it came from the cookie."""
-    authorization = headers.get("authorization") or ""
-    if authorization[:7].lower() == "bearer " and authorization[7:].strip():
+    authorization = headers.get("authorization")
+    if authorization is not None:
+        if authorization[:7].lower() != "bearer " or not authorization[7:].strip():
+            # a credential we cannot read is refused, never taken for no credential
+            raise HTTPException(
+                401, "malformed Authorization header: use Bearer <token>",
+                {"WWW-Authenticate": "Bearer"},
+            )  # fmt: skip
         return authorization[7:].strip(), False
     legacy = (headers.get("x-operator-token") or "").strip()
     if legacy:
@@ -92,6 +102,7 @@ def require(role: str) -> Callable[..., Principal]:
     def check(
         request: Request,
         _scheme: Annotated[HTTPAuthorizationCredentials | None, Depends(bearer_scheme)] = None,
+        _legacy: Annotated[str | None, Depends(legacy_scheme)] = None,
     ) -> Principal:
         cached: Principal | None = getattr(request.state, "principal", None)
         if cached is not None and getattr(request.state, "checked_role", None) == role:
@@ -107,6 +118,7 @@ def require(role: str) -> Callable[..., Principal]:
         return principal
 
     check.__auth_check__ = True  # type: ignore[attr-defined]  # server.routing runs it first
+    check.__required_role__ = role  # type: ignore[attr-defined]  # for document_public_reads
     check.__name__ = f"require_{role}"
     return check
 
@@ -116,6 +128,33 @@ def websocket_principal(server: Any, headers: Headers, cookies: Mapping[str, str
     token, from_cookie = presented_token(headers, cookies, True)
     principal = identify(server.accounts, server.config.public_read, "viewer", token, from_cookie)
     return authorize(principal, "viewer")
+
+
+def document_public_reads(app: FastAPI) -> None:
+    """With public reading on, the OpenAPI of each viewer route says its token is optional
+    (``security: [{}, ...]``): the schema describes what the server does."""
+    original = app.openapi
+
+    def openapi() -> dict[str, Any]:
+        schema = original()
+        if schema.get("x-public-reads-documented"):
+            return schema
+        for route in app.routes:
+            if not isinstance(route, APIRoute) or not route.include_in_schema:
+                continue
+            roles = {
+                getattr(d.call, "__required_role__", None) for d in route.dependant.dependencies
+            }
+            if "viewer" not in roles:
+                continue
+            for method in route.methods or ():
+                operation = schema["paths"].get(route.path_format, {}).get(method.lower())
+                if operation is not None and operation.get("security"):
+                    operation["security"] = [{}, *operation["security"]]
+        schema["x-public-reads-documented"] = True
+        return schema
+
+    app.openapi = openapi  # type: ignore[method-assign]
 
 
 Viewer = Annotated[Principal, Depends(require("viewer"))]

@@ -23,6 +23,17 @@ an interpreter lock and the figures include the network stack.
   made of the example files' commands (median of ``repeats``), without a rover context as
   ``roverops validate`` runs it; ``validate_10k_lines_with_rover_s`` the same with Spirit's
   ``ValidationContext`` (the upload route's warnings walk), reported without a target.
+- ``validate_100k_blank_lines_s``: wall time of ``POST /api/sequences/validate`` (through
+  the server) of 100,000 blank lines then one command (issue 13, defect 4);
+  ``upload_100k_blank_lines_s`` the same text uploaded to a paused rover (the upload also
+  finds the sequence's declared name), reported without a target.
+- ``event_loop_stall_ms_during_upload``: p99 latency of ``GET /api/rovers`` polled every
+  ``STALL_POLL_S`` from another thread while a 1 MB sequence (the examples' commands, as
+  ``validate_10k_lines_s``) is validated against Spirit (``/validate?rover=spirit``, the
+  heaviest validation a client can ask for); ``upload_1mb_validate_s`` how long that took
+  and ``event_loop_stall_samples`` how many polls it covered; ``event_loop_idle_p99_ms``
+  the p99 of ``STALL_IDLE_POLLS`` polls just before, with nothing validating (on a shared
+  machine, the part of the stall that is not the server's).
 
 Output contract: ``sim.bench._result`` (DESIGN.md "Benchmarks").
 """
@@ -75,7 +86,13 @@ TARGETS: dict[str, dict[str, float]] = {
     "ws_clients": {"ge": 50},
     "ws_p99_latency_ms": {"le": 100.0},
     "validate_10k_lines_s": {"le": 0.5},
+    "validate_100k_blank_lines_s": {"le": 1.0},
+    "event_loop_stall_ms_during_upload": {"le": 100.0},
 }
+BLANK_LINES = 100_000
+UPLOAD_BYTES = 990_000  # under the server's 1,000,000-byte limit
+STALL_POLL_S = 0.01
+STALL_IDLE_POLLS = 200
 
 
 # ---- a real server in a subprocess ---------------------------------------------------------
@@ -110,7 +127,11 @@ class RunningServer:
         return f"ws://127.0.0.1:{self.port}/ws/rovers/{rover}/telemetry"
 
     def request(
-        self, method: str, path: str, body: str | dict[str, Any] | None = None
+        self,
+        method: str,
+        path: str,
+        body: str | dict[str, Any] | None = None,
+        timeout_s: float = 30.0,
     ) -> tuple[int, Any]:
         """One REST call (with the operator token); ``(status, parsed JSON body)``. A dict
         body goes as JSON, a string as a text sequence."""
@@ -124,7 +145,7 @@ class RunningServer:
             headers["Content-Type"] = "text/plain"
         req = urllib.request.Request(self.base_url + path, data, headers, method=method)
         try:
-            with self._opener.open(req, timeout=30.0) as response:
+            with self._opener.open(req, timeout=timeout_s) as response:
                 return int(response.status), json.loads(response.read() or b"null")
         except urllib.error.HTTPError as error:
             text = error.read()
@@ -446,6 +467,79 @@ def measure_validation(n_lines: int = 10_000, repeats: int = 3) -> dict[str, Any
     }
 
 
+def measure_blank_lines(server: RunningServer, n_lines: int = BLANK_LINES) -> dict[str, Any]:
+    """``n_lines`` blank lines then one command: validated, then uploaded to a paused rover
+    (and cancelled), each timed from request to answer."""
+    text = "\n" * n_lines + "NADIR_UPDATE\n"
+    start = time.perf_counter()
+    status, answer = server.request("POST", "/api/sequences/validate", text, timeout_s=300.0)
+    validate_s = time.perf_counter() - start
+    if status != 200 or not answer["valid"]:
+        raise RuntimeError(f"blank lines: HTTP {status}: {str(answer)[:300]}")
+    server.ok("POST", "/api/rovers/opportunity/clock", {"action": "pause"})
+    start = time.perf_counter()
+    status, answer = server.request(
+        "POST", "/api/rovers/opportunity/sequences", text, timeout_s=300.0
+    )
+    upload_s = time.perf_counter() - start
+    if status != 201:
+        raise RuntimeError(f"blank lines upload: HTTP {status}: {str(answer)[:300]}")
+    server.ok("DELETE", f"/api/sequences/{answer['id']}")
+    return {
+        "validate_100k_blank_lines_s": validate_s,
+        "upload_100k_blank_lines_s": upload_s,
+        "blank_lines": n_lines,
+    }
+
+
+def measure_stall(server: RunningServer, size_bytes: int = UPLOAD_BYTES) -> dict[str, Any]:
+    """``GET /api/rovers`` polled from another thread while a ``size_bytes`` sequence is
+    validated against Spirit: the p99 and max of its latency (module docstring)."""
+    import threading
+
+    per_line = len(validation_text(1000)) / 1000
+    text = validation_text(int(size_bytes / per_line))
+    while len(text.encode()) > size_bytes:
+        text = validation_text(len(text.splitlines()) - 100)
+    idle: list[float] = []  # the same polls with nothing validating: the machine's own noise
+    for _ in range(STALL_IDLE_POLLS):
+        t0 = time.perf_counter()
+        server.ok("GET", "/api/rovers")
+        idle.append(time.perf_counter() - t0)
+        time.sleep(STALL_POLL_S)
+    answer: list[tuple[int, Any]] = []
+
+    def upload() -> None:
+        answer.append(server.request("POST", f"/api/sequences/validate?rover={ROVER}", text, 600.0))
+
+    latencies: list[float] = []
+    thread = threading.Thread(target=upload)
+    start = time.perf_counter()
+    thread.start()
+    time.sleep(0.02)  # the body on its way (a small one validates in a fraction of a second)
+    while thread.is_alive():
+        t0 = time.perf_counter()
+        server.ok("GET", "/api/rovers")
+        if thread.is_alive():  # only polls that overlapped the validation count
+            latencies.append(time.perf_counter() - t0)
+        time.sleep(STALL_POLL_S)
+    thread.join()
+    elapsed = time.perf_counter() - start
+    status, body = answer[0]
+    if status != 200:
+        raise RuntimeError(f"1 MB validation: HTTP {status}: {str(body)[:300]}")
+    lat_ms = np.asarray(latencies) * 1000.0
+    have = lat_ms.size > 0
+    return {
+        "event_loop_stall_ms_during_upload": float(np.percentile(lat_ms, 99)) if have else math.nan,
+        "event_loop_stall_max_ms": float(lat_ms.max()) if have else math.nan,
+        "event_loop_stall_samples": int(lat_ms.size),
+        "event_loop_idle_p99_ms": float(np.percentile(np.asarray(idle) * 1000.0, 99)),
+        "upload_1mb_validate_s": elapsed,
+        "upload_1mb_bytes": len(text.encode()),
+    }
+
+
 # ---- the bench ------------------------------------------------------------------------------
 
 
@@ -456,6 +550,8 @@ def bench_server(
     validate_repeats: int = 3,
     drive_m: float = 100.0,
     hga_min: float = 15.0,
+    blank_lines: int = BLANK_LINES,
+    upload_bytes: int = UPLOAD_BYTES,
 ) -> dict[str, Any]:
     """The server bench (module docstring); the defaults are the issue's figures, smaller
     ones make a quick run (the targets stay the issue's)."""
@@ -466,6 +562,8 @@ def bench_server(
             metrics["server_start_s"] = time.perf_counter() - started
             metrics.update(measure_sol(server, drive_m, hga_min))
             metrics.update(measure_ws(server, ws_clients, ws_window_s))
+            metrics.update(measure_blank_lines(server, blank_lines))
+            metrics.update(measure_stall(server, upload_bytes))
     metrics.update(measure_validation(validate_lines, validate_repeats))
     return _result("server", metrics, TARGETS)
 

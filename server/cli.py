@@ -266,25 +266,26 @@ def _print_validation(result: dict[str, Any], as_json: bool) -> None:
     print(f"{result['file']}: {errors} error(s), {warnings} warning(s)", file=sys.stderr)
 
 
+# Benchmarks of the server, dispatched here: sim (sim.bench) must not import server.
+SERVER_BENCHES = {
+    "server": "server.bench_server:bench_server",
+    "view3d": "server.bench_view3d:bench_view3d",
+    "restart": "server.bench_restart:bench_restart",
+    "fuzz": "server.bench_fuzz:bench_fuzz",
+}
+
+
 def _cmd_bench(args: argparse.Namespace) -> dict[str, Any]:
-    # `server`, `view3d` and `restart` are dispatched here: sim (sim.bench) must not import
-    # server.
-    if args.name == "server":
-        from server.bench_server import bench_server
+    import importlib
 
-        return bench_server()
-    if args.name == "view3d":
-        from server.bench_view3d import bench_view3d
-
-        return bench_view3d()
-    if args.name == "restart":
-        from server.bench_restart import bench_restart
-
-        return bench_restart()
+    if args.name in SERVER_BENCHES:
+        module, function = SERVER_BENCHES[args.name].split(":")
+        bench: Callable[[], dict[str, Any]] = getattr(importlib.import_module(module), function)
+        return bench()
     from sim.bench import BENCHES, run_bench
 
     if args.name not in BENCHES:
-        choices = ", ".join([*BENCHES, "server", "view3d", "restart"])
+        choices = ", ".join([*BENCHES, *SERVER_BENCHES])
         raise InputError("name", f"unknown benchmark {args.name!r}; choose one of {choices}")
     return run_bench(args.name)
 
@@ -422,7 +423,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     bench = sub.add_parser("bench", help="run a benchmark and print its figures")
     bench.add_argument(
-        "name", help="benchmark name: sim, sapp, vo, fusion, server, view3d or restart"
+        "name", help="benchmark name: sim, sapp, vo, fusion, server, view3d, restart or fuzz"
     )
     bench.add_argument("--json", action="store_true", help="print JSON (one object)")
     bench.set_defaults(handler=_cmd_bench)

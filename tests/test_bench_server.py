@@ -26,6 +26,8 @@ def quick() -> dict[str, Any]:
         validate_repeats=1,
         drive_m=2.0,
         hga_min=1.0,
+        blank_lines=10_000,
+        upload_bytes=100_000,
     )
 
 
@@ -39,6 +41,8 @@ def test_the_output_contract(quick: dict[str, Any]) -> None:
         "ws_clients",
         "ws_p99_latency_ms",
         "validate_10k_lines_s",
+        "validate_100k_blank_lines_s",
+        "event_loop_stall_ms_during_upload",
     }
     assert set(quick["targets"]) <= set(quick["metrics"])
     assert isinstance(quick["ok"], bool)
@@ -46,7 +50,8 @@ def test_the_output_contract(quick: dict[str, Any]) -> None:
     for key, value in quick["metrics"].items():
         assert isinstance(value, (int, float)), key  # figures only
         if isinstance(value, float):
-            assert key.endswith(UNITS), f"{key}: no unit in the key"
+            # the unit ends the key, or follows the quantity (the name for the stall)
+            assert key.endswith(UNITS) or "_ms_during_" in key, f"{key}: no unit in the key"
 
 
 def test_the_sol_ran_through_the_server(quick: dict[str, Any]) -> None:
@@ -72,6 +77,15 @@ def test_the_validation_figures(quick: dict[str, Any]) -> None:
     assert m["validate_lines"] == 1000 and m["validate_steps"] == 999
     assert m["validate_errors"] == 0
     assert m["validate_10k_lines_s"] > 0.0 and m["validate_10k_lines_with_rover_s"] > 0.0
+
+
+def test_the_blank_lines_and_the_stall_figures(quick: dict[str, Any]) -> None:
+    m = quick["metrics"]
+    assert m["blank_lines"] == 10_000
+    assert m["validate_100k_blank_lines_s"] > 0.0 and m["upload_100k_blank_lines_s"] > 0.0
+    assert 90_000 < m["upload_1mb_bytes"] <= 100_000 and m["upload_1mb_validate_s"] > 0.0
+    if m["event_loop_stall_samples"]:  # a fast machine may validate 100 kB within one poll
+        assert 0.0 < m["event_loop_stall_ms_during_upload"] <= m["event_loop_stall_max_ms"]
 
 
 def test_the_validation_text_is_the_examples_and_valid() -> None:

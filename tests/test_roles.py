@@ -102,7 +102,7 @@ def _below(role: str) -> str | None:
 def test_every_route_has_a_role_here(setup: tuple[TestClient, dict[str, str], bool]) -> None:
     client = setup[0]
     listed = {(m, p) for m, p, _, _ in ROUTES} | OPEN
-    templates = {"{rover}": "spirit", "{sequence_id}": "1", "{sol}": "0", "{name}": "victim",
+    templates = {"{rover}": "spirit", "{sequence_id:int}": "1", "{sol}": "0", "{name}": "victim",
                  "{path:path}": "index.html"}  # fmt: skip
     missing = []
     for route in client.app.routes:  # type: ignore[attr-defined]

@@ -266,7 +266,8 @@ async function sendCommand() {
   else if (r.ok) status.textContent = `Command ${entry.command} queued (#${r.body.id})`;
   else {
     const detail = r.body && r.body.detail;
-    const messages = detail && detail.errors ? detail.errors.map((e) => e.message) : [JSON.stringify(detail)];
+    // every 422's detail is a list of {loc, msg, type}; other errors carry a sentence
+    const messages = Array.isArray(detail) ? detail.map((e) => e.msg) : [JSON.stringify(detail)];
     status.textContent = `Command refused: ${messages.join("; ")}`;
     // a rule across arguments the form cannot check: mark the field the server names
     for (const input of $("args").querySelectorAll("[name]")) {
