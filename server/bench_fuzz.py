@@ -146,7 +146,8 @@ def run_schemathesis(
     ]  # fmt: skip
     if token is not None:
         command += ["--header", f"Authorization: Bearer {token}"]
-    done = subprocess.run(command, capture_output=True, text=True, timeout=3600)
+    # in the report's directory: schemathesis keeps a cache (.schemathesis/) where it runs
+    done = subprocess.run(command, capture_output=True, text=True, timeout=3600, cwd=report.parent)
     if not report.exists():
         raise RuntimeError(f"schemathesis wrote no report:\n{done.stdout[-3000:]}{done.stderr}")
     parsed: dict[str, Any] = json.loads(report.read_text())
