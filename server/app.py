@@ -37,6 +37,7 @@ from sequences import commands as cmd
 from sequences.language import Sequence, SequenceStep
 from sequences.validate import ValidationContext, ValidationResult, validate
 from server.hub import MAX_RATE_HZ, TelemetryHub, next_message
+from server.origin import origin_allowed
 from server.runtime import MAX_SPEED, ROVERS, RoverRuntime
 from server.scene3d import RoverScene
 from server.storage import BatchWriter, Store
@@ -525,6 +526,9 @@ def create_app(config: ServerConfig) -> FastAPI:
     @app.websocket("/viser/{rover}")
     async def viser_socket(websocket: WebSocket, rover: str) -> None:
         """The viser client's WebSocket, relayed to the rover's viser server."""
+        if not origin_allowed(websocket.headers, websocket.url.scheme):
+            await websocket.close(code=4403)  # before accept: a browser sees HTTP 403
+            return
         if rover not in server.scenes:
             await websocket.close(code=4404)
             return
