@@ -12,6 +12,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
+import msgspec
 import numpy as np
 import pytest
 import uvicorn
@@ -39,6 +40,7 @@ from server.scene3d import (
     wxyz_from_q,
 )
 from server.storage import Store
+from server.viser_proxy import MAX_VIEWER_MESSAGE_BYTES, refusal
 from sim.rover_geometry import MER_GEOMETRY, wheel_kinematics
 from sim.sites import make_terrain
 from tests.test_server_restart import _free_port
@@ -258,10 +260,12 @@ def console(tmp_path: Any) -> Iterator[Console]:
         thread.join(timeout=30)
 
 
-def _viewers(console: Console, count: int) -> list[WireViewer]:
+def _viewers(console: Console, count: int, live: bool = True) -> list[WireViewer]:
+    """``count`` viewers, each with its controls (and the live status once there are
+    frames)."""
     viewers = [WireViewer(console.url) for _ in range(count)]
     for v in viewers:
-        _wait(lambda v=v: v.uuid(SLIDER) and "(live)" in v.status())
+        _wait(lambda v=v: v.uuid(SLIDER) and (not live or "(live)" in v.status()))
     return viewers
 
 
@@ -364,3 +368,67 @@ def test_crafted_gui_messages_change_no_other_viewer_and_break_no_callback(
     finally:
         a.close()
         b.close()
+
+
+def test_a_viewer_s_state_goes_with_its_connection(console: Console) -> None:
+    a, b = _viewers(console, 2, live=False)
+    try:
+        _wait(lambda: len(console.scene.viewers) == 2)
+        a.close()
+        _wait(lambda: len(console.scene.viewers) == 1)
+        (left,) = console.scene.viewers.values()
+        assert console.scene.server is not None
+        assert list(console.scene.server.get_clients()) == [left.client.client_id]
+    finally:
+        b.close()
+    _wait(lambda: not console.scene.viewers)
+
+
+CAMERA = {
+    "type": "ViewerCameraMessage", "wxyz": [1.0, 0.0, 0.0, 0.0], "position": [0.0, 0.0, 0.0],
+    "fov": 1.0, "near": 0.01, "far": 100.0, "image_height": 10, "image_width": 10,
+    "look_at": [1.0, 0.0, 0.0], "up_direction": [0.0, 0.0, -1.0],
+}  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "message",
+    [
+        CAMERA,
+        {"type": "GuiUpdateMessage", "uuid": "u", "updates": {"value": 1.5}},
+        {"type": "GuiUpdateMessage", "uuid": "u", "updates": {"value": True}},
+        {"type": "GuiUpdateMessage", "uuid": "u", "updates": {"value": math.nan}},  # the callback's
+    ],
+)
+def test_the_relay_passes_what_a_viewer_sends(message: dict[str, Any]) -> None:
+    assert refusal(msgspec.msgpack.encode(message)) is None
+
+
+@pytest.mark.parametrize(
+    "message,why",
+    [
+        ({"type": "GuiUpdateMessage", "uuid": "u", "updates": {"update_cb": []}}, "not update_cb"),
+        ({"type": "GuiUpdateMessage", "uuid": "u", "updates": {"value": 1, "removed": 1}}, "ed"),
+        ({"type": "GuiUpdateMessage", "uuid": "u", "updates": {}}, "value only"),
+        ({"type": "GuiUpdateMessage", "uuid": "u", "updates": [1]}, "value only"),
+        ({"type": "GuiUpdateMessage", "uuid": "u", "updates": {"value": "1"}}, "number or a flag"),
+        ({"type": "GuiUpdateMessage", "uuid": "u", "updates": {"value": [1]}}, "number or a flag"),
+        ({"type": "GuiUpdateMessage", "uuid": 1, "updates": {"value": 1}}, "other than"),
+        ({"type": "GuiUpdateMessage", "uuid": "u", "updates": {"value": 1}, "x": 1}, "other than"),
+        ({"type": "ShareUrlRequest"}, "not a message this view accepts"),
+        ({"type": "GuiFormDirtyMessage", "uuid": "u", "dirty": True}, "not a message"),
+        ({"type": "FileTransferStartUpload"}, "not a message"),
+        ({"no": "type"}, "not a message"),
+        ({**CAMERA, "camera_cb": []}, "camera_cb"),
+        ([1, 2], "not a message"),
+    ],
+)
+def test_the_relay_drops_what_no_viewer_of_this_view_sends(message: Any, why: str) -> None:
+    reason = refusal(msgspec.msgpack.encode(message))
+    assert reason is not None and why in reason
+
+
+def test_the_relay_drops_frames_that_are_not_viser_messages() -> None:
+    assert refusal("text") == "a text frame (viser speaks binary msgpack)"
+    assert refusal(b"\xc1") == "not msgpack"
+    assert refusal(b"\x00" * (MAX_VIEWER_MESSAGE_BYTES + 1)) is not None
