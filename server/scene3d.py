@@ -392,7 +392,11 @@ class Viewer:
                     lo, hi = span
                     self.slider.min = math.floor(lo * 100.0) / 100.0
                     self.slider.max = max(math.ceil(hi * 100.0) / 100.0, self.slider.min + 0.01)
-                    self.slider.value = hi  # type: ignore[misc]  # viser's props mask the setter
+                    # At its end, on its step: the value changes once a step (36 s of the
+                    # sol), not each frame. viser keeps one value for the viewer's moves and
+                    # ours, and the callback reads it after viser set it: a write of ours
+                    # between the two would replace the viewer's move.
+                    self.slider.value = self.slider.max  # type: ignore[misc]  # viser's props
             self.shown = frame
         self.client.flush()
 
