@@ -30,8 +30,8 @@ and Site orientations differ by the curvature of Mars over the traverse (1e-5 ra
 100 m), far below what a screen shows. Frames arrive from the runtime thread; a scene
 thread draws the newest one at most ``VIEW_RATE_HZ`` times a second, inside
 ``server.atomic()`` so the rover, ghost and vectors move together. A viewer's own
-controls call back on viser's thread pool; each viewer's lock keeps its replay and the
-live draws of it apart.
+controls call back on viser's event loop, in the order it sent its messages; each
+viewer's lock keeps its replay and the live draws of it apart.
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ import io
 import logging
 import math
 import threading
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Coroutine, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -305,11 +305,14 @@ def status_text(frame: dict[str, Any], live: bool) -> str:
     )
 
 
-def guarded(what: str, callback: Callable[[viser.GuiEvent[Any]], None]) -> Any:
-    """``callback`` that logs what it raises instead: viser runs it on a thread pool that
-    only prints, and a viewer's message must not leave its view half-updated silently."""
+def guarded(
+    what: str, callback: Callable[[viser.GuiEvent[Any]], None]
+) -> Callable[[viser.GuiEvent[Any]], Coroutine[Any, Any, None]]:
+    """``callback`` as viser runs a coroutine: on its event loop, one message's callback
+    done before the next message's (its thread pool would run a drag's late value after a
+    later "Follow live"), and what it raises logged, not lost."""
 
-    def run(event: viser.GuiEvent[Any]) -> None:
+    async def run(event: viser.GuiEvent[Any]) -> None:
         try:
             callback(event)
         except Exception:
@@ -328,7 +331,9 @@ class Replay:
 
 class Viewer:
     """One connected viewer: its own controls and status, and its own rover while it
-    replays (module docstring). Built on viser's thread pool when the viewer connects."""
+    replays (module docstring). Built on viser's thread pool when the viewer connects; its
+    controls call back on viser's event loop (``guarded``), live frames come from the scene
+    thread, and ``lock`` keeps the two apart (neither waits for the other's thread)."""
 
     def __init__(self, scene: RoverScene, client: viser.ClientHandle) -> None:
         self.scene = scene
@@ -348,12 +353,12 @@ class Viewer:
         self.follow.on_update(guarded("Follow live", self._on_follow))
         self.slider.on_update(guarded("the sol slider", self._on_slider))
 
-    # ---- what the viewer asks (viser's thread pool) -------------------------------------
+    # ---- what the viewer asks (viser's event loop) --------------------------------------
 
     def _on_follow(self, event: viser.GuiEvent[Any]) -> None:
         if event.client is None:  # our own update
             return
-        if self.follow.value is True:  # viser casts to bool; anything else is not a flag
+        if self.follow.value:  # viser made it a bool
             self.go_live()
         else:
             with self.lock:
@@ -373,8 +378,11 @@ class Viewer:
                 self.slider.value = float(shown["lmst_h"])  # type: ignore[misc]  # viser's props
             return
         frame = self.scene.frame_at(value)
-        if frame is not None:
-            self.show_replay(frame)
+        if frame is None:
+            return
+        self.show_replay(frame)
+        if not self.slider.min <= value <= self.slider.max:  # back onto the sol's span
+            self.slider.value = float(frame["lmst_h"])  # type: ignore[misc]  # viser's props
 
     # ---- what the viewer sees ----------------------------------------------------------
 
@@ -652,7 +660,10 @@ class RoverScene:
         server.flush()  # send now rather than at viser's next 1/60 s window
         self._shown_p = true_pose.p_w
         for viewer in viewers:
-            viewer.show_live(frame, slider_span)
+            try:
+                viewer.show_live(frame, slider_span)
+            except Exception:  # one viewer (gone, say) must not cost the others their frame
+                log.exception("3D view of %s: a viewer's live frame failed", self.rover)
         self.frames_drawn += 1
 
     def _recut_terrain(self, p_w: FloatArray) -> None:

@@ -17,7 +17,7 @@ import pytest
 from tests.test_console_browser import ARTIFACTS, CHROMIUM, LAUNCH_ARGS
 from tests.test_server_restart import _free_port, _start, _wait
 
-from playwright.sync_api import Page, expect, sync_playwright  # isort: skip
+from playwright.sync_api import Locator, Page, expect, sync_playwright  # isort: skip
 
 TOKEN = "view3d-browser-token"
 DRIVE = "SEQUENCE two_viewers\nDRIVE_STRAIGHT distance_m=100\n"  # 2,667 s at 3.75 cm/s
@@ -58,7 +58,7 @@ def _status(page: Page) -> str:
     return page.get_by_text(STATUS).inner_text()
 
 
-def _follow(page: Page):  # type: ignore[no-untyped-def]
+def _follow(page: Page) -> Locator:
     return page.get_by_label("Follow live")
 
 
