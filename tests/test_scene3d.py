@@ -1,7 +1,9 @@
 """The viser 3D view: the one quaternion conversion against viser's own rotation code, the
 wheels on the suspension's forward kinematics, the terrain patch against the terrain, the
-scene following a real rover's frames (and scrubbing back), and the same-origin proxy of
-viser's page and WebSocket."""
+scene following a real rover's frames, the same-origin proxy of viser's page and WebSocket;
+and, with viewers speaking viser's wire protocol through the console's relay
+(``tests.viser_wire``), each viewer scrubbing and following on its own, crafted GUI
+messages that change no one else's view and break no callback, and what the relay passes."""
 
 from __future__ import annotations
 

@@ -48,7 +48,6 @@ class WireViewer:
     def __init__(self, url: str, headers: dict[str, str] | None = None) -> None:
         self.gui: dict[str, dict[str, Any]] = {}
         self.nodes: dict[tuple[str, str], dict[str, Any]] = {}  # (owner, name): its state
-        self.messages: list[dict[str, Any]] = []
         self._lock = threading.Lock()
         self._ws: ClientConnection = connect(
             url,
@@ -87,7 +86,6 @@ class WireViewer:
 
     def _keep(self, m: dict[str, Any]) -> None:
         with self._lock:
-            self.messages.append(m)
             if m["type"].startswith("Gui") and "props" in m and "uuid" in m:
                 state = dict(m["props"])
                 if "value" in m:
