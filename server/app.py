@@ -61,6 +61,7 @@ from server.auth import (
     websocket_principal,
 )
 from server.hub import MAX_RATE_HZ, TelemetryHub, next_message
+from server.origin import origin_allowed
 from server.routing import AuthFirstRoute, allow_every_method
 from server.runtime import MAX_SPEED, ROVERS, RoverRuntime
 from server.scene3d import RoverScene
@@ -803,8 +804,13 @@ def create_app(config: ServerConfig) -> FastAPI:
             server.hub.unsubscribe(rover, client)
 
     async def _websocket_allowed(websocket: WebSocket) -> bool:
-        """The viewer check of a WebSocket handshake (header or cookie token): a refused
-        one is closed with 4401 (no token) or 4403 (wrong token) before it is accepted."""
+        """The checks of a WebSocket handshake, before it is accepted (a browser then sees
+        HTTP 403): a page of another origin is refused (``server.origin``: the sign-in
+        cookie must not let another site read), then the viewer check (header or cookie
+        token), closing with 4401 (no token) or 4403 (wrong token)."""
+        if not origin_allowed(websocket.headers, websocket.url.scheme):
+            await websocket.close(code=4403, reason="cross-origin WebSocket refused")
+            return False
         try:
             who = await run_in_threadpool(
                 websocket_principal, server, websocket.headers, websocket.cookies

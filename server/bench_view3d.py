@@ -10,9 +10,11 @@ by calling ``_draw`` directly, so a timing is the scene thread's work for one fr
   connected: viser only buffers the messages. Every frame counts, the draws that re-cut the
   terrain (``view_draw_recuts``, one per ``TERRAIN_RECUT_M`` driven) included.
 - ``..._1_client``: the same with one viewer, a WebSocket straight to viser's port
-  (subprotocol ``viser-v<version>``, no browser) that a thread of this process drains,
-  keeping every message. viser serialises on its own event-loop thread, so a draw's time
-  now includes that work competing for the interpreter lock (and the viewer's receiving);
+  (subprotocol ``viser-v<version>``, no browser) that reports a camera (so that viser
+  counts it as a client and the scene gives it its own controls) and that a thread of this
+  process drains, keeping every message. viser serialises on its own event-loop thread, so
+  a draw's time now includes that work competing for the interpreter lock (and the
+  viewer's receiving);
   ``view_draw_to_client_ms_*`` runs from the draw's start until the viewer holds its last
   byte (viser holds a window of messages for 1/60 s before it sends it). The viewer
   connects once the first frame is drawn (what it downloads then is
@@ -87,6 +89,19 @@ TARGETS: dict[str, dict[str, float]] = {
 
 # ---- a viewer without a browser -------------------------------------------------------------
 
+CAMERA_REPORT = {  # viser's ViewerCameraMessage, as its client sends it
+    "type": "ViewerCameraMessage",
+    "wxyz": (1.0, 0.0, 0.0, 0.0),
+    "position": (-7.0, -5.0, -5.0),
+    "fov": 1.0,
+    "near": 0.01,
+    "far": 1000.0,
+    "image_height": 600,
+    "image_width": 800,
+    "look_at": (0.0, 0.0, 0.0),
+    "up_direction": (0.0, 0.0, -1.0),
+}
+
 
 @dataclass(frozen=True)
 class Window:
@@ -140,6 +155,9 @@ class Viewer:
         )
         self._thread = threading.Thread(target=self._drain, name="bench-viewer", daemon=True)
         self._thread.start()
+        # viser counts a client as connected (its own controls, the camera chase) once it
+        # has reported its camera, as a browser does at once.
+        self._ws.send(msgspec.msgpack.encode(CAMERA_REPORT))
 
     def _drain(self) -> None:
         with contextlib.suppress(ConnectionClosed):
@@ -226,7 +244,7 @@ def draw_in_order(
         centre = scene._terrain_centre
         held = len(viewer.windows) if viewer is not None else 0
         start = time.perf_counter()
-        scene._draw(frame, live=True)
+        scene._draw(frame)
         into.wall_s.append(time.perf_counter() - start)
         into.start_s.append(start)
         into.recut.append(scene._terrain_centre is not centre)

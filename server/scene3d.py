@@ -14,12 +14,24 @@ the 3D view share one origin. The scene shows
 - a time slider over the current sol: dragging it scrubs back through the stored frames;
   "Follow live" returns to the telemetry as it plays out.
 
+Each viewer scrubs and follows on its own (``Viewer``): its controls and status are its
+own (viser's per-client GUI), and while it replays it sees its own rover, ghost and
+vectors, client-scoped nodes under the shared nodes' names, which viser shows that one
+viewer instead of the shared ones. The live rover is drawn once for everyone, so a live
+frame costs the same whatever the number of viewers, plus a few small GUI updates per
+following viewer; a replaying viewer is not redrawn until it follows again. What a viewer
+sends changes only its own elements (viser routes a GUI message to the sender's handles),
+its callbacks check the values they get, and ``server.viser_proxy`` lets through only a
+camera report or an input's new value.
+
 Coordinates are the mission frame of the frames' ``p_mission_*`` (the first Site: x North,
 y East, z Down, metres), drawn with -z up. Attitudes come from the frames' ``q_b_ll``: LL
 and Site orientations differ by the curvature of Mars over the traverse (1e-5 rad per
 100 m), far below what a screen shows. Frames arrive from the runtime thread; a scene
 thread draws the newest one at most ``VIEW_RATE_HZ`` times a second, inside
-``server.atomic()`` so the rover, ghost and vectors move together.
+``server.atomic()`` so the rover, ghost and vectors move together. A viewer's own
+controls call back on viser's event loop, in the order it sent its messages; each
+viewer's lock keeps its replay and the live draws of it apart.
 """
 
 from __future__ import annotations
@@ -29,7 +41,7 @@ import io
 import logging
 import math
 import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Coroutine, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -71,6 +83,13 @@ TRACK_RGB = {  # ... with its own colour where it has one (the timeline's too: w
     "kinematic_ekf": (255, 140, 66),
     "radio_ekf": (230, 90, 200),
 }
+VECTORS = (  # the arrows: node name, the frame's unit vector (LL), where it starts, colour
+    ("sun", "sun_ll_true", "head", SUN_RGB),
+    ("earth", "earth_ll_true", "head", EARTH_RGB),
+    ("hga", "hga_boresight_ll_true", "dish", HGA_RGB),
+)
+REPLAY_NODES = ("/rover", "/ghost", *(f"/{name}" for name, *_ in VECTORS))  # a viewer's own
+SLIDER_LABEL = "Sol time (LMST h)"
 
 
 def wxyz_from_q(q_xyzw: ArrayLike) -> tuple[float, float, float, float]:
@@ -255,6 +274,200 @@ def _points_w(pose: RoverPose, p_b: Sequence[float]) -> FloatArray:
     return np.asarray(pose.p_w + Rotation.from_quat(pose.q_w_b).apply(np.asarray(p_b, float)))
 
 
+def draw_vectors(scene: viser.SceneApi, frame: dict[str, Any], pose: RoverPose) -> None:
+    """Sun and Earth from the mast head, the HGA boresight from the dish (truth, LL); a
+    vector the frame lacks is hidden (a replaying viewer must not see the live one)."""
+    start = {
+        "head": _points_w(pose, RoverModel.mast_head_b()),
+        "dish": _points_w(pose, RoverModel.hga_b()),
+    }
+    for name, key, where, rgb in VECTORS:
+        v = frame.get(key)
+        end = start[where] + ARROW_LENGTH_M * np.asarray(v if v else [0.0, 0.0, 0.0], float)
+        scene.add_arrows(
+            f"/{name}",
+            np.array([[start[where], end]]),
+            rgb,
+            shaft_radius=0.015,
+            head_radius=0.05,
+            visible=bool(v),
+        )
+
+
+def status_text(frame: dict[str, Any], live: bool) -> str:
+    """The status line of a viewer: sol, LMST, live or replay, mode, AQF, error."""
+    h = float(frame["lmst_h"])
+    clock = f"{int(h):02d}:{int(h * 60) % 60:02d}"
+    mode = "live" if live else "replay"
+    return (
+        f"Sol {frame['sol']} {clock} LMST ({mode}) · {frame['nate_mode']} · "
+        f"AQF {frame['aqf']} · position error {frame['position_error_m']:.2f} m"
+    )
+
+
+def guarded(
+    what: str, callback: Callable[[viser.GuiEvent[Any]], None]
+) -> Callable[[viser.GuiEvent[Any]], Coroutine[Any, Any, None]]:
+    """``callback`` as viser runs a coroutine: on its event loop, one message's callback
+    done before the next message's (its thread pool would run a drag's late value after a
+    later "Follow live"), and what it raises logged, not lost."""
+
+    async def run(event: viser.GuiEvent[Any]) -> None:
+        try:
+            callback(event)
+        except Exception:
+            log.exception("3D view: %s failed", what)
+
+    return run
+
+
+@dataclass
+class Replay:
+    """A viewer's own rover and ghost while it replays (its own vectors go with them)."""
+
+    model: RoverModel
+    ghost: RoverModel
+
+
+class Viewer:
+    """One connected viewer: its own controls and status, and its own rover while it
+    replays (module docstring). Built on viser's thread pool when the viewer connects; its
+    controls call back on viser's event loop (``guarded``), live frames come from the scene
+    thread, and ``lock`` keeps the two apart (neither waits for the other's thread)."""
+
+    def __init__(self, scene: RoverScene, client: viser.ClientHandle) -> None:
+        self.scene = scene
+        self.client = client
+        self.lock = threading.RLock()
+        self.following = True
+        self.replay: Replay | None = None
+        self.shown: dict[str, Any] | None = None  # the frame this viewer sees
+        self.shown_p: FloatArray | None = None  # its rover's position then (the chase)
+        gui = client.gui
+        self.status = gui.add_markdown(f"**{scene.rover}**")
+        self.follow = gui.add_checkbox("Follow live", True)
+        self.chase = gui.add_checkbox(
+            "Camera follows the rover", True, hint="keep your view's angle as the rover moves"
+        )
+        self.slider = gui.add_slider(SLIDER_LABEL, min=0.0, max=24.0, step=0.01, initial_value=0.0)
+        self.follow.on_update(guarded("Follow live", self._on_follow))
+        self.slider.on_update(guarded("the sol slider", self._on_slider))
+
+    # ---- what the viewer asks (viser's event loop) --------------------------------------
+
+    def _on_follow(self, event: viser.GuiEvent[Any]) -> None:
+        if event.client is None:  # our own update
+            return
+        if self.follow.value:  # viser made it a bool
+            self.go_live()
+        else:
+            with self.lock:
+                shown = self.shown
+            if shown is not None:  # freeze the view where it is
+                self.show_replay(shown)
+
+    def _on_slider(self, event: viser.GuiEvent[Any]) -> None:
+        if event.client is None:  # our own update while following
+            return
+        value = self.slider.value
+        if not (isinstance(value, float) and math.isfinite(value)):
+            log.warning("3D view: a sol time of %r ignored", value)
+            with self.lock:
+                shown = self.shown
+            if shown is not None:
+                self.slider.value = float(shown["lmst_h"])  # type: ignore[misc]  # viser's props
+            return
+        frame = self.scene.frame_at(value)
+        if frame is None:
+            return
+        self.show_replay(frame)
+        if not self.slider.min <= value <= self.slider.max:  # back onto the sol's span
+            self.slider.value = float(frame["lmst_h"])  # type: ignore[misc]  # viser's props
+
+    # ---- what the viewer sees ----------------------------------------------------------
+
+    def show_live(self, frame: dict[str, Any], span: tuple[float, float] | None) -> None:
+        """The live frame's status and slider, the camera carried along (the shared rover
+        is drawn for everyone); nothing while this viewer replays."""
+        p_w = np.asarray(frame["p_mission_true"], dtype=float)
+        with self.lock:
+            if not self.following:
+                return
+            with self.client.atomic():
+                self._chase(p_w)
+                self.status.content = status_text(frame, live=True)
+                if span is not None:
+                    lo, hi = span
+                    self.slider.min = math.floor(lo * 100.0) / 100.0
+                    self.slider.max = max(math.ceil(hi * 100.0) / 100.0, self.slider.min + 0.01)
+                    # At its end, on its step: the value changes once a step (36 s of the
+                    # sol), not each frame. viser keeps one value for the viewer's moves and
+                    # ours, and the callback reads it after viser set it: a write of ours
+                    # between the two would replace the viewer's move.
+                    self.slider.value = self.slider.max  # type: ignore[misc]  # viser's props
+            self.shown = frame
+        self.client.flush()
+
+    def show_replay(self, frame: dict[str, Any]) -> None:
+        """``frame`` for this viewer alone: its own rover, ghost and vectors shadow the
+        shared ones; it stops following."""
+        true_pose = RoverPose.from_frame(frame, "true")
+        with self.lock:
+            if self.following:
+                self.following = False
+                self.follow.value = False  # type: ignore[misc]  # as above
+                # A live update of the slider may have crossed the viewer's own move on
+                # the wire: send its value back once (viser sends a value only when it
+                # changes, hence the step aside first; the two coalesce in its buffer).
+                value = self.slider.value
+                self.slider.value = value + self.slider.step  # type: ignore[misc]
+                self.slider.value = value  # type: ignore[misc]
+            scene = self.client.scene
+            if self.replay is None:
+                self.replay = Replay(
+                    RoverModel(scene, "/rover", TRUE_RGB, None),
+                    RoverModel(scene, "/ghost", GHOST_RGB, 0.35),
+                )
+            with self.client.atomic():
+                self._chase(true_pose.p_w)
+                self.replay.model.show(true_pose)
+                self.replay.ghost.show(RoverPose.from_frame(frame, "est"))
+                draw_vectors(scene, frame, true_pose)
+                self.status.content = status_text(frame, live=False)
+            self.shown = frame
+        self.client.flush()
+
+    def go_live(self) -> None:
+        """Follow again: this viewer's own nodes go (the shared ones show again, as they
+        are now), and it gets the live status at once."""
+        with self.lock:
+            if self.following:
+                return
+            self.following = True
+            self.follow.value = True  # type: ignore[misc]  # as above
+            for name in REPLAY_NODES:
+                self.client.scene.remove_by_name(name)
+            self.replay = None
+        frame, span = self.scene.live()
+        if frame is not None:
+            self.show_live(frame, span)
+
+    def _chase(self, p_w: FloatArray) -> None:
+        """Carry this viewer's camera along with its rover (its orbit and zoom kept:
+        camera and look-at point move by the rover's displacement)."""
+        last, self.shown_p = self.shown_p, p_w
+        if last is None or not self.chase.value:
+            return
+        delta = p_w - last
+        if float(np.linalg.norm(delta)) < 1e-3:
+            return
+        try:
+            position = self.client.camera.position
+        except AssertionError:  # the viewer has not reported its camera yet
+            return
+        self.client.camera.position = position + delta  # viser moves look_at with it
+
+
 class RoverScene:
     """One rover's 3D view (module docstring): listens to the runtime's played-out frames."""
 
@@ -277,8 +490,8 @@ class RoverScene:
         self._new_sites: list[int] = []
         self._terrain_centre: FloatArray | None = None
         self._sol_frames: list[dict[str, Any]] = []  # the current sol, for the slider
-        self._follow = True
-        self._shown_p: FloatArray | None = None  # the rover's position last drawn
+        self._shown_p: FloatArray | None = None  # the live rover's position last drawn
+        self.viewers: dict[int, Viewer] = {}  # by viser's client id
         self.frames_drawn = 0
 
     @property
@@ -296,17 +509,20 @@ class RoverScene:
         with contextlib.redirect_stdout(io.StringIO()):
             server = viser.ViserServer(host="127.0.0.1", port=0, label=self.rover, verbose=False)
         self.server = server
+        # No share button: it would open a public tunnel to this view, past the console.
+        server.gui.configure_theme(show_share_button=False)
         server.scene.set_up_direction("-z")
         # viser's default shadows come from a light that is not the sun: they would mislead
         # (and cost SwiftShader dearly); the sun arrow shows where the sun is.
         server.scene.configure_default_lights(enabled=True, cast_shadow=False)
         self.model = RoverModel(server.scene, "/rover", TRUE_RGB, None)
         self.ghost = RoverModel(server.scene, "/ghost", GHOST_RGB, 0.35)
-        self._build_gui(server)
+        server.on_client_connect(self._connect)
+        server.on_client_disconnect(self._disconnect)
         for frame in self._history():
             self._take(frame)
         if self._latest is not None:
-            self._draw(self._latest, live=True)
+            self._draw(self._latest)
         self.runtime.listeners.append(self.on_frames)
         self._thread = threading.Thread(target=self._run, name=f"scene-{self.rover}", daemon=True)
         self._thread.start()
@@ -329,6 +545,40 @@ class RoverScene:
         if last is not None and (not frames or last["t_s"] > frames[-1]["t_s"]):
             frames.append(last)
         return frames
+
+    # ---- viewers (viser's thread pool) --------------------------------------------------
+
+    def _connect(self, client: viser.ClientHandle) -> None:
+        try:
+            viewer = Viewer(self, client)
+            with self._lock:
+                self.viewers[client.client_id] = viewer
+            if self._shown_p is not None:  # start looking at the rover where it is now
+                client.camera.position = tuple(self._shown_p + CAMERA_OFFSET_W)
+                client.camera.look_at = tuple(self._shown_p)
+            frame, span = self.live()
+            if frame is not None:
+                viewer.show_live(frame, span)
+        except Exception:
+            log.exception("3D view of %s: a viewer's controls failed", self.rover)
+
+    def _disconnect(self, client: viser.ClientHandle) -> None:
+        with self._lock:  # viser drops the viewer's own elements itself
+            self.viewers.pop(client.client_id, None)
+
+    def live(self) -> tuple[dict[str, Any] | None, tuple[float, float] | None]:
+        """The newest frame and the slider's span over the current sol."""
+        with self._lock:
+            return self._latest, self._slider_span()
+
+    def frame_at(self, lmst_h: float) -> dict[str, Any] | None:
+        """The stored frame of the current sol nearest ``lmst_h``."""
+        with self._lock:
+            frames = list(self._sol_frames)
+        if not frames:
+            return None
+        times = np.array([f["lmst_h"] for f in frames])
+        return frames[int(np.argmin(np.abs(times - lmst_h)))]
 
     # ---- frames in (runtime thread) ----------------------------------------------------
 
@@ -369,14 +619,16 @@ class RoverScene:
             self._dirty.clear()
             with self._lock:
                 latest = self._latest
-            if latest is not None and self._follow:
+            if latest is not None:
                 try:
-                    self._draw(latest, live=True)
+                    self._draw(latest)
                 except Exception:  # a drawing error must not end the view
                     log.exception("3D view of %s: drawing failed", self.rover)
             self._stop.wait(period)
 
-    def _draw(self, frame: dict[str, Any], live: bool) -> None:
+    def _draw(self, frame: dict[str, Any]) -> None:
+        """The live frame: the shared rover, ghost, vectors, traverses and Sites once for
+        everyone, then each following viewer's status and slider."""
         server = self.server
         assert server is not None
         true_pose = RoverPose.from_frame(frame, "true")
@@ -386,12 +638,12 @@ class RoverScene:
             new_sites = [(i, self._sites[i]) for i in self._new_sites]
             self._new_sites = []
             slider_span = self._slider_span()
+            viewers = list(self.viewers.values())
         self._recut_terrain(true_pose.p_w)
         with server.atomic():
-            self._chase(true_pose.p_w)
             self.model.show(true_pose)
             self.ghost.show(est_pose)
-            self._vectors(frame, true_pose)
+            draw_vectors(server.scene, frame, true_pose)
             for which, chunks in tracks.items():
                 rgb = TRACK_RGB.get(which, SIDE_RGB)
                 for chunk, segs in chunks.items():
@@ -405,50 +657,14 @@ class RoverScene:
                 server.scene.add_label(
                     f"/site_{index}/label", f"Site {index}", position=(0.0, 0.0, -0.3)
                 )
-            self._status.content = self._status_text(frame, live)
-            if live and slider_span is not None:
-                lo, hi = slider_span
-                self._slider.min = math.floor(lo * 100.0) / 100.0
-                self._slider.max = max(math.ceil(hi * 100.0) / 100.0, self._slider.min + 0.01)
-                self._slider.value = hi  # type: ignore[misc]  # viser's props mask the setter
         server.flush()  # send now rather than at viser's next 1/60 s window
-        self.frames_drawn += 1
-
-    def _chase(self, p_w: FloatArray) -> None:
-        """Carry every viewer's camera along with the rover (their own orbit and zoom
-        kept: camera and look-at point move by the rover's displacement)."""
-        last, self._shown_p = self._shown_p, p_w
-        if last is None or not self._chase_box.value:
-            return
-        delta = p_w - last
-        if float(np.linalg.norm(delta)) < 1e-3:
-            return
-        assert self.server is not None
-        for client in self.server.get_clients().values():
+        self._shown_p = true_pose.p_w
+        for viewer in viewers:
             try:
-                position = client.camera.position
-            except AssertionError:  # the client has not reported its camera yet
-                continue
-            client.camera.position = position + delta  # viser moves look_at with it
-
-    def _vectors(self, frame: dict[str, Any], pose: RoverPose) -> None:
-        """Sun and Earth from the mast head, the HGA boresight from the dish (truth, LL)."""
-        scene = self.server.scene if self.server is not None else None
-        assert scene is not None
-        head = _points_w(pose, RoverModel.mast_head_b())
-        dish = _points_w(pose, RoverModel.hga_b())
-        for name, key, start, rgb in (
-            ("sun", "sun_ll_true", head, SUN_RGB),
-            ("earth", "earth_ll_true", head, EARTH_RGB),
-            ("hga", "hga_boresight_ll_true", dish, HGA_RGB),
-        ):
-            v = frame.get(key)
-            if not v:
-                continue
-            end = start + ARROW_LENGTH_M * np.asarray(v, dtype=float)
-            scene.add_arrows(
-                f"/{name}", np.array([[start, end]]), rgb, shaft_radius=0.015, head_radius=0.05
-            )
+                viewer.show_live(frame, slider_span)
+            except Exception:  # one viewer (gone, say) must not cost the others their frame
+                log.exception("3D view of %s: a viewer's live frame failed", self.rover)
+        self.frames_drawn += 1
 
     def _recut_terrain(self, p_w: FloatArray) -> None:
         centre = self._terrain_centre
@@ -470,63 +686,7 @@ class RoverScene:
         self.server.initial_camera.look_at = tuple(p_w)
         self.server.initial_camera.position = tuple(p_w + CAMERA_OFFSET_W)
 
-    # ---- the sol slider ----------------------------------------------------------------
-
-    def _build_gui(self, server: viser.ViserServer) -> None:
-        self._status = server.gui.add_markdown(f"**{self.rover}**")
-        self._follow_box = server.gui.add_checkbox("Follow live", True)
-        self._chase_box = server.gui.add_checkbox(
-            "Camera follows the rover", True, hint="keep your view's angle as the rover moves"
-        )
-
-        @server.on_client_connect
-        def _(client: viser.ClientHandle) -> None:
-            if self._shown_p is not None:  # start looking at the rover where it is now
-                client.camera.position = tuple(self._shown_p + CAMERA_OFFSET_W)
-                client.camera.look_at = tuple(self._shown_p)
-
-        self._slider = server.gui.add_slider(
-            "Sol time (LMST h)", min=0.0, max=24.0, step=0.01, initial_value=0.0
-        )
-
-        @self._follow_box.on_update
-        def _(event: viser.GuiEvent[Any]) -> None:
-            if event.client is None:
-                return
-            self._follow = bool(self._follow_box.value)
-            self._dirty.set()
-
-        @self._slider.on_update
-        def _(event: viser.GuiEvent[Any]) -> None:
-            if event.client is None:  # our own update while following
-                return
-            self._follow = False
-            self._follow_box.value = False  # type: ignore[misc]  # as above
-            self.scrub(float(self._slider.value))
-
     def _slider_span(self) -> tuple[float, float] | None:
         if not self._sol_frames or self._latest is None:
             return None
         return float(self._sol_frames[0]["lmst_h"]), float(self._latest["lmst_h"])
-
-    def scrub(self, lmst_h: float) -> dict[str, Any] | None:
-        """Show the rover as it was at ``lmst_h`` of the current sol (the nearest stored
-        frame); returns that frame."""
-        with self._lock:
-            frames = list(self._sol_frames)
-        if not frames:
-            return None
-        times = np.array([f["lmst_h"] for f in frames])
-        frame = frames[int(np.argmin(np.abs(times - lmst_h)))]
-        self._draw(frame, live=False)
-        return frame
-
-    @staticmethod
-    def _status_text(frame: dict[str, Any], live: bool) -> str:
-        h = float(frame["lmst_h"])
-        clock = f"{int(h):02d}:{int(h * 60) % 60:02d}"
-        mode = "live" if live else "replay"
-        return (
-            f"Sol {frame['sol']} {clock} LMST ({mode}) · {frame['nate_mode']} · "
-            f"AQF {frame['aqf']} · position error {frame['position_error_m']:.2f} m"
-        )

@@ -193,3 +193,19 @@ def test_a_browser_signs_in_with_a_cookie_that_counts_for_reading_only(
     assert (me.status_code, me.json().get("name")) == (
         (200, "anonymous") if public_read else (401, None)
     )
+
+
+@pytest.mark.parametrize("path", WEBSOCKETS)
+def test_a_page_of_another_origin_cannot_open_a_websocket(
+    setup: tuple[TestClient, dict[str, str], bool], path: str
+) -> None:
+    """With the sign-in cookie, a page of another site could read in the user's name:
+    its Origin is refused before the token is even looked at."""
+    client, tokens, _ = setup
+    viewer = {"Authorization": f"Bearer {tokens['viewer']}", "Origin": "http://evil.example"}
+    with (
+        pytest.raises(WebSocketDisconnect) as refused,
+        client.websocket_connect(path, headers=viewer),
+    ):
+        pass
+    assert refused.value.code == 4403

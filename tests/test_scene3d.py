@@ -1,17 +1,23 @@
 """The viser 3D view: the one quaternion conversion against viser's own rotation code, the
 wheels on the suspension's forward kinematics, the terrain patch against the terrain, the
-scene following a real rover's frames (and scrubbing back), and the same-origin proxy of
-viser's page and WebSocket."""
+scene following a real rover's frames, the same-origin proxy of viser's page and WebSocket;
+and, with viewers speaking viser's wire protocol through the console's relay
+(``tests.viser_wire``), each viewer scrubbing and following on its own, crafted GUI
+messages that change no one else's view and break no callback, and what the relay passes."""
 
 from __future__ import annotations
 
 import math
+import threading
 import time
 from collections.abc import Iterator
+from dataclasses import dataclass
 from typing import Any
 
+import msgspec
 import numpy as np
 import pytest
+import uvicorn
 import viser
 import viser.transforms as vtf
 from fastapi.testclient import TestClient
@@ -21,6 +27,7 @@ from sequences import commands as cmd
 from server.app import ServerConfig, create_app, data_dir_url
 from server.runtime import ROVERS, RoverRuntime
 from server.scene3d import (
+    HISTORY_EVERY_S,
     TERRAIN_HALF_M,
     TERRAIN_STEP_M,
     TRACK_CHUNK,
@@ -29,13 +36,17 @@ from server.scene3d import (
     RoverScene,
     Track,
     compact,
+    status_text,
     terrain_patch,
     wheel_poses_b,
     wxyz_from_q,
 )
 from server.storage import Store
+from server.viser_proxy import MAX_VIEWER_MESSAGE_BYTES, refusal
 from sim.rover_geometry import MER_GEOMETRY, wheel_kinematics
 from sim.sites import make_terrain
+from tests.test_server_restart import _free_port
+from tests.viser_wire import WireViewer
 
 
 def _wait(predicate: Any, timeout_s: float = 30.0) -> Any:
@@ -132,7 +143,7 @@ def scene(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[RoverScene
         store.close()
 
 
-def test_the_scene_follows_the_frames_and_scrubs_back(
+def test_the_scene_follows_the_frames(
     scene: tuple[RoverScene, RoverRuntime],
 ) -> None:
     rover_scene, runtime = scene
@@ -148,10 +159,10 @@ def test_the_scene_follows_the_frames_and_scrubs_back(
     assert abs(np.dot(rover_scene.model.root.wxyz, wxyz_from_q(q_w_b_true))) == pytest.approx(1)
     moved = np.linalg.norm(np.subtract(last["p_mission_true"], frames[0]["p_mission_true"]))
     assert moved > 1.5
-
-    first = rover_scene.scrub(frames[0]["lmst_h"])
+    # The slider reaches back to the sol's first frame (each viewer scrubs on its own:
+    # test_a_viewer_who_scrubs_leaves_the_others_following).
+    first = rover_scene.frame_at(frames[0]["lmst_h"])
     assert first is not None and first["t_s"] == frames[0]["t_s"]
-    np.testing.assert_allclose(rover_scene.model.root.position, frames[0]["p_mission_true"])
 
 
 def test_each_estimator_beside_sapp_is_a_traverse_of_its_own_colour(
@@ -201,3 +212,225 @@ def test_without_the_3d_view_its_routes_say_so(tmp_path_factory: pytest.TempPath
     with TestClient(create_app(ServerConfig(database_url=url))) as client:
         answer = client.get("/viser/spirit/")
         assert answer.status_code == 404 and "3D view is off" in answer.json()["detail"]
+
+
+# ---- every viewer its own view (issue 13, defect 9) ------------------------------------------
+
+SLIDER = "Sol time (LMST h)"
+FOLLOW = "Follow live"
+
+
+@pytest.fixture(scope="module")
+def drive() -> list[dict[str, Any]]:
+    """The frames of a short drive, from a runtime of their own (one a simulated second)."""
+    runtime = RoverRuntime(ROVERS["spirit"])
+    runtime.session.execute(cmd.DriveStraight(distance_m=3.0))
+    frames = [f.as_dict() for f in runtime.session.frames]
+    assert frames[-1]["t_s"] - frames[0]["t_s"] > 4 * HISTORY_EVERY_S
+    return frames
+
+
+@dataclass
+class Console:
+    """The console's app served by uvicorn in a thread (clocks stopped: the test feeds the
+    scene the frames it wants), and its WebSocket URL of Spirit's 3D view."""
+
+    app: Any
+    url: str
+
+    @property
+    def scene(self) -> RoverScene:
+        scene: RoverScene = self.app.state.server.scenes["spirit"]
+        return scene
+
+
+@pytest.fixture
+def console(tmp_path: Any) -> Iterator[Console]:
+    config = ServerConfig(
+        database_url=data_dir_url(tmp_path), operator_token="t", viewer_3d=True, start_clocks=False
+    )
+    app = create_app(config)
+    port = _free_port()
+    server = uvicorn.Server(uvicorn.Config(app, port=port, log_level="warning", lifespan="on"))
+    thread = threading.Thread(target=server.run, daemon=True)
+    thread.start()
+    try:
+        _wait(lambda: server.started)
+        yield Console(app, f"ws://127.0.0.1:{port}/viser/spirit")
+    finally:
+        server.should_exit = True
+        thread.join(timeout=30)
+
+
+def _viewers(console: Console, count: int, live: bool = True) -> list[WireViewer]:
+    """``count`` viewers, each with its controls (and the live status once there are
+    frames)."""
+    viewers = [WireViewer(console.url) for _ in range(count)]
+    for v in viewers:
+        _wait(lambda v=v: v.uuid(SLIDER) and (not live or "(live)" in v.status()))
+    return viewers
+
+
+def _at(viewer: WireViewer, name: str, p: Any) -> bool:
+    """Whether ``viewer`` sees node ``name`` at ``p``."""
+    position = viewer.position(name)
+    return position is not None and bool(np.allclose(position, p))
+
+
+def test_a_viewer_who_scrubs_leaves_the_others_following(
+    console: Console, drive: list[dict[str, Any]]
+) -> None:
+    half = len(drive) // 2
+    console.scene.on_frames("spirit", drive[:half])
+    a, b = _viewers(console, 2)
+    try:
+        _wait(
+            lambda: np.allclose(
+                b.position("/rover") or [9e9] * 3, drive[half - 1]["p_mission_true"]
+            )
+        )
+        a.set_value(SLIDER, drive[0]["lmst_h"])
+        _wait(lambda: "(replay)" in a.status())
+        assert a.value(FOLLOW) is False
+        # A sees its own rover where it was at the start; B has no such node.
+        _wait(lambda: _at(a, "/rover", drive[0]["p_mission_true"]))
+        assert b.owners("/rover") == {""}
+
+        console.scene.on_frames("spirit", drive[half:])
+        last = drive[-1]
+        _wait(lambda: _at(b, "/rover", last["p_mission_true"]))
+        _wait(lambda: status_text(last, True) in b.status())
+        assert b.value(FOLLOW) is True
+        assert b.value(SLIDER) == pytest.approx(last["lmst_h"], abs=0.01)
+        # A is left where it was: its rover, its slider, its status.
+        np.testing.assert_allclose(a.position("/rover"), drive[0]["p_mission_true"])
+        assert status_text(drive[0], False) in a.status()
+        assert a.value(SLIDER) == pytest.approx(drive[0]["lmst_h"])
+
+        a.set_value(FOLLOW, True)  # back to live: A's own rover goes, the shared one shows
+        _wait(lambda: status_text(last, True) in a.status())
+        _wait(lambda: a.owners("/rover") == {""})
+        np.testing.assert_allclose(a.position("/rover"), last["p_mission_true"])
+    finally:
+        a.close()
+        b.close()
+
+
+def test_crafted_gui_messages_change_no_other_viewer_and_break_no_callback(
+    console: Console, drive: list[dict[str, Any]]
+) -> None:
+    console.scene.on_frames("spirit", drive)
+    _wait(lambda: console.scene.frames_drawn > 0)
+    last = drive[-1]
+    a, b = _viewers(console, 2)
+    try:
+        b_state = {label: b.value(label) for label in (FOLLOW, SLIDER)}
+        b_status = b.status()
+        slider, follow = a.uuid(SLIDER), a.uuid(FOLLOW)
+        crafted: list[dict[str, Any]] = [
+            # another viewer's elements
+            {"type": "GuiUpdateMessage", "uuid": b.uuid(SLIDER), "updates": {"value": 0.0}},
+            {"type": "GuiUpdateMessage", "uuid": b.uuid(FOLLOW), "updates": {"value": False}},
+            # the callbacks, the sync and the life of one's own elements
+            {"type": "GuiUpdateMessage", "uuid": slider, "updates": {"update_cb": []}},
+            {"type": "GuiUpdateMessage", "uuid": follow, "updates": {"update_cb": 0}},
+            {"type": "GuiUpdateMessage", "uuid": slider, "updates": {"sync_cb": 1}},
+            {"type": "GuiUpdateMessage", "uuid": slider, "updates": {"removed": True}},
+            {"type": "GuiUpdateMessage", "uuid": slider, "updates": {"value": 1.0, "gui_api": 0}},
+            # values of the wrong type or out of range
+            {"type": "GuiUpdateMessage", "uuid": slider, "updates": {"value": math.nan}},
+            {"type": "GuiUpdateMessage", "uuid": slider, "updates": {"value": -math.inf}},
+            {"type": "GuiUpdateMessage", "uuid": slider, "updates": {"value": 1e300}},
+            {"type": "GuiUpdateMessage", "uuid": slider, "updates": {"value": "nan"}},
+            {"type": "GuiUpdateMessage", "uuid": slider, "updates": {"value": [1, 2]}},
+            {"type": "GuiUpdateMessage", "uuid": follow, "updates": {"value": "no"}},
+            {"type": "GuiUpdateMessage", "uuid": slider, "updates": "value"},
+            {"type": "GuiUpdateMessage", "uuid": 5},
+            # what a viewer has no business asking for
+            {"type": "ShareUrlRequest"},
+            {"type": "GuiFormDirtyMessage", "uuid": follow, "dirty": True},
+            {"type": "NoSuchMessage"},
+        ]
+        for message in crafted:
+            a.send(message)
+        a.send_raw(b"\x00not msgpack")
+        a.send_raw("text, not bytes")
+        # The server still answers A's legitimate update ...
+        a.set_value(SLIDER, drive[0]["lmst_h"])
+        _wait(lambda: status_text(drive[0], False) in a.status())
+        _wait(lambda: _at(a, "/rover", drive[0]["p_mission_true"]))
+        a.set_value(FOLLOW, True)
+        _wait(lambda: status_text(last, True) in a.status())
+        assert a.connected
+        # ... and B saw none of it.
+        assert {label: b.value(label) for label in (FOLLOW, SLIDER)} == b_state
+        assert b.status() == b_status and status_text(last, True) in b_status
+        assert b.owners("/rover") == {""}
+        np.testing.assert_allclose(b.position("/rover"), last["p_mission_true"])
+    finally:
+        a.close()
+        b.close()
+
+
+def test_a_viewer_s_state_goes_with_its_connection(console: Console) -> None:
+    a, b = _viewers(console, 2, live=False)
+    try:
+        _wait(lambda: len(console.scene.viewers) == 2)
+        a.close()
+        _wait(lambda: len(console.scene.viewers) == 1)
+        (left,) = console.scene.viewers.values()
+        assert console.scene.server is not None
+        assert list(console.scene.server.get_clients()) == [left.client.client_id]
+    finally:
+        b.close()
+    _wait(lambda: not console.scene.viewers)
+
+
+CAMERA = {
+    "type": "ViewerCameraMessage", "wxyz": [1.0, 0.0, 0.0, 0.0], "position": [0.0, 0.0, 0.0],
+    "fov": 1.0, "near": 0.01, "far": 100.0, "image_height": 10, "image_width": 10,
+    "look_at": [1.0, 0.0, 0.0], "up_direction": [0.0, 0.0, -1.0],
+}  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "message",
+    [
+        CAMERA,
+        {"type": "GuiUpdateMessage", "uuid": "u", "updates": {"value": 1.5}},
+        {"type": "GuiUpdateMessage", "uuid": "u", "updates": {"value": True}},
+        {"type": "GuiUpdateMessage", "uuid": "u", "updates": {"value": math.nan}},  # the callback's
+    ],
+)
+def test_the_relay_passes_what_a_viewer_sends(message: dict[str, Any]) -> None:
+    assert refusal(msgspec.msgpack.encode(message)) is None
+
+
+@pytest.mark.parametrize(
+    "message,why",
+    [
+        ({"type": "GuiUpdateMessage", "uuid": "u", "updates": {"update_cb": []}}, "not update_cb"),
+        ({"type": "GuiUpdateMessage", "uuid": "u", "updates": {"value": 1, "removed": 1}}, "ed"),
+        ({"type": "GuiUpdateMessage", "uuid": "u", "updates": {}}, "value only"),
+        ({"type": "GuiUpdateMessage", "uuid": "u", "updates": [1]}, "value only"),
+        ({"type": "GuiUpdateMessage", "uuid": "u", "updates": {"value": "1"}}, "number or a flag"),
+        ({"type": "GuiUpdateMessage", "uuid": "u", "updates": {"value": [1]}}, "number or a flag"),
+        ({"type": "GuiUpdateMessage", "uuid": 1, "updates": {"value": 1}}, "other than"),
+        ({"type": "GuiUpdateMessage", "uuid": "u", "updates": {"value": 1}, "x": 1}, "other than"),
+        ({"type": "ShareUrlRequest"}, "not a message this view accepts"),
+        ({"type": "GuiFormDirtyMessage", "uuid": "u", "dirty": True}, "not a message"),
+        ({"type": "FileTransferStartUpload"}, "not a message"),
+        ({"no": "type"}, "not a message"),
+        ({**CAMERA, "camera_cb": []}, "camera_cb"),
+        ([1, 2], "not a message"),
+    ],
+)
+def test_the_relay_drops_what_no_viewer_of_this_view_sends(message: Any, why: str) -> None:
+    reason = refusal(msgspec.msgpack.encode(message))
+    assert reason is not None and why in reason
+
+
+def test_the_relay_drops_frames_that_are_not_viser_messages() -> None:
+    assert refusal("text") == "a text frame (viser speaks binary msgpack)"
+    assert refusal(b"\xc1") == "not msgpack"
+    assert refusal(b"\x00" * (MAX_VIEWER_MESSAGE_BYTES + 1)) is not None
