@@ -24,7 +24,8 @@ every request waited for it (92-287 ms p99 against ~3 ms idle). A process has it
 - ``processes=0``: no pool, every validation in the threadpool (tests that hold a
   validation on a ``threading.Event`` use it: an event cannot cross processes).
 - Each worker ends itself when the server process dies (SIGKILL included): a worker waits
-  on its queue, which it holds both ends of, and would otherwise outlive the server.
+  on its queue, which it holds both ends of, and would otherwise outlive the server. It
+  ignores SIGINT: Ctrl-C stops the server, which then ends its workers.
 
 Used from the event loop only (no lock needed); the immediate-command route validates one
 step and stays in-process.
@@ -37,6 +38,7 @@ import json
 import logging
 import multiprocessing
 import os
+import signal
 import threading
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -108,7 +110,10 @@ def _warm(site: RoverSite | None) -> None:
 
 
 def _exit_with_parent() -> None:
-    """A worker's initializer: a thread that ends the worker when the server is gone."""
+    """A worker's initializer: a thread that ends the worker when the server is gone. An
+    operator's Ctrl-C (SIGINT to the whole process group) is left to the server, which
+    ends its workers as it stops."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     parent = multiprocessing.parent_process()
     if parent is None or parent.sentinel is None:
         return

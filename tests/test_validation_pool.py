@@ -172,6 +172,27 @@ def test_an_upload_whose_worker_dies_is_answered_from_a_new_one() -> None:
         pool.stop()
 
 
+def test_ctrl_c_is_left_to_the_server() -> None:
+    """SIGINT reaches the whole process group: the worker lives on, the server ends it."""
+    text = EXAMPLES[0].read_text()
+    pool = ValidationPool(1)
+    # as under a terminal (a background job inherits SIGINT ignored, and so would the worker)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        pool.start(SPIRIT)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    try:
+        first = asyncio.run(_check(pool, text))  # the worker has started (and warmed)
+        [pid] = pool.worker_pids()
+        os.kill(pid, signal.SIGINT)
+        assert asyncio.run(_check(pool, text)) == first
+        assert pool.worker_pids() == [pid]
+    finally:
+        pool.stop()
+    _wait_gone(pid)
+
+
 def test_workers_that_keep_dying_leave_the_upload_to_a_thread(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
