@@ -109,7 +109,7 @@ def _warm(site: RoverSite | None) -> None:
     check_upload(WARM_SEQUENCE.encode(), "text/plain", site.context() if site else None, True)
 
 
-def _exit_with_parent() -> None:
+def _init_worker() -> None:
     """A worker's initializer: a thread that ends the worker when the server is gone. An
     operator's Ctrl-C (SIGINT to the whole process group) is left to the server, which
     ends its workers as it stops."""
@@ -154,7 +154,7 @@ class ValidationPool:
             worker.join(STOP_JOIN_S)
 
     def worker_pids(self) -> list[int]:
-        """The live workers' process ids (none before the first task has started one)."""
+        """The pool's worker process ids (none before the first task has started one)."""
         return list(self._pool._processes) if self._pool is not None else []
 
     async def check(
@@ -193,5 +193,5 @@ class ValidationPool:
         return ProcessPoolExecutor(
             self.processes,
             mp_context=multiprocessing.get_context("spawn"),
-            initializer=_exit_with_parent,
+            initializer=_init_worker,
         )
