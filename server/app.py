@@ -39,7 +39,7 @@ from starlette.concurrency import run_in_threadpool
 from starlette.websockets import WebSocketDisconnect
 
 from sequences import commands as cmd
-from sequences.language import Sequence, SequenceStep, declared_name
+from sequences.language import Sequence, SequenceStep
 from sequences.validate import ValidationContext, ValidationResult, validate
 from server.accounts import (
     DEFAULT_EXPIRY_DAYS,
@@ -67,13 +67,15 @@ from server.runtime import MAX_SPEED, ROVERS, RoverRuntime
 from server.scene3d import RoverScene
 from server.storage import BatchWriter, Store
 from server.timeline import sol_timeline
-from server.uploads import ValidationSlots, read_body, read_source, request_error
-from server.validation_context import validation_context
+from server.uploads import ValidationSlots, read_body, request_error
+from server.validation_context import rover_site, validation_context
+from server.validation_pool import Checked, ValidationPool
 from server.viser_proxy import fetch, relay
 from sim.side_estimators import ESTIMATORS
 
 MAX_UPLOAD_BYTES = 1_000_000
 MAX_CONCURRENT_VALIDATIONS = 2  # per client address, and per token
+VALIDATION_PROCESSES = 1  # one core of two for uploads, the other for the server
 MAX_ID = 2**31 - 1  # ids are PostgreSQL's int4 (storage: Integer columns)
 MAX_SOL = 100_000  # 270 Earth years of a mission; the bundled ephemeris covers fewer
 WEB_DIR = Path(__file__).resolve().parent.parent / "web"  # the console, served as is
@@ -91,6 +93,9 @@ class ServerConfig:
     public_read: bool = True
     max_upload_bytes: int = MAX_UPLOAD_BYTES  # every request body, uploads or not
     max_concurrent_validations: int = MAX_CONCURRENT_VALIDATIONS
+    # uploads validate in these worker processes (server.validation_pool); 0: in the
+    # server's threadpool, sharing its interpreter lock (slower answers while one runs)
+    validation_processes: int = VALIDATION_PROCESSES
     start_clocks: bool = True
     initial_speed: float = 1.0
     viewer_3d: bool = False  # a viser 3D view per rover under /viser/{rover}/
@@ -272,6 +277,7 @@ class Server:
         self.audit = AuditLog(self.store)
         self.writer = BatchWriter(self.store)
         self.hub = TelemetryHub()
+        self.validation = ValidationPool(config.validation_processes)
         self.rovers: dict[str, RoverRuntime] = {}
         for name, spec in ROVERS.items():
             saved = self.store.load_checkpoint(name)
@@ -336,6 +342,7 @@ class Server:
 
     def start(self) -> None:
         self.writer.start()
+        self.validation.start(rover_site(next(iter(self.rovers.values()))))
         for scene in self.scenes.values():
             scene.start()
         if self.config.start_clocks:
@@ -349,6 +356,7 @@ class Server:
             runtime.stop()
         for scene in self.scenes.values():
             scene.stop()
+        self.validation.stop()
         self.writer.stop()
         self.store.close()
 
@@ -379,16 +387,6 @@ def _request_errors(result: ValidationResult) -> list[dict[str, Any]]:
         {"loc": ["body"], "msg": d.message, "type": d.code, "line": d.line, "column": d.column}
         for d in result.errors
     ]
-
-
-@dataclass
-class Checked:
-    """An upload read and validated: its source as stored, format, name and result."""
-
-    text: str
-    fmt: str
-    name: str
-    result: ValidationResult
 
 
 CSV_FILE: dict[str, Any] = {
@@ -486,28 +484,17 @@ def create_app(config: ServerConfig) -> FastAPI:
             for name, kind in cmd.COMMANDS.items()
         ]
 
-    def check_upload(
-        body: bytes, content_type: str, runtime: RoverRuntime | None, named: bool
-    ) -> Checked:
-        """Everything that grows with an upload, in one threadpool call (never on the event
-        loop): decoding, JSON parsing, the rover's context, validation and the name."""
-        source, fmt = read_source(body, content_type)
-        result = validate(source, server.context(runtime) if runtime else None)
-        name = (result.sequence.name if result.sequence else None) or (
-            (declared_name(source) or "unnamed") if named else "unnamed"
-        )
-        text = source if isinstance(source, str) else json.dumps(source)
-        return Checked(text, fmt, name, result)
-
     async def read_and_check(
         request: Request, runtime: RoverRuntime | None, named: bool = False
     ) -> Checked:
-        """The body read (413 past the limit) and checked, in one of the client's
-        validation slots (429 when it has none left)."""
+        """The body read (413 past the limit) and checked in a validation process
+        (``server.validation_pool``), in one of the client's validation slots (429 when it
+        has none left)."""
         with slots.hold(request):
             body = await read_body(request, config.max_upload_bytes)
             content_type = request.headers.get("content-type", "")
-            return await run_in_threadpool(check_upload, body, content_type, runtime, named)
+            site = rover_site(runtime) if runtime else None
+            return await server.validation.check(body, content_type, site, named)
 
     @app.post(
         "/api/rovers/{rover}/sequences",

@@ -26,11 +26,12 @@ the calls. The context also carries the ephemeris' last instant, past which
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from sequences.validate import AqfName, ValidationContext
-from server.runtime import RoverRuntime
 from sim.ephemeris import C_KM_S, Body, astrometric_from_mars_j2000_km, coverage_t_s
 from sim.ephemeris import mars_velocity_j2000_km_s as mars_velocity
 from sim.mars_frames import R_ll_mf, R_mf_j2000, iau_mars_angles_rad, site_mf_m
@@ -41,6 +42,9 @@ from sim.marsclock import (
     sol_number_t_s,
     t_s_for_sol_lmst,
 )
+
+if TYPE_CHECKING:  # the validation process (server.validation_pool) imports no runtime
+    from server.runtime import RoverRuntime
 
 COARSE_S = SOL_S / 4.0  # s between ephemeris samples
 BLOCK = 128  # samples per ephemeris call: 32 sols
@@ -151,16 +155,48 @@ def site_context(
     )
 
 
-def validation_context(runtime: RoverRuntime) -> ValidationContext:
-    """What validation needs to know of a rover, from its state now."""
+@dataclass(frozen=True)
+class RoverSite:
+    """What validation needs to know of a rover, as plain values: ``site_context``'s
+    arguments. It pickles, so the validation process (``server.validation_pool``) builds
+    the context itself."""
+
+    mission: str
+    lat_rad: float
+    lon_east_rad: float
+    start_t_s: float
+    aqf: AqfName = "Unknown"
+    imu_integration_s: float = 0.0
+    articulating: bool = False
+
+    def context(self) -> ValidationContext:
+        """The ``ValidationContext`` of this site (``site_context``)."""
+        return site_context(
+            self.mission,
+            self.lat_rad,
+            self.lon_east_rad,
+            self.start_t_s,
+            aqf=self.aqf,
+            imu_integration_s=self.imu_integration_s,
+            articulating=self.articulating,
+        )
+
+
+def rover_site(runtime: RoverRuntime) -> RoverSite:
+    """A rover's ``RoverSite`` from its state now."""
     sim = runtime.session.sim
     frame = runtime.last_frame or {}
-    return site_context(
+    return RoverSite(
         runtime.spec.mission,
-        sim.lat_rad,
-        sim.lon_east_rad,
-        runtime.t_s,
+        float(sim.lat_rad),
+        float(sim.lon_east_rad),
+        float(runtime.t_s),
         aqf=frame.get("aqf", runtime.session.nate.aqf.paper_name),
         imu_integration_s=float(frame.get("imu_integration_s", 0.0)),
         articulating=runtime.session.nate.mode.value == "Articulate",
     )
+
+
+def validation_context(runtime: RoverRuntime) -> ValidationContext:
+    """What validation needs to know of a rover, from its state now."""
+    return rover_site(runtime).context()

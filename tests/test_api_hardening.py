@@ -4,7 +4,9 @@ that take long to validate, many validations at once, and the OpenAPI contract (
 before the body, one 422 shape, strict types, declared bodies and errors).
 
 No wall-clock asserts: "the event loop stays free" is proven by another request answered
-while a validation is held on a ``threading.Event``, and "the limit is enforced while
+while a validation is held on a ``threading.Event`` (in the threadpool path,
+``validation_processes=0``: an event does not cross processes; tests/test_validation_pool.py
+covers the process path), and "the limit is enforced while
 streaming" by counting the bytes the server pulled."""
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ import httpx
 import pytest
 from fastapi.testclient import TestClient
 
-import server.app as app_module
+import server.validation_pool as pool_module
 from server.app import MAX_ID, MAX_SOL, ServerConfig, create_app, data_dir_url
 from server.bench_fuzz import live_server
 from server.uploads import MAX_JSON_DEPTH
@@ -31,6 +33,7 @@ JSON = {"Content-Type": "application/json"}
 LIMIT = 100_000
 GOOD = "SEQUENCE hardening\nNADIR_UPDATE\n"
 WAIT_S = 30.0  # how long a helper thread may take before the test calls it stuck
+IN_THREADS = {"validation_processes": 0}  # a validation held on an Event: in this process
 
 
 def _app(data_dir: Path, **overrides: Any) -> Any:
@@ -258,12 +261,12 @@ def test_other_requests_are_answered_while_an_upload_is_checked(
     loop before: every other request waited)."""
     marker = "held_upload"
     if held == "validate":
-        hold = Held(app_module.validate, marker)
-        monkeypatch.setattr(app_module, "validate", hold)
+        hold = Held(pool_module.validate, marker)
+        monkeypatch.setattr(pool_module, "validate", hold)
     else:
         hold = Held(json.loads, marker)
         monkeypatch.setattr(json, "loads", hold)
-    with live_server(tmp_path, TOKEN) as (base_url, _), _http(base_url) as c:
+    with live_server(tmp_path, TOKEN, **IN_THREADS) as (base_url, _), _http(base_url) as c:
         body = {"text": f"SEQUENCE {marker}\nNADIR_UPDATE\n"}
         upload, result = _in_thread(
             lambda: c.post("/api/rovers/spirit/sequences", json=body, headers=AUTH)
@@ -282,11 +285,11 @@ def test_a_client_gets_429_past_its_concurrent_validations(
     monkeypatch: pytest.MonkeyPatch, tmp_path: Path
 ) -> None:
     marker = "held_validation"
-    hold = Held(app_module.validate, marker)
-    monkeypatch.setattr(app_module, "validate", hold)
+    hold = Held(pool_module.validate, marker)
+    monkeypatch.setattr(pool_module, "validate", hold)
     text = f"SEQUENCE {marker}\nNADIR_UPDATE\n"
     with (
-        live_server(tmp_path, TOKEN, max_concurrent_validations=2) as (base_url, _),
+        live_server(tmp_path, TOKEN, max_concurrent_validations=2, **IN_THREADS) as (base_url, _),
         _http(base_url) as c,
         _http(base_url, "127.0.0.2") as other,
     ):
@@ -313,10 +316,10 @@ def test_one_token_from_many_addresses_gets_429(
     monkeypatch: pytest.MonkeyPatch, tmp_path: Path
 ) -> None:
     marker = "held_token"
-    hold = Held(app_module.validate, marker)
-    monkeypatch.setattr(app_module, "validate", hold)
+    hold = Held(pool_module.validate, marker)
+    monkeypatch.setattr(pool_module, "validate", hold)
     with (
-        live_server(tmp_path, TOKEN, max_concurrent_validations=1) as (base_url, _),
+        live_server(tmp_path, TOKEN, max_concurrent_validations=1, **IN_THREADS) as (base_url, _),
         _http(base_url) as c,
         _http(base_url, "127.0.0.3") as other,
     ):
