@@ -16,7 +16,11 @@ those numbers are unverified (the recipe is the one in ../shared/REFERENCES.md).
 - Q4  characteristic equation of K:
   ``λ⁴ - (a + b)λ² - cλ + (ab + cσ - d) = 0`` with ``a = σ² - κ``, ``b = σ² + ZᵀZ``,
   ``c = Δ + ZᵀSZ``, ``d = ZᵀS²Z`` (S&O eqs. 70-71).
-- Q5  Newton-Raphson on Q4 from ``λ₀ = Σ a_i`` (= 1).
+- Q5  Newton-Raphson on Q4 from ``λ₀ = Σ a_i`` (= 1). Not when unobservable (below): there
+  ``λ_max`` is a double root of Q4, which rounding of the coefficients (a few ulp) moves by
+  ``~sqrt(ulp)`` or makes complex, so Newton wanders (loss errors up to ~1e-6 seen) or even
+  lands on the other double root, -1. ``λ_max`` is then the top eigenvalue of the symmetric
+  ``K = [[S - σI, Z], [Zᵀ, σ]]`` (Davenport), accurate to a few ulp whatever its multiplicity.
 - Q6  ``α = λ² - σ² + κ``, ``β = λ - σ``, ``γ = (λ + σ)α - Δ`` (S&O eq. 66).
 - Q7  ``X = (αI + βS + S²)Z`` (adjugate form of the Gibbs vector ``Y = X/γ``, S&O eq. 68).
 - Q8  optimal quaternion ``q̄ = [X, γ] / sqrt(γ² + |X|²)`` (S&O eq. 69), in Shuster's
@@ -136,6 +140,18 @@ def _lambda_max(B: FloatArray, lam0: float) -> float:
     return lam
 
 
+def _lambda_max_symmetric(B: FloatArray) -> float:
+    """The largest eigenvalue of Davenport's K for profile matrix B, by a symmetric eigensolver
+    (errors of a few ulp even for a multiple eigenvalue, unlike the roots of Q4)."""
+    S, sigma, Z, _, _ = _profile_terms(B)
+    K = np.empty((4, 4))
+    K[:3, :3] = S - sigma * np.eye(3)
+    K[:3, 3] = Z
+    K[3, :3] = Z
+    K[3, 3] = sigma
+    return float(np.linalg.eigvalsh(K)[-1])
+
+
 def _gibbs_adjugate(B: FloatArray, lam: float) -> tuple[FloatArray, float]:
     """X and γ of the adjugate form (Q6-Q7) for profile matrix B at eigenvalue λ."""
     S, sigma, Z, kappa, delta = _profile_terms(B)
@@ -221,10 +237,10 @@ class QuestAccumulator:
         B = self._B_weighted * sigma_tot2  # Q1, Q2: B = Σ a_i b_i r_iᵀ
         info_normalised = self._information * sigma_tot2  # Σ a_i (I - b_i b_iᵀ)
         eig_min = float(np.linalg.eigvalsh(info_normalised)[0])
-        lam = _lambda_max(B, lam0=1.0)  # Q5: λ₀ = Σ a_i = 1
-        loss = 1.0 - lam  # Q10
 
         if eig_min < OBSERVABILITY_EIGENVALUE_MIN:
+            lam = _lambda_max_symmetric(B)  # a double root of Q4: not by Newton (Q5)
+            loss = 1.0 - lam  # Q10
             # Mean directions, or the first pair if they cancel (e.g. b and -b).
             use_mean = (
                 min(np.linalg.norm(self._r_weighted_sum), np.linalg.norm(self._b_weighted_sum))
@@ -244,6 +260,8 @@ class QuestAccumulator:
                 flip_axis=None,
             )
 
+        lam = _lambda_max(B, lam0=1.0)  # Q5: λ₀ = Σ a_i = 1
+        loss = 1.0 - lam  # Q10
         # Q9: the reference frame (unrotated or flipped about x, y, z) with the largest |γ|.
         best_axis: int | None = None
         X, gamma = _gibbs_adjugate(B, lam)

@@ -27,10 +27,20 @@ Frames: Site ``s`` (x North, y East, z Down), body ``b`` (x forward, y right, z 
 clockwise from North, positive ``pitch`` is nose up and positive ``roll`` right side down.
 Heights are elevations (up); a surface point is ``(x, y, -h)`` in the Site frame.
 
-Flags: a pose is *converged* when all six gaps are below ``tol_m`` and the rim check found
-nothing deeper than ``tol_m + CHECK_SLACK_M``; *within limits* when the rocker and bogie
-angles are inside their joint stops. Poses failing either (a boulder no suspension could
-straddle, a terrain returning NaN) are flagged, never silently returned as good.
+Flags: a pose is *converged* when all six gaps are below ``tol_m``, the rim check found
+nothing deeper than ``tol_m + CHECK_SLACK_M`` and no joint is folded (``FOLDED_RAD``);
+*within limits* when the rocker and bogie angles are inside their joint stops. Poses failing
+either (a boulder no suspension could straddle, a terrain returning NaN) are flagged, never
+silently returned as good.
+
+Newton ignores the joint stops, so that a pose needing a joint past its stop is found and
+flagged (not within limits) rather than pinned on the stop. But the six contact equations
+also have roots no rocker-bogie stands in: under a pillar too tall to straddle, the bogie
+can turn on end (1.63 rad under a 1 m bump) with one wheel on each flank. A joint at a
+quarter turn or more from its parent link is such a fold: the bogie's two wheels, level at
+zero, then stand one above the other or have swapped ends; the rocker's front wheel stands
+over its pivot. Whether Newton reaches such a root within ``max_iterations`` depends on the
+last bits of its arithmetic; the flag must not, so a folded root never counts as converged.
 """
 
 from __future__ import annotations
@@ -71,6 +81,7 @@ MAX_CHECKS = 3  # moves to a deeper basin before a pose is given up as not conve
 PATH_STRIDE = 8  # along a path, settle every 8th pose first (3.75 cm apart at 3.75 cm/s)
 PATH_BRACKET_RAD = float(np.deg2rad(1.0))  # contact bracket half-width from neighbours
 CONTINUATION_STEPS = 4  # sub-steps from a settled pose to a path pose that did not settle
+FOLDED_RAD = 0.5 * math.pi  # a joint this far from zero has folded its link on end
 
 
 @dataclass(frozen=True)
@@ -489,6 +500,7 @@ def settle(
     within = (np.abs(u[:, 3]) <= geometry.rocker_limit_rad) & np.all(
         np.abs(u[:, 4:6]) <= geometry.bogie_limit_rad, axis=1
     )
+    folded = np.any(np.abs(u[:, 3:6]) >= FOLDED_RAD, axis=1)  # NaN compares False
     q = np.full((n, 4), np.nan)  # a terrain that answered NaN leaves NaN unknowns
     finite = np.all(np.isfinite(R), axis=(1, 2))
     q[finite] = Rotation.from_matrix(R[finite]).as_quat()
@@ -503,7 +515,7 @@ def settle(
         contact_s=blk.contact,
         normal_s=blk.normal,
         gap_m=blk.gap,
-        converged=blk.converged,
+        converged=blk.converged & ~folded,
         within_limits=within,
         iterations=blk.iterations,
     )

@@ -255,6 +255,22 @@ def test_single_or_parallel_directions_are_flagged_not_crashed() -> None:
     assert sol.observable and 50.0 < sol.three_sigma_deg < math.inf
 
 
+def test_unobservable_lambda_max_is_exact_not_a_wandering_double_root() -> None:
+    # One direction seen once or repeatedly: K's eigenvalues are exactly {1, 1, -1, -1}, so
+    # λ_max = 1 and the loss is 0. As a double root of the characteristic equation (Q4), λ_max
+    # is only determined to ~sqrt(ulp) after rounding of its coefficients, and Newton from
+    # λ₀ = 1 wandered up to 1e-6 away or fell onto -1 (loss 2). The symmetric eigensolver gets
+    # it to a few ulp: 8 eps bounds the rounding of K's entries and of the solver.
+    rng = np.random.default_rng(1)
+    eps = np.finfo(float).eps
+    for _ in range(300):
+        R_b_r = Rotation.random(random_state=rng)
+        rows = np.repeat(_unit_rows(rng.normal(size=(1, 3))), rng.integers(1, 5), axis=0)
+        sol = quest(R_b_r.apply(rows), rows, 10.0 ** rng.uniform(-5.0, -1.0))
+        assert not sol.observable
+        assert abs(sol.lambda_max - 1.0) <= 8 * eps and abs(sol.loss) <= 8 * eps
+
+
 def test_bad_arguments_raise_value_error_naming_the_parameter() -> None:
     good = np.eye(3)
     with pytest.raises(ValueError, match="b_vectors"):

@@ -283,6 +283,24 @@ def test_impossible_poses_are_flagged_not_hidden() -> None:
     assert not pillar.converged[0] and not pillar.ok[0]
 
 
+def test_a_bogie_turned_on_end_is_not_a_stance() -> None:
+    # The six contact equations under the 1 m pillar have a root with the left bogie turned
+    # 1.63 rad (past a quarter turn): its middle wheel high on one flank of the pillar, its
+    # rear wheel on the other. Whether Newton from the plane fit reaches it within 60
+    # iterations depended on the last bits of the BLAS kernel; started next to it, Newton
+    # reaches it on any machine, and it must still not count as a converged pose.
+    g = G
+    pillar = BumpTerrain(g.x_middle_m, -g.track_m / 2, 1.0)
+    near_root = [-0.4216, 0.1809, -0.1956, -0.1988, 1.6344, 0.0]
+    s = settle(pillar, 0.0, 0.0, 0.0, guess=near_root)
+    assert np.max(np.abs(s.gap_m)) < 1e-4  # a root of the contact equations ...
+    assert abs(s.bogie_rad[0, 0]) > math.pi / 2  # ... with the bogie on end
+    assert not s.converged[0] and not s.ok[0]
+    # A joint short of a quarter turn is only past its stop: the 60 cm bump's 1.22 rad.
+    tall = settle(BumpTerrain(g.x_middle_m, -g.track_m / 2, 0.6), 0.0, 0.0, 0.0)
+    assert tall.converged[0] and not tall.within_limits[0]
+
+
 def test_bad_input_names_the_parameter() -> None:
     flat = FlatTerrain()
     with pytest.raises(InputError, match="y_m"):

@@ -64,7 +64,7 @@ def fit_rigid(
 
     >>> R, T = fit_rigid([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[1, 2, 3], [1, 3, 3], [0, 2, 3]],
     ...                  [1, 1, 1])
-    >>> np.round(R, 12).tolist(), np.round(T, 12).tolist()
+    >>> (np.round(R, 12) + 0.0).tolist(), (np.round(T, 12) + 0.0).tolist()  # + 0.0: no -0.0
     ([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]], [1.0, 2.0, 3.0])
     """
     p = np.asarray(p_prev, dtype=np.float64)
