@@ -16,6 +16,8 @@ from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import ClientConnection, connect
 from websockets.typing import Subprotocol
 
+from server.bench_view3d import CAMERA_REPORT
+
 PROTOCOL = Subprotocol(f"viser-v{viser.__version__}")
 HEADER_BYTES = 16
 
@@ -62,20 +64,7 @@ class WireViewer:
         self._thread.start()
         # viser counts a client as connected once it has reported its camera, as a
         # browser does at once.
-        self.send(
-            {
-                "type": "ViewerCameraMessage",
-                "wxyz": (1.0, 0.0, 0.0, 0.0),
-                "position": (-7.0, -5.0, -5.0),
-                "fov": 1.0,
-                "near": 0.01,
-                "far": 1000.0,
-                "image_height": 600,
-                "image_width": 800,
-                "look_at": (0.0, 0.0, 0.0),
-                "up_direction": (0.0, 0.0, -1.0),
-            }
-        )
+        self.send(CAMERA_REPORT)
 
     def _drain(self) -> None:
         with contextlib.suppress(ConnectionClosed):
