@@ -145,3 +145,17 @@ def store_url(request: pytest.FixtureRequest, tmp_path: Path) -> str:
         return f"sqlite:///{tmp_path / 'roverops.db'}"
     url: str = request.getfixturevalue("pg_schema_url")
     return url
+
+
+def _browser_waits() -> None:
+    """Every Playwright ``expect`` waits for its condition up to 30 s instead of 5 s: with
+    both cores busy the console's first render (its sign-in check, then the rovers, then the
+    timeline) takes longer than 5 s. A passing condition returns as soon as it holds."""
+    try:
+        from playwright.sync_api import expect
+    except ImportError:  # the browser tests skip themselves without Playwright
+        return
+    expect.set_options(timeout=30_000)
+
+
+_browser_waits()
