@@ -43,11 +43,13 @@ def _start(
     token: str = TOKEN,
     estimators: str = "sapp",
     three_d: bool = True,
+    env_extra: dict[str, str] | None = None,
 ) -> subprocess.Popen[bytes]:
     """``roverops serve`` as its own process (the real server, as an operator runs it,
-    with ``--estimators``, and ``--no-3d`` unless ``three_d``); its output goes to
+    with ``--estimators``, ``--no-3d`` unless ``three_d``, and ``env_extra`` for other
+    ROVEROPS_* settings); its output goes to
     ``server.log`` in ``data_dir`` (a pipe nobody reads would fill up and stall the server)."""
-    env = dict(os.environ, ROVEROPS_OPERATOR_TOKEN=token)
+    env = dict(os.environ, ROVEROPS_OPERATOR_TOKEN=token, **(env_extra or {}))
     cmd = [
         sys.executable,
         "-m",

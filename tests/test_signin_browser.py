@@ -6,10 +6,7 @@ token enables them; signing out forgets the token. Screenshots go to test-artifa
 
 from __future__ import annotations
 
-import os
 import re
-import subprocess
-import sys
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -17,7 +14,7 @@ import httpx
 import pytest
 
 from tests.test_console_browser import ARTIFACTS, CHROMIUM, console_page
-from tests.test_server_restart import _free_port, _wait
+from tests.test_server_restart import _free_port, _start, _wait
 
 if not Path(CHROMIUM).exists():
     pytest.skip("Chromium not installed (make test installs it)", allow_module_level=True)
@@ -31,19 +28,7 @@ BOOTSTRAP = "signin-bootstrap-token"
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, dict[str, str]]]:
     data = tmp_path_factory.mktemp("signin")
     port = _free_port()
-    env = dict(os.environ, ROVEROPS_OPERATOR_TOKEN=BOOTSTRAP, ROVEROPS_PUBLIC_READ="off")
-    cmd = [
-        sys.executable,
-        "-m",
-        "server.cli",
-        "serve",
-        "--port",
-        str(port),
-        "--data-dir",
-        str(data),
-    ]
-    with open(data / "server.log", "wb") as log:
-        proc = subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT)
+    proc = _start(data, port, BOOTSTRAP, env_extra={"ROVEROPS_PUBLIC_READ": "off"})
     base = f"http://127.0.0.1:{port}"
     admin = {"Authorization": f"Bearer {BOOTSTRAP}"}
     try:
