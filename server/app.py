@@ -754,7 +754,8 @@ def create_app(config: ServerConfig) -> FastAPI:
 
     @app.websocket("/ws/rovers/{rover}/telemetry")
     async def live(websocket: WebSocket, rover: str) -> None:
-        """Frames as they are played out, at most MAX_RATE_HZ per second of wall time."""
+        """Frames as they are played out, at most MAX_RATE_HZ per second of wall time, and
+        notices (``server.hub``) as they come."""
         if not await _websocket_allowed(websocket):
             return
         if rover not in server.rovers:
@@ -770,6 +771,8 @@ def create_app(config: ServerConfig) -> FastAPI:
                 while True:
                     message = await next_message(client)
                     await websocket.send_json(message)
+                    if "type" in message:  # a notice: never held back by the frame rate
+                        continue
                     next_send = max(next_send + period, time.monotonic())  # >= period apart
                     wait = next_send - time.monotonic()
                     if wait > 0:

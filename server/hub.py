@@ -7,6 +7,12 @@ per wall second: it takes the newest frame waiting and carries the events of the
 it skipped, so no event is lost to decimation (a client too slow even for that loses
 whole frames, events included, and is told how many in ``dropped``).
 
+Besides frames, the hub carries *notices*: small messages with a ``type`` (``"command"``,
+``"alarm"``, ``"queue"``, ...) that say something changed (``notify``). A frame has no
+``type``. Notices are never decimated and go before the frames waiting; each client keeps
+up to ``QUEUE_NOTICES`` of them (a client that falls further behind loses the oldest and
+is told how many in ``dropped_notices``, so it knows to re-read the REST API).
+
 Every frame a client receives carries ``published_wall``: the wall-clock time
 (``time.time()``, Unix seconds) at which the hub handed it on, so a client can measure its
 latency (``roverops bench server``). The stamp is on the clients' copies only, never on the
@@ -18,11 +24,13 @@ from __future__ import annotations
 import asyncio
 import threading
 import time
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
 MAX_RATE_HZ = 10.0
 QUEUE_FRAMES = 64
+QUEUE_NOTICES = 1024
 
 
 @dataclass(eq=False)
@@ -34,6 +42,9 @@ class Client:
         default_factory=lambda: asyncio.Queue(maxsize=QUEUE_FRAMES)
     )
     dropped: int = 0
+    notices: deque[dict[str, Any]] = field(default_factory=deque)
+    dropped_notices: int = 0
+    wake: asyncio.Event = field(default_factory=asyncio.Event)
 
     def put_latest(self, frame: dict[str, Any]) -> None:
         """Enqueue on the client's loop, dropping the oldest frame when full."""
@@ -41,6 +52,15 @@ class Client:
             self.queue.get_nowait()
             self.dropped += 1
         self.queue.put_nowait(frame)
+        self.wake.set()
+
+    def put_notice(self, notice: dict[str, Any]) -> None:
+        """Enqueue a notice on the client's loop, dropping the oldest when full."""
+        if len(self.notices) >= QUEUE_NOTICES:
+            self.notices.popleft()
+            self.dropped_notices += 1
+        self.notices.append(notice)
+        self.wake.set()
 
 
 class TelemetryHub:
@@ -84,10 +104,39 @@ class TelemetryHub:
                     self.unsubscribe(rover, client)
                     break
 
+    def notify(self, rover: str, notice: dict[str, Any]) -> None:
+        """Hand a notice (a dict with a ``type``) to every client of ``rover``
+        (thread-safe, never blocks)."""
+        if "type" not in notice:
+            raise ValueError("a notice needs a type")
+        with self._lock:
+            clients = list(self._clients.get(rover, set()))
+        for client in clients:
+            try:
+                client.loop.call_soon_threadsafe(client.put_notice, dict(notice))
+            except RuntimeError:  # the client's loop has closed
+                self.unsubscribe(rover, client)
+
+
+def pending_notice(client: Client) -> dict[str, Any] | None:
+    """The oldest notice waiting (stamped with ``dropped_notices``), or ``None``."""
+    if not client.notices:
+        return None
+    return {**client.notices.popleft(), "dropped_notices": client.dropped_notices}
+
 
 async def next_message(client: Client) -> dict[str, Any]:
-    """The next frame to send: the newest waiting, with the skipped frames' events."""
-    frame = await client.queue.get()
+    """The next message to send: a notice if one waits, else the newest frame with the
+    skipped frames' events."""
+    while True:
+        notice = pending_notice(client)
+        if notice is not None:
+            return notice
+        if not client.queue.empty():
+            break
+        client.wake.clear()
+        await client.wake.wait()
+    frame = client.queue.get_nowait()
     events: list[str] = list(frame.get("events", []))
     while not client.queue.empty():
         frame = client.queue.get_nowait()

@@ -20,6 +20,21 @@ async function api(path, options = {}) {
   return { ok: response.ok, status: response.status, body };
 }
 
+// The other panels (alarms, queue, event log, plots: one script each) follow the console
+// through these hooks rather than reaching into it. Events: "frame" (each live frame),
+// "notice" (each typed WebSocket message: {type: "alarm" | "command" | ...}), "state"
+// (each /state poll's body), "rover" (the rover picked), "me" (who signed in or out).
+const roverops = {
+  api, lmst, state, mayAct, applyRole, authHeaders, listeners: {},
+  on(name, fn) { (this.listeners[name] ||= []).push(fn); },
+  emit(name, value) {
+    for (const fn of this.listeners[name] || []) {
+      try { fn(value); } catch (e) { console.error(`roverops ${name} listener`, e); }
+    }
+  },
+};
+window.roverops = roverops;
+
 function lmst(h) {
   const total = Math.floor(h * 3600);
   const hh = String(Math.floor(total / 3600)).padStart(2, "0");
@@ -51,6 +66,7 @@ function showFrame(f) {
   $("position").textContent =
     `Site ${f.site_index}: est (${e[0].toFixed(2)}, ${e[1].toFixed(2)}) m, ` +
     `true (${t[0].toFixed(2)}, ${t[1].toFixed(2)}) m, diff ${diff.toFixed(2)} m`;
+  roverops.emit("frame", f);
   for (const text of f.events || []) {
     const li = document.createElement("li");
     li.textContent = `${lmst(f.lmst_h)} ${text}`;
@@ -63,6 +79,7 @@ async function refreshState() {
   const r = await api(`/api/rovers/${state.rover}/state`);
   if (!r.ok) return;
   const s = r.body;
+  roverops.emit("state", s);
   if (s.frame) showFrame({ ...s.frame, events: [] });
   else $("sol-clock").textContent = `Sol ${s.sol}  ${lmst(s.lmst_h)} LMST`;
   $("executing").textContent = s.executing || "—";
@@ -94,7 +111,11 @@ function connect() {
   if (state.ws) state.ws.close();
   const scheme = location.protocol === "https:" ? "wss" : "ws";
   const ws = new WebSocket(`${scheme}://${location.host}/ws/rovers/${state.rover}/telemetry`);
-  ws.onmessage = (m) => showFrame(JSON.parse(m.data));
+  ws.onmessage = (m) => {
+    const message = JSON.parse(m.data);
+    if (message.type) roverops.emit("notice", message);
+    else showFrame(message);
+  };
   ws.onclose = () => { if (state.ws === ws) setTimeout(connect, 1000); };
   state.ws = ws;
 }
@@ -300,6 +321,7 @@ function applyRole() {
   $("sign-out").hidden = !signedIn;
   $("sign-in").hidden = signedIn;
   $("token").hidden = signedIn;
+  roverops.emit("me", me);
 }
 
 async function whoAmI(t) {
@@ -361,8 +383,10 @@ async function start() {
   $("rover").replaceChildren(...rovers.map((r) => new Option(`${r.rover} (${r.site})`, r.rover)));
   state.rover = new URLSearchParams(location.search).get("rover") || (rovers[0] && rovers[0].rover);
   $("rover").value = state.rover;
+  roverops.emit("rover", state.rover);
   $("rover").addEventListener("change", () => {
     state.rover = $("rover").value;
+    roverops.emit("rover", state.rover);
     $("events").replaceChildren();
     connect(); refreshState(); refreshSequences();
   });

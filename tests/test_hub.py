@@ -1,0 +1,60 @@
+"""The hub's two channels (``server.hub``): frames are decimated to the newest, notices
+never are, go first, and a client too far behind is told how many it lost."""
+
+from __future__ import annotations
+
+import asyncio
+
+import pytest
+
+from server.hub import QUEUE_NOTICES, TelemetryHub, next_message
+
+
+def _run(coro):  # type: ignore[no-untyped-def]
+    return asyncio.run(coro)
+
+
+def test_notices_go_before_frames_and_frames_are_merged_to_the_newest() -> None:
+    async def scenario() -> list[dict]:  # type: ignore[type-arg]
+        hub = TelemetryHub()
+        client = hub.subscribe("spirit")
+        hub.publish("spirit", [{"t_s": 1.0, "events": ["a"]}, {"t_s": 2.0, "events": ["b"]}])
+        hub.notify("spirit", {"type": "command", "command": "DRIVE_STRAIGHT"})
+        await asyncio.sleep(0)  # let call_soon_threadsafe deliver
+        return [await next_message(client), await next_message(client)]
+
+    notice, frame = _run(scenario())
+    assert notice["type"] == "command" and notice["dropped_notices"] == 0
+    assert frame["t_s"] == 2.0 and frame["events"] == ["a", "b"]
+    assert "type" not in frame
+
+
+def test_a_waiting_client_wakes_for_a_notice() -> None:
+    async def scenario() -> dict:  # type: ignore[type-arg]
+        hub = TelemetryHub()
+        client = hub.subscribe("spirit")
+        waiter = asyncio.create_task(next_message(client))
+        await asyncio.sleep(0.01)
+        assert not waiter.done()
+        hub.notify("spirit", {"type": "alarm", "id": 1})
+        return await asyncio.wait_for(waiter, 2.0)
+
+    assert _run(scenario())["id"] == 1
+
+
+def test_a_client_far_behind_loses_the_oldest_notices_and_is_told() -> None:
+    async def scenario() -> dict:  # type: ignore[type-arg]
+        hub = TelemetryHub()
+        client = hub.subscribe("spirit")
+        for i in range(QUEUE_NOTICES + 5):
+            hub.notify("spirit", {"type": "queue", "i": i})
+        await asyncio.sleep(0)
+        return await next_message(client)
+
+    first = _run(scenario())
+    assert first["i"] == 5 and first["dropped_notices"] == 5
+
+
+def test_a_notice_needs_a_type() -> None:
+    with pytest.raises(ValueError, match="type"):
+        TelemetryHub().notify("spirit", {"id": 1})
