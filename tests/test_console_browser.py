@@ -91,7 +91,7 @@ def test_errors_show_at_their_lines_and_nothing_is_queued(page: Page, server: st
     expect(errors).to_contain_text("line 2:")
     expect(errors).to_contain_text("line 4:")
     # not signed in: reading only, the operator's controls greyed out and saying why
-    expect(page.get_by_test_id("signed-in")).to_have_text("not signed in (reading only)")
+    expect(page.get_by_test_id("signed-in")).to_have_text("reading only")
     upload = page.locator("#upload-text")
     expect(upload).to_be_disabled()
     expect(upload).to_have_attribute("title", re.compile("needs the operator role"))
