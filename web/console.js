@@ -24,7 +24,22 @@ async function api(path, options = {}) {
   }
   let body = null;
   try { body = await response.json(); } catch (_) { body = null; }
+  const refused = body && typeof body.detail === "string" && body.detail.startsWith("wrong token");
+  if (response.status === 403 && refused && token()) await tokenRefused(body.detail);
   return { ok: response.ok, status: response.status, body };
+}
+
+// The API refused this tab's token (revoked or expired since sign-in): every call with it
+// would be refused, reads too, so the tab forgets it and says so (a refused action says it
+// again in its own words), and reads on as whoever it is without it.
+async function tokenRefused(detail) {
+  sessionStorage.removeItem("roverops-token");
+  state.me = null;
+  applyRole(); // at once: no control acts with the forgotten token meanwhile
+  $("sequence-status").textContent = `Signed out: ${detail}`;
+  const r = await whoAmI("");
+  state.me = r.ok ? r.body : null;
+  applyRole();
 }
 
 // What the API said, as one line: its sentence (401 "token required ...", 403 "wrong
@@ -91,13 +106,14 @@ function showFrame(f) {
 // truth agree right after PLANT_SITE), and the error accumulated over the whole mission,
 // scored against the simulator's truth (what no real ground system has: the truth view).
 const xy = (p) => `(${p[0].toFixed(2)}, ${p[1].toFixed(2)})`;
+const xyz = (p) => `(${p.map((v) => v.toFixed(2)).join(", ")})`;
 function showPosition(f) {
   $("position").textContent = `Site ${f.site_index}: est ${xy(f.p_s_est)} m`;
   const e = f.p_mission_est, t = f.p_mission_true;
   const error = typeof f.position_error_m === "number" ? f.position_error_m
     : e && t ? Math.hypot(e[0] - t[0], e[1] - t[1], e[2] - t[2]) : null;
   $("position-error").textContent = error === null ? "—"
-    : `${error.toFixed(2)} m` + (e && t ? ` (mission frame: est ${xy(e)}, true ${xy(t)} m)` : "");
+    : `${error.toFixed(2)} m` + (e && t ? ` (mission frame, 3D: est ${xyz(e)}, true ${xyz(t)} m)` : "");
 }
 
 // The clock as the server runs it: at max with nothing queued it runs in real time
