@@ -127,21 +127,21 @@ def test_the_speed_selector_shows_the_servers_speed(
     assert r.status_code == 200, r.text
     page = _open(context, server)
     expect(page.get_by_test_id("clock-speed")).to_have_text("running at 10×")
-    expect(page.get_by_test_id("speed")).to_have_value("10")
+    expect(page.locator("#speed")).to_have_value("10")
     # a change the server refuses: the selector goes back, the status says the API's words
     # (the refusal is played by the test: the console lets no one make a refused change)
     sign_in(page)
     refusal = {"detail": "bootstrap is admin: this needs the flight director role"}
     page.route("**/api/rovers/spirit/clock", lambda route: route.fulfill(status=403, json=refusal))
-    page.select_option("[data-testid=speed]", "1000")
+    page.select_option("#speed", "1000")
     expect(page.get_by_test_id("sequence-status")).to_have_text(
         f"Clock not changed: {refusal['detail']}"
     )
-    expect(page.get_by_test_id("speed")).to_have_value("10")
+    expect(page.locator("#speed")).to_have_value("10")
     page.unroute("**/api/rovers/spirit/clock")
     # a speed set over the API that the selector does not list is shown as it is
     httpx.post(f"{server}/api/rovers/spirit/clock", json={"speed": 20}, headers=ADMIN)
-    expect(page.get_by_test_id("speed")).to_have_value("20")
+    expect(page.locator("#speed")).to_have_value("20")
     expect(page.get_by_test_id("clock-speed")).to_have_text("running at 20×")
     page.close()
 
@@ -152,7 +152,7 @@ def test_after_plant_site_the_site_estimate_and_the_mission_error_are_apart(
 ) -> None:
     page = _open(context, server)
     sign_in(page)
-    page.select_option("[data-testid=speed]", "max")
+    page.select_option("#speed", "max")
     page.fill("#editor", "SEQUENCE drive_then_plant\nDRIVE_STRAIGHT distance_m=6\nPLANT_SITE\n")
     page.click("#upload-text")
     expect(page.get_by_test_id("sequence-status")).to_contain_text("queued")
@@ -171,7 +171,7 @@ def test_after_plant_site_the_site_estimate_and_the_mission_error_are_apart(
     expect(page.locator("dt.truth-view")).to_contain_text("truth")
     # at max with nothing queued the clock runs in real time, and the header says so
     expect(page.get_by_test_id("clock-speed")).to_have_text("running at 1× (max, idle)")
-    expect(page.get_by_test_id("speed")).to_have_value("max")
+    expect(page.locator("#speed")).to_have_value("max")
     page.locator("section.readouts").screenshot(path=str(ARTIFACTS / "readouts_after_plant.png"))
     page.close()
 
