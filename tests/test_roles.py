@@ -25,6 +25,7 @@ SEQ = "SEQUENCE roles\nNADIR_UPDATE\n"
 ROUTES: list[tuple[str, str, str, dict[str, Any]]] = [
     ("GET", "/api/rovers", "viewer", {}),
     ("GET", "/api/rovers/spirit/state", "viewer", {}),
+    ("GET", "/api/rovers/spirit/queue", "viewer", {}),
     ("GET", "/api/commands", "viewer", {}),
     ("GET", "/api/me", "viewer", {}),
     ("POST", "/api/sequences/validate", "viewer", {"content": SEQ}),
@@ -40,6 +41,7 @@ ROUTES: list[tuple[str, str, str, dict[str, Any]]] = [
     ("POST", "/api/rovers/spirit/sequences", "operator", {"content": SEQ}),
     ("POST", "/api/rovers/spirit/commands", "operator", {"json": {"command": "NADIR_UPDATE"}}),
     ("POST", "/api/rovers/spirit/clock", "operator", {"json": {"action": "pause"}}),
+    ("POST", "/api/rovers/spirit/queue/1/move", "operator", {"json": {"to": 0}}),
     ("DELETE", "/api/sequences/1", "operator", {}),
     ("GET", "/api/users", "admin", {}),
     ("POST", "/api/users", "admin", {"json": {"name": "newcomer", "role": "viewer"}}),
