@@ -576,7 +576,8 @@ def create_app(config: ServerConfig) -> FastAPI:
             rover, name, checked.text, checked.fmt, "queued", [], diags["warnings"], steps,
             who.name,
         )  # fmt: skip
-        runtime.enqueue(seq_id, result.sequence)
+        # off the event loop: queueing rewrites the last checkpoint (tens of ms)
+        await run_in_threadpool(runtime.enqueue, seq_id, result.sequence)
         request.state.audit_action = f"upload sequence {name} (#{seq_id}): queued"
         return JSONResponse({"id": seq_id, "status": "queued", **diags}, status_code=201)
 

@@ -16,6 +16,7 @@ from fastapi.testclient import TestClient
 
 from sequences.validate import validate
 from server.app import Server, ServerConfig, create_app, data_dir_url
+from server.queue_view import QueueNotices
 from server.runtime import RoverRuntime
 
 BOOTSTRAP = "queue-api-token"
@@ -237,3 +238,21 @@ def test_the_order_survives_a_kill_and_a_cancelled_sequence_stays_cancelled(
     second = Server(ServerConfig(database_url=url, operator_token="x", start_clocks=False))
     assert second.rovers["spirit"].queued_ids() == [c, b]
     second.stop()
+
+
+def test_notices_are_snapshots_built_once_for_many_changes_and_only_for_followed_rovers() -> None:
+    builds: list[str] = []
+    sent: list[dict[str, Any]] = []
+
+    def build(rover: str) -> dict[str, Any]:
+        builds.append(rover)
+        return {"type": "queue", "rover": rover}
+
+    notices = QueueNotices(build, lambda _rover, notice: sent.append(notice), "spirit".__eq__)
+    for _ in range(5):  # five changes before the thread's next turn: one snapshot says all
+        notices.changed("spirit")
+    notices.changed("opportunity")  # nobody follows it: nothing built
+    notices.send_pending()
+    assert builds == ["spirit"] and sent == [{"type": "queue", "rover": "spirit"}]
+    notices.send_pending()
+    assert builds == ["spirit"]  # nothing changed since
