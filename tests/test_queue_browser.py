@@ -93,6 +93,11 @@ def test_reorder_and_cancel_from_the_panel_then_run_in_the_new_order(server: str
         expect(alpha_steps.nth(0)).to_contain_text("NADIR_UPDATE")
         expect(alpha_steps.nth(1)).to_have_attribute("data-status", "pending")
         page.get_by_test_id("queue-panel").screenshot(path=str(ARTIFACTS / "queue-panel.png"))
+        page.set_viewport_size({"width": 760, "height": 900})  # a narrow window: no overflow
+        panel = page.get_by_test_id("queue-panel")
+        assert panel.evaluate("e => e.scrollWidth <= e.clientWidth")
+        panel.screenshot(path=str(ARTIFACTS / "queue-panel-760.png"))
+        page.set_viewport_size({"width": 1280, "height": 800})
 
         body = httpx.get(f"{server}/api/rovers/spirit/queue").json()
         assert [q["sequence_id"] for q in body["queue"]] == [alpha, charlie]
