@@ -299,9 +299,12 @@ class Received:
     dropped: int = 0
 
     def add(self, message: str | bytes) -> dict[str, Any]:
-        """Record one message; the frame."""
+        """Record one frame (a notice, a message with a ``type``, is not one: it is
+        returned unrecorded); the message."""
         now = time.time()
         frame: dict[str, Any] = json.loads(message)
+        if "type" in frame:
+            return frame
         self.wall.append(now)
         self.latency_s.append(now - float(frame["published_wall"]))
         self.t_s.append(float(frame["t_s"]))
