@@ -296,7 +296,7 @@ class RoverRuntime:
             running = self.current_step
             stopped = Cancelled(
                 steps=len(item.sequence.steps),
-                done=len(item.outcomes),
+                done=min(item.next_step, len(item.sequence.steps)),
                 running_step=running[1] if running and running[0] == sequence_id else None,
             )
             self._checkpoint_queue(removed=sequence_id)

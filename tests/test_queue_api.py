@@ -184,24 +184,30 @@ def test_every_queue_change_is_a_notice_on_the_telemetry_websocket(
     with client.websocket_connect("/ws/rovers/spirit/telemetry") as ws:
         _wait_for(lambda: hub.count("spirit") == 1)  # subscribed (just after the accept)
 
-        def next_queue() -> list[dict[str, Any]]:
-            while True:  # the clock is stopped: no frames, only notices
+        def until(holds: Any) -> list[dict[str, Any]]:
+            """Queue notices until one ``holds``: each is a snapshot, so a change made
+            before this client subscribed may still come first (the clock is stopped: no
+            frames, only notices)."""
+            for _ in range(20):
                 message = ws.receive_json()
                 if message.get("type") == "queue":
                     assert message["rover"] == "spirit"
                     queue: list[dict[str, Any]] = message["queue"]
-                    return queue
+                    if holds(queue):
+                        return queue
+            raise AssertionError("no such notice")
+
+        def ids(queue: list[dict[str, Any]]) -> list[int]:
+            return [q["sequence_id"] for q in queue]
 
         client.post(f"/api/rovers/spirit/queue/{b}/move", json={"to": 0}, headers=auth)
-        assert [q["sequence_id"] for q in next_queue()] == [b, a]
+        until(lambda queue: ids(queue) == [b, a])
         client.delete(f"/api/sequences/{a}", headers=auth)
-        assert [q["sequence_id"] for q in next_queue()] == [b]
+        until(lambda queue: ids(queue) == [b])
         runtime._tick(0.05)  # bravo's first step runs
         runtime._tick(0.05)  # and its frames play out (notices coalesce: the last says so)
-        queue = next_queue()
-        while queue[0]["steps"][0]["status"] != "completed":
-            queue = next_queue()
-        assert queue[0]["status"] == "running"
+        queue = until(lambda queue: queue[0]["steps"][0]["status"] == "completed")
+        assert queue[0]["status"] == "running" and queue[0]["steps"][1]["status"] == "pending"
 
 
 def _wait_for(predicate: Any, timeout_s: float = 10.0) -> None:

@@ -90,7 +90,7 @@
     } else {
       b.dataset.role = "operator";
       b.disabled = !ro.mayAct("operator");
-      b.title = b.disabled ? "needs the operator role: sign in with a operator's token" : action;
+      b.title = b.disabled ? "needs the operator role: sign in with an operator's token" : action;
       b.addEventListener("click", run);
     }
     return b;
