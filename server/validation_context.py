@@ -45,6 +45,7 @@ from sim.marsclock import (
 
 if TYPE_CHECKING:  # the validation process (server.validation_pool) imports no runtime
     from server.runtime import RoverRuntime
+    from server.storage import Store
 
 COARSE_S = SOL_S / 4.0  # s between ephemeris samples
 BLOCK = 128  # samples per ephemeris call: 32 sols
@@ -200,3 +201,19 @@ def rover_site(runtime: RoverRuntime) -> RoverSite:
 def validation_context(runtime: RoverRuntime) -> ValidationContext:
     """What validation needs to know of a rover, from its state now."""
     return rover_site(runtime).context()
+
+
+def stored_rover_site(store: Store, rover: str) -> RoverSite | None:
+    """A rover's ``RoverSite`` from its last checkpoint in ``store`` (``None`` if it has
+    none): the state a server restarted on that database would resume, and validate
+    against, with the last stored frame as the latest telemetry, as ``Server._resume``
+    sets it. ``roverops validate --rover NAME`` reads it when no ``--server`` is given."""
+    from server.runtime import ROVERS, RoverRuntime
+
+    spec = ROVERS[rover]
+    saved = store.load_checkpoint(rover)
+    if saved is None:
+        return None
+    runtime = RoverRuntime.restore(spec, saved[1])
+    runtime.last_frame = store.last_frame(rover)
+    return rover_site(runtime)
