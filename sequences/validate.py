@@ -30,6 +30,9 @@ warns where the plan is risky. The predictions are estimates, made without the s
   parameter: ``server.validation_context`` reads it from the flight software, since this
   package imports none of it) the walk warns (``sun-too-low``), and follows a
   ``SET_PARAM param=min_sun_elevation_rad``.
+- SUNCHECK_SUNGAZE is meant for an AQF of Coarse or better (Ali et al. 2005 sec. 4: the
+  propagated attitude points the camera at the sun): below that it warns
+  (``suncheck-not-coarse``); NATE runs it anyway (``estimation.nate``).
 
 >>> result = validate("DRIVE_STRAIGHT distance_m=0\\nWAIT duration=5")
 >>> [(d.line, d.code) for d in result.errors]
@@ -91,6 +94,7 @@ CODES: dict[str, str] = {
     "fine-expires": "warning",
     "earth-below-horizon": "warning",
     "sun-too-low": "warning",
+    "suncheck-not-coarse": "warning",
     "hga-not-fine": "warning",
     "imu-time": "warning",
     "tag-next-sol": "warning",
@@ -476,6 +480,13 @@ class _Prediction:
             if self.aqf != "Fine":
                 text = f"HGA pass with the AQF predicted {self.aqf}: pointing not assured"
                 self.warn(step, "hga-not-fine", text)
+        if isinstance(c, cmd.SuncheckSungaze) and AQF_RANK[self.aqf] < AQF_RANK["Coarse"]:
+            text = (
+                f"SUNCHECK_SUNGAZE with the AQF predicted {self.aqf}: it is meant for Coarse "
+                "or better, or the Suncheck may not see the sun (Ali et al. 2005 sec. 4); "
+                "GET_FINE_ATTITUDE?"
+            )
+            self.warn(step, "suncheck-not-coarse", text)
         limit = self.min_sun_elevation_deg
         if isinstance(c, _NEEDS_SUN) and ctx.sun_elevation_deg is not None and limit is not None:
             sun = ctx.sun_elevation_deg(start)
