@@ -906,7 +906,7 @@ class Nate:
             proceed = completed.sun_seen  # Sungaze needs only the sun in the field
             if proceed and not completed.success:
                 self._events.append(
-                    f"SuncheckSungaze: Suncheck failed ({completed.outcome.value}), "
+                    f"SuncheckSungaze: Suncheck failed ({completed.outcome.value}): "
                     "Sungaze on the sun it saw"
                 )
         if proceed and self._pending:

@@ -374,7 +374,7 @@ def test_suncheck_sungaze_runs_sungaze_after_an_out_of_tolerance_suncheck() -> N
     assert nate.aqf is Aqf.FINE and angle_deg(nate.q_b_ll, q_true(sim)) < 0.5
     assert events(outs)[-1] == "SuncheckSungaze done: AQF Fine"
     # the failed Suncheck is an event of its own, before Sungaze starts (issue 14, item 9)
-    said = "SuncheckSungaze: Suncheck failed (sun out of tolerance), Sungaze on the sun it saw"
+    said = "SuncheckSungaze: Suncheck failed (sun out of tolerance): Sungaze on the sun it saw"
     assert said in events(outs)
     assert events(outs).index(said) < events(outs).index("SuncheckSungaze done: AQF Fine")
 
