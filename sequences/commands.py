@@ -2,7 +2,7 @@
 
 One frozen dataclass per command; construction checks every argument and raises
 ``ValueError`` naming it, so an object that exists is a command the rover can be given.
-Units are in the argument names; angles are degrees here, at the edge (CONVENTIONS.md), and
+Units are in the argument names; angles are degrees here, at the edge (docs/CONVENTIONS.md), and
 the sequencer converts them. The text and JSON sequence formats (the operations-server
 issue) parse into these.
 

@@ -160,7 +160,7 @@ _AQF_AFTER: dict[type[cmd.Command], str] = {
 class ValidationContext:
     """The rover at the start of the sequence, for the predicting warnings.
 
-    ``start_t_s``: when the sequence starts (TT seconds since J2000, CONVENTIONS.md);
+    ``start_t_s``: when the sequence starts (TT seconds since J2000, docs/CONVENTIONS.md);
     ``lmst_h(t_s)`` and ``sol(t_s)`` the rover's clock; ``t_s_for(sol, lmst_h)`` its inverse;
     ``earth_elevation_deg(t_s)`` Earth above the rover's horizon. ``aqf`` the flag and
     ``imu_integration_s`` the IMU time since the last Sungaze at the start; ``articulating``

@@ -1,6 +1,6 @@
 """A rover session: the flight software in the loop on the simulated rover, command by command.
 
-DESIGN.md, "One control cycle": ``sim`` advances the truth and makes the measurements, the
+docs/DESIGN.md, "One control cycle": ``sim`` advances the truth and makes the measurements, the
 sequencer hands the next command to the flight software when the previous one completes,
 SAPP's NATE (``estimation.nate``) steps on the measurements, and a telemetry frame puts the
 estimate beside the truth with the derived figures (HGA pointing error and margin, position
@@ -93,7 +93,7 @@ WAIT_CHUNK_S = 600.0  # 8 Hz waits are simulated in chunks of this length
 
 @dataclass(frozen=True)
 class TelemetryFrame:
-    """One control cycle's telemetry (DESIGN.md's frame, plus derived figures).
+    """One control cycle's telemetry (docs/DESIGN.md's frame, plus derived figures).
 
     Angles in degrees at this edge; positions in metres: ``p_s_*`` in the current Site,
     ``p_mission_*`` in the mission frame (the first Site; the chain of Site offsets).

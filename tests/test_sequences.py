@@ -688,7 +688,7 @@ def test_ten_thousand_lines_validate(capsys: pytest.CaptureFixture[str]) -> None
 
 
 def test_sequences_imports_nothing_of_sim_server_or_estimation() -> None:
-    """DESIGN.md: ``server, sim -> sequences``; the rover's world comes in by the context."""
+    """docs/DESIGN.md: ``server, sim -> sequences``; the rover's world comes in by the context."""
     import ast
 
     offenders = []
