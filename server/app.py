@@ -1000,7 +1000,7 @@ def _csv(frames: list[dict[str, Any]]) -> str:
             values = list(f.get(v) or [])
             row += values + [None] * (n - len(values))
         row += _side_cells(f)
-        row.append("; ".join(f.get("events", [])))
+        row.append("; ".join(e["text"] for e in f.get("events", [])))
         writer.writerow(row)
     return out.getvalue()
 

@@ -221,17 +221,22 @@
   }
 
   // Events at the same instant share one mark (its tooltip lists them all), so no mark
-  // hides another under the pointer.
+  // hides another under the pointer; the mark takes the worst severity of its events.
+  const SEVERITY_RANK = { info: 0, warning: 1, error: 2 };
+
   function eventMarks(events) {
     const groups = new Map();
     for (const e of events) {
       const key = e.t_s.toFixed(3);
-      if (!groups.has(key)) groups.set(key, { lmst_h: e.lmst_h, texts: [] });
-      groups.get(key).texts.push(e.text);
+      if (!groups.has(key)) groups.set(key, { lmst_h: e.lmst_h, texts: [], severity: "info" });
+      const g = groups.get(key);
+      g.texts.push(e.text);
+      if ((SEVERITY_RANK[e.severity] || 0) > SEVERITY_RANK[g.severity]) g.severity = e.severity;
     }
     return [...groups.values()].map((g) => {
       const mark = document.createElement("div");
-      mark.className = "tl-event";
+      mark.className = `tl-event sev-${g.severity}`;
+      mark.dataset.severity = g.severity;
       mark.dataset.testid = "timeline-event";
       mark.style.left = `${Math.max(0, Math.min(100, percent(g.lmst_h)))}%`;
       mark.title = `${hhmmss(g.lmst_h)} LMST\n${g.texts.join("\n")}`;
