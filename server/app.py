@@ -682,7 +682,8 @@ def create_app(config: ServerConfig) -> FastAPI:
         offset: Annotated[int, Query(ge=0, le=MAX_ID)] = 0,
     ) -> dict[str, Any]:
         """The rover's events, newest first, filtered (server.eventlog): ``{"rover",
-        "total", "offset", "limit", "events"}``; a filter that cannot be met is a 422."""
+        "kinds", "total", "offset", "limit", "events"}``; a filter that cannot be met is a
+        422 naming it."""
         runtime = server.rover(rover)
         server.writer.flush()
         flt = EventFilter(

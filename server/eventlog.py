@@ -90,8 +90,9 @@ def rest_event(runtime: RoverRuntime, event: dict[str, Any]) -> dict[str, Any]:
 
 
 def event_log(store: Store, runtime: RoverRuntime, flt: EventFilter) -> dict[str, Any]:
-    """The page of the rover's event log ``flt`` asks for: ``{"rover", "total", "offset",
-    "limit", "events"}``, ``total`` counting every event that matches."""
+    """The page of the rover's event log ``flt`` asks for: ``{"rover", "kinds", "total",
+    "offset", "limit", "events"}``, ``total`` counting every event that matches and
+    ``kinds`` the kinds the filter accepts."""
     flt.check()
     mission = runtime.spec.mission
     first = flt.sol if flt.sol is not None else flt.sol_from
@@ -101,7 +102,12 @@ def event_log(store: Store, runtime: RoverRuntime, flt: EventFilter) -> dict[str
     if last is not None:
         before = min(before, t_s_for_sol_lmst(mission, last + 1, 0.0))
     severities = flt.severity_set()
-    page: dict[str, Any] = {"rover": runtime.spec.name, "offset": flt.offset, "limit": flt.limit}
+    page: dict[str, Any] = {
+        "rover": runtime.spec.name,
+        "kinds": list(LOG_KINDS),  # what the kind filter accepts, for the console's picker
+        "offset": flt.offset,
+        "limit": flt.limit,
+    }
     if not severities:  # e.g. severity=info with min_severity=error: nothing can match
         return {**page, "total": 0, "events": []}
     rows, total = store.event_log(

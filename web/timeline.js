@@ -118,6 +118,7 @@
     if (generation !== view.generation) return;
     const x0 = timeline.start.lmst_h;
     view.span = [x0, Math.max(timeline.end.lmst_h, x0 + MIN_SPAN_H)];
+    view.start = timeline.start;
     const link = byId("timeline-csv");
     link.href = csvPath(rover, sol);
     link.setAttribute("download", `${rover}_sol${sol}.csv`);
@@ -438,6 +439,21 @@
     });
   }
 
+  // ---- focus: another panel asks for a moment ("focus", {sol, t_s}) ------------------
+
+  const SOL_S = 88775.244; // a Mars solar day, s: 24 LMST hours
+
+  async function focus({ sol, t_s }) {
+    const picker = byId("timeline-sol");
+    if (![...picker.options].some((o) => Number(o.value) === sol)) await fillSols({ followLatest: false });
+    picker.value = String(sol);
+    await pickSol();
+    if (!view.span || Number(picker.value) !== sol) return;
+    const line = byId("timeline-hairline");
+    line.hidden = false;
+    line.style.left = `${Math.max(0, Math.min(100, percent(view.start.lmst_h + (24 * (t_s - view.start.t_s)) / SOL_S)))}%`;
+  }
+
   // ---- start ------------------------------------------------------------------------
 
   function start() {
@@ -448,6 +464,7 @@
     // the panel also changes width without a window resize (a scrollbar comes or goes)
     new ResizeObserver(resize).observe(byId("timeline-panel"));
     byId("timeline-hairline").hidden = true;
+    window.roverops.on("focus", focus);
     reload({ followLatest: true });
   }
 
