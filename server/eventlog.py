@@ -59,10 +59,13 @@ class EventFilter:
         for kind in self.kinds:
             if kind not in LOG_KINDS:
                 raise FilterError("kind", f"{kind!r} is not one of {', '.join(LOG_KINDS)}")
-        for severity in (*self.severities, *filter(None, [self.min_severity])):
-            if severity not in SEVERITIES:
-                name = "min_severity" if severity == self.min_severity else "severity"
-                raise FilterError(name, f"{severity!r} is not one of {', '.join(SEVERITIES)}")
+        wrong = [s for s in self.severities if s not in SEVERITIES]
+        if wrong:
+            raise FilterError("severity", f"{wrong[0]!r} is not one of {', '.join(SEVERITIES)}")
+        if self.min_severity is not None and self.min_severity not in SEVERITIES:
+            raise FilterError(
+                "min_severity", f"{self.min_severity!r} is not one of {', '.join(SEVERITIES)}"
+            )
         if self.text is not None and "\x00" in self.text:  # PostgreSQL refuses NUL in text
             raise FilterError("text", "must not contain a NUL character")
         if self.before_t_s is not None and not math.isfinite(self.before_t_s):
