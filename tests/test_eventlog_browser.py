@@ -3,8 +3,8 @@ real server (issue 14): a sequence over two sols runs at max speed while the pag
 The readouts' live list shows each event at its own LMST (item 5: at max speed Nadir
 Update, Sunfind and Sungaze came in one message and were all shown at its time); the event
 log lists every event, its rows change with the kind and text filters, and clicking a row
-fires the "focus" hook and turns the sol timeline to that sol. Screenshot in
-test-artifacts/eventlog.png."""
+fires the "focus" hook and turns the sol timeline to that sol. Screenshots in
+test-artifacts/ (eventlog.png, the page; eventlog-panel-{760,1280,1920}.png)."""
 
 from __future__ import annotations
 
@@ -131,5 +131,11 @@ def test_a_row_focuses_the_timeline_on_its_sol(page: Page, server: str) -> None:
     expect(page.get_by_test_id("eventlog-row").filter(has_text="Site 1 planted")).to_have_class(
         "sev-info selected"
     )
-    page.get_by_test_id("eventlog-panel").scroll_into_view_if_needed()
-    page.screenshot(path=str(ARTIFACTS / "eventlog-panel.png"))
+    panel = page.get_by_test_id("eventlog-panel")
+    for width in (760, 1280, 1920):
+        page.set_viewport_size({"width": width, "height": 800})
+        expect(panel.locator("table")).to_be_visible()
+        fits = "e => e.getBoundingClientRect().right <= document.documentElement.clientWidth"
+        assert panel.evaluate(fits), f"the event log is wider than the page at {width} px"
+        panel.screenshot(path=str(ARTIFACTS / f"eventlog-panel-{width}.png"))
+    page.set_viewport_size({"width": 1280, "height": 800})
