@@ -204,7 +204,6 @@ audit_log = Table(
 
 LEGACY_KIND = "unknown"  # an event stored before events had a kind
 LEGACY_SEVERITY = "info"
-SEVERITY_ORDER = ("info", "warning", "error")  # estimation.events.SEVERITIES
 
 
 def event_dict(event: str | Mapping[str, Any]) -> dict[str, Any]:
