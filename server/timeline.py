@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from server.eventlog import rest_event
 from server.runtime import RoverRuntime
 from server.storage import Store
 from sim.marsclock import t_s_to_utc
@@ -78,7 +79,7 @@ def sol_timeline(store: Store, runtime: RoverRuntime, sol: int) -> dict[str, Any
         ],
         "nate_modes": _intervals(runtime, frames, "nate_mode", t1),
         "aqf": _intervals(runtime, frames, "aqf", t1),
-        "events": [{**e, "lmst_h": runtime.lmst_h(float(e["t_s"]))} for e in events],
+        "events": [rest_event(runtime, e) for e in events],
         "distance_m": distance,
         "summary": {
             "frames": len(frames),
