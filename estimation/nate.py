@@ -913,10 +913,11 @@ class Nate:
             assert isinstance(completed, SunResult)
             proceed = completed.sun_seen  # Sungaze needs only the sun in the field
             if proceed and not completed.success:
-                self._events.append(
+                text = (
                     f"SuncheckSungaze: Suncheck failed ({completed.outcome.value}): "
                     "Sungaze on the sun it saw"
                 )
+                self._events.append(Event(text, "acquisition", "warning"))  # degraded
         if proceed and self._pending:
             self._start_primitive(self._pending.pop(0))
             return
