@@ -63,10 +63,19 @@ window (8 Hz samples); if that average fails the sanity checks it proceeds sun-o
 
 Attitude Acquisition Machine (sec. 2.2.4): ``get_tilt_attitude`` (Nadir Update),
 ``get_coarse_attitude`` (Nadir Update, Sunfind), ``get_fine_attitude`` (Nadir Update,
-Sunfind, Sungaze) run the primitives in order and abort at the first failure;
-``suncheck_sungaze`` (sec. 4's lesson) runs Sungaze after a Suncheck that saw the sun,
-whether or not it was within tolerance, since Sungaze needs only the sun in the field of
-view; a Suncheck that saw no sun aborts. ``gyrocompass`` (sec. 5's other lesson,
+Sunfind, Sungaze) run the primitives in order and abort at the first failure.
+``suncheck_sungaze`` is the operators' practice of sec. 4 (a Suncheck, then a Sungaze) as
+the one command sec. 5 wishes SAPP had. It runs Sungaze after a Suncheck that saw the sun,
+whether or not it was within tolerance: in that practice the Suncheck points the camera
+(it "leaves the camera pointed at the sun", sec. 2.3.2) and Sungaze "can determine the
+full attitude so long as the sun is in the field of view" (sec. 4; it "starts with no
+assumptions about the rover's attitude knowledge", sec. 2.2.3). A Suncheck that failed
+but saw the sun is an event of its own (the AQF is Unknown until Sungaze ends); one that
+saw no sun aborts the command (AQF Unknown, Sungaze not run). It is meant for an AQF of
+Coarse or better, the attitude knowledge sec. 4 relies on "to point the cameras at the
+sun"; it is not refused below that (a Suncheck that sees the sun is all Sungaze needs),
+but from Unknown or TiltOnly the sun may be outside the image: GetFineAttitude is the
+command for that. ``gyrocompass`` (sec. 5's other lesson,
 ``estimation.gyrocompass``) sums the gyro delta angles over a stationary span (IMU samples
 of any length) and corrects the heading; the flag becomes Coarse only if the predicted
 heading 3σ is within ``gyrocompass_coarse_3sigma_rad`` (default 8 deg, Pancam's half field:
@@ -653,7 +662,8 @@ class Nate:
         self._acquire_sequence("GetFineAttitude", steps)
 
     def suncheck_sungaze(self) -> None:
-        """Suncheck then Sungaze as one command (sec. 4's lesson; module docstring)."""
+        """Suncheck then Sungaze as one command: sec. 4's practice, sec. 5's wish (module
+        docstring: Sungaze follows a Suncheck that saw the sun, passed or not)."""
         self._require("suncheck_sungaze", NateMode.IDLE)
         self._require_sun("suncheck_sungaze")
         self._acquire_sequence("SuncheckSungaze", [NateMode.SUNCHECK, NateMode.SUNGAZE])
@@ -902,6 +912,12 @@ class Nate:
         if self._acquisition == "SuncheckSungaze" and suncheck_done:
             assert isinstance(completed, SunResult)
             proceed = completed.sun_seen  # Sungaze needs only the sun in the field
+            if proceed and not completed.success:
+                text = (
+                    f"SuncheckSungaze: Suncheck failed ({completed.outcome.value}): "
+                    "Sungaze on the sun it saw"
+                )
+                self._events.append(Event(text, "acquisition", "warning"))  # degraded
         if proceed and self._pending:
             self._start_primitive(self._pending.pop(0))
             return

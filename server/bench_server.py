@@ -35,7 +35,7 @@ an interpreter lock and the figures include the network stack.
   the p99 of ``STALL_IDLE_POLLS`` polls just before, with nothing validating (on a shared
   machine, the part of the stall that is not the server's).
 
-Output contract: ``sim.bench._result`` (DESIGN.md "Benchmarks").
+Output contract: ``sim.bench._result`` (docs/DESIGN.md "Benchmarks").
 """
 
 from __future__ import annotations

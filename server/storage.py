@@ -3,7 +3,7 @@
 One SQLAlchemy 2 (Core) layer over any database URL, so that the embedded default (SQLite,
 a file under the data directory) and a shared server (PostgreSQL) behave the same and run
 the same tests. ``Store`` is the synchronous API the request handlers call; ``BatchWriter``
-takes the high-rate writes off the simulation threads (DESIGN.md: "server stores frames
+takes the high-rate writes off the simulation threads (docs/DESIGN.md: "server stores frames
 (batched)") and commits them together at least once per ``interval_s`` of wall time, so a
 server killed with SIGKILL loses at most the writes of the last interval (issue 4, item 5).
 

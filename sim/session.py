@@ -1,6 +1,6 @@
 """A rover session: the flight software in the loop on the simulated rover, command by command.
 
-DESIGN.md, "One control cycle": ``sim`` advances the truth and makes the measurements, the
+docs/DESIGN.md, "One control cycle": ``sim`` advances the truth and makes the measurements, the
 sequencer hands the next command to the flight software when the previous one completes,
 SAPP's NATE (``estimation.nate``) steps on the measurements, and a telemetry frame puts the
 estimate beside the truth with the derived figures (HGA pointing error and margin, position
@@ -52,6 +52,7 @@ from estimation.nate import (
     NateOutput,
     NateParams,
 )
+from estimation.sun_modes import SunResult
 from estimation.vo.odometry import VisualOdometry
 from estimation.wheel_odometry import DriveKind, steer_six
 from sequences import commands as cmd
@@ -93,7 +94,7 @@ WAIT_CHUNK_S = 600.0  # 8 Hz waits are simulated in chunks of this length
 
 @dataclass(frozen=True)
 class TelemetryFrame:
-    """One control cycle's telemetry (DESIGN.md's frame, plus derived figures).
+    """One control cycle's telemetry (docs/DESIGN.md's frame, plus derived figures).
 
     Angles in degrees at this edge; positions in metres: ``p_s_*`` in the current Site,
     ``p_mission_*`` in the mission frame (the first Site; the chain of Site offsets).
@@ -160,6 +161,24 @@ class CommandReport:
     events: list[Event] = field(default_factory=list)
     details: dict[str, Any] = field(default_factory=dict)
     results: list[Any] = field(default_factory=list)
+
+
+def _name_a_failed_suncheck(details: dict[str, Any], results: list[Any]) -> None:
+    """SUNCHECK_SUNGAZE's result names its Suncheck's failure (Ali et al. 2005 sec. 4's
+    practice, ``estimation.nate``): out of tolerance, the command goes on to Sungaze and,
+    if Sungaze converges, completes (its purpose, a Fine attitude, is reached; the Suncheck
+    only pointed the camera) with ``details["suncheck"]`` saying how far off the estimate
+    was; with no sun in the image, it fails with that as its reason."""
+    check = results[0] if results else None
+    if not isinstance(check, SunResult) or check.success:
+        return
+    said = f"Suncheck failed: {check.outcome.value}"
+    if math.isfinite(check.error_rad):
+        said += f" (error {math.degrees(check.error_rad):.2f} deg)"
+    if len(results) > 1:
+        details["suncheck"] = f"{said}; Sungaze ran on the sun it saw"
+    else:
+        details["failure"] = f"{said}; Sungaze not run, AQF {details['aqf']}"
 
 
 class CommandRefusedError(Exception):
@@ -302,7 +321,10 @@ class RoverSession:
         if isinstance(c, cmd.HgaPass):
             return self._hga_pass(c.duration_min * 60.0)
         self._start_acquisition(c)
-        return self._run_until_idle()
+        details = self._run_until_idle()
+        if isinstance(c, cmd.SuncheckSungaze):
+            _name_a_failed_suncheck(details, self._results)
+        return details
 
     def _start_acquisition(self, c: cmd.Command) -> None:
         nate = self.nate

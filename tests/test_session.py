@@ -1,4 +1,4 @@
-"""``RoverSession`` end to end: SAPP in the loop on the simulated rover (DESIGN.md, "One
+"""``RoverSession`` end to end: SAPP in the loop on the simulated rover (docs/DESIGN.md, "One
 control cycle"; seed 000 sec. 2.2.4 GetFineAttitude, sec. 2.5 position, sec. 1 HGA).
 
 Gusev, 2004-04-14 16:30 UTC (sun 47 deg up, Earth 75 deg up): GetFineAttitude, a 5 m
@@ -26,7 +26,7 @@ from sim.session import CommandReport, RoverSession
 DAY = datetime(2004, 4, 14, 16, 30, tzinfo=UTC)
 NIGHT = datetime(2004, 4, 14, 4, 0, tzinfo=UTC)
 SEED = 1
-# DESIGN.md, "Contracts": the telemetry frame
+# docs/DESIGN.md, "Contracts": the telemetry frame
 TELEMETRY_KEYS = {
     "t_s", "sol", "lmst_h", "nate_mode", "aqf", "q_b_ll_est", "q_b_ll_true", "p_s_est",
     "p_s_true", "site_index", "imu_integration_s", "gyro_counter_s", "tilt_est_deg",
