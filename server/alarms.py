@@ -72,7 +72,7 @@ def alarm_json(row: dict[str, Any]) -> dict[str, Any]:
 def _message(limits: ChannelLimits, level: str, value: Any) -> str:
     limit = limits.limit_for(level)
     units = f" {limits.units}" if limits.units else ""
-    shown = f"{value:.3g}{units}" if isinstance(value, float) else f"{value}{units}"
+    shown = f"{value:.4g}{units}" if isinstance(value, float) else f"{value}{units}"
     if limits.kind == "state":
         text = f"{limits.channel} {shown}: a {level} state"
     elif limits.kind == "ordinal":

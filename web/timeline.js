@@ -259,6 +259,7 @@
   // sol's end), coloured by level, hatched for a truth-view channel. Placed by t_s, since
   // an alarm may have been raised on an earlier sol (LMST hours repeat each sol).
   const LMST_HOUR_S = 88775.244 / 24; // a mean solar sol, s
+  const ALARM_ROW_PX = 14;
   function drawAlarmLane(timeline) {
     const lane = byId("lane-alarms");
     if (!lane) return;
@@ -271,11 +272,12 @@
       ends[row] = a.cleared ? a.cleared.t_s : Infinity;
       return row;
     });
+    lane.style.height = `${Math.max(2, ends.length) * ALARM_ROW_PX + 2}px`;
     lane.replaceChildren(...alarms.map((a, i) => {
       const end = a.cleared ? a.cleared.t_s : timeline.end.t_s;
       const bar = placed(`tl-alarm level-${a.level}${a.truth ? " truth" : ""}`, at(a.raised.t_s), at(end));
-      bar.style.top = `${(100 * rows[i]) / ends.length}%`;
-      bar.style.height = `${100 / ends.length}%`;
+      bar.style.top = `${1 + ALARM_ROW_PX * rows[i]}px`;
+      bar.style.height = `${ALARM_ROW_PX - 2}px`;
       bar.dataset.testid = "timeline-alarm";
       bar.dataset.level = a.level;
       bar.dataset.channel = a.channel;
