@@ -53,7 +53,8 @@
     banner.dataset.level = worst;
     const count = el("strong", `${worst.toUpperCase()} · ${open.length} unacknowledged alarm${open.length === 1 ? "" : "s"}`);
     count.dataset.testid = "alarm-count";
-    const message = el("span", `${newest.level}: ${newest.message.replace(" (truth view)", "")}`, "alarm-banner-message");
+    const cleared = newest.cleared ? " (cleared since)" : "";
+    const message = el("span", `${newest.level}: ${newest.message.replace(" (truth view)", "")}${cleared}`, "alarm-banner-message");
     message.dataset.testid = "alarm-banner-message";
     const parts = [count, message];
     if (newest.truth) parts.push(truthTag());
