@@ -23,14 +23,18 @@ Choices worth knowing:
   the step again from its checkpoint, and recording it again updates the row and counts
   the re-run (``reruns``). The rule lives in the write path, not in a unique index, so a
   database that already holds such duplicates opens as before.
+- Events (``estimation.events``) are stored with their kind and severity; those stored
+  before events had them (as a column or inside a stored frame) read back as kind
+  ``unknown``, severity ``info`` (``event_dict``).
 - The schema grows in place: opening a database adds the columns and indexes this version
   declares and it lacks (``_upgrade_schema``), so a database of an older version keeps
   working; a column added this way must be nullable or have a ``server_default``.
 
 >>> store = Store("sqlite://")
->>> store.add_events("spirit", [(10.0, "Site planted")])
+>>> planted = {"text": "Site 1 planted", "kind": "site", "severity": "info"}
+>>> store.add_events("spirit", [(10.0, planted)])
 >>> store.events("spirit", 0.0, 20.0)
-[{'t_s': 10.0, 'text': 'Site planted'}]
+[{'t_s': 10.0, 'text': 'Site 1 planted', 'kind': 'site', 'severity': 'info'}]
 >>> store.close()
 """
 
@@ -128,6 +132,10 @@ events = Table(
     Column("rover", String(64), nullable=False),
     Column("t_s", Double, nullable=False),
     Column("text", Text, nullable=False),
+    # estimation.events: kind and severity; rows from before they existed read as
+    # LEGACY_KIND / LEGACY_SEVERITY
+    Column("kind", String(32), nullable=False, server_default="unknown"),
+    Column("severity", String(16), nullable=False, server_default="info"),
     Index("ix_events_rover_t", "rover", "t_s"),
 )
 
@@ -193,6 +201,26 @@ audit_log = Table(
     Column("detail", Text, nullable=True),  # why it was refused
     Index("ix_audit_at", "at"),
 )
+
+
+LEGACY_KIND = "unknown"  # an event stored before events had a kind
+LEGACY_SEVERITY = "info"
+
+
+def event_dict(event: str | Mapping[str, Any]) -> dict[str, Any]:
+    """An event of a frame as ``{"text", "kind", "severity"}`` (plus any other keys it
+    has), whether stored by this version or as the bare text of an older one."""
+    if isinstance(event, str):
+        return {"text": event, "kind": LEGACY_KIND, "severity": LEGACY_SEVERITY}
+    return {"kind": LEGACY_KIND, "severity": LEGACY_SEVERITY, **event}
+
+
+def _frame_events(data: dict[str, Any]) -> dict[str, Any]:
+    """A stored frame with its events in this version's shape (module docstring)."""
+    got = data.get("events")
+    if got and any(isinstance(e, str) for e in got):
+        data["events"] = [event_dict(e) for e in got]
+    return data
 
 
 # ---- alarms and their limits (server.alarms, server.limits) ----------------------------
@@ -398,21 +426,58 @@ class Store:
 
     # ---- events ------------------------------------------------------------------
 
-    def add_events(self, rover: str, events: list[tuple[float, str]]) -> None:
-        """Store events as (t_s, text) pairs."""
+    def add_events(self, rover: str, events: list[tuple[float, Mapping[str, Any]]]) -> None:
+        """Store events as (t_s, ``{"text", "kind", "severity"}``) pairs."""
         with self.engine.begin() as conn:
-            self._insert_events(conn, [(rover, t, text) for t, text in events])
+            self._insert_events(conn, [(rover, t, e) for t, e in events])
 
     def events(self, rover: str, t_from: float, t_to: float) -> list[dict[str, Any]]:
-        """Events with t_from <= t_s <= t_to, in time order, as ``{"t_s", "text"}``."""
+        """Events with t_from <= t_s <= t_to, in time order, as
+        ``{"t_s", "text", "kind", "severity"}``."""
+        return self.event_log(rover, t_from, t_to, newest_first=False)[0]
+
+    def event_log(
+        self,
+        rover: str,
+        t_from: float,
+        t_to: float,
+        *,
+        kinds: Iterable[str] = (),
+        severities: Iterable[str] = (),
+        text_contains: str | None = None,
+        before_t_s: float | None = None,
+        limit: int | None = None,
+        offset: int = 0,
+        newest_first: bool = True,
+    ) -> tuple[list[dict[str, Any]], int]:
+        """Events with t_from <= t_s < ``before_t_s`` (if given) and t_s <= t_to, of one of
+        ``kinds`` and ``severities`` (all if empty) whose text contains ``text_contains``
+        (any case); the page of ``limit`` from ``offset``, newest first unless
+        ``newest_first`` is false, and the number of events matching in all."""
         e = events.c
-        query = (
-            select(e.t_s, e.text)
-            .where(e.rover == rover, e.t_s >= t_from, e.t_s <= t_to)
-            .order_by(e.t_s, e.id)
-        )
+        where = [e.rover == rover, e.t_s >= t_from, e.t_s <= t_to]
+        if before_t_s is not None:
+            where.append(e.t_s < before_t_s)
+        kinds, severities = list(kinds), list(severities)
+        if kinds:
+            where.append(e.kind.in_(kinds))
+        if severities:
+            where.append(e.severity.in_(severities))
+        if text_contains:
+            escaped = text_contains.replace("\\", "\\\\").replace("%", "\\%").replace("_", "\\_")
+            where.append(func.lower(e.text).like(f"%{escaped.lower()}%", escape="\\"))
+        order = (e.t_s.desc(), e.id.desc()) if newest_first else (e.t_s, e.id)
+        query = select(e.t_s, e.text, e.kind, e.severity).where(*where).order_by(*order)
+        if offset:
+            query = query.offset(offset)
+        if limit is not None:
+            query = query.limit(limit)
         with self.engine.connect() as conn:
-            return [{"t_s": r.t_s, "text": r.text} for r in conn.execute(query)]
+            rows = [dict(r._mapping) for r in conn.execute(query)]
+            total = len(rows) if limit is None and not offset else None
+            if total is None:
+                total = int(conn.execute(select(func.count()).where(*where)).scalar_one())
+        return rows, total
 
     # ---- telemetry frames --------------------------------------------------------
 
@@ -451,7 +516,7 @@ class Store:
                 if every_s > 0.0 and row.t_s - last < every_s and not data.get("events"):
                     continue
                 last = row.t_s
-                out.append(data)
+                out.append(_frame_events(data))
                 if limit is not None and len(out) >= limit:
                     break
         return out
@@ -477,7 +542,7 @@ class Store:
         query = select(f.data).where(f.rover == rover).order_by(f.t_s.desc(), f.id.desc()).limit(1)
         with self.engine.connect() as conn:
             data: dict[str, Any] | None = conn.execute(query).scalar()
-        return data
+        return None if data is None else _frame_events(data)
 
     # ---- alarms (server.alarms) and operators' limits (server.limits) ---------------
 
@@ -568,10 +633,13 @@ class Store:
                  for r, f in rows],
             )  # fmt: skip
 
-    def _insert_events(self, conn: Connection, rows: list[tuple[str, float, str]]) -> None:
+    def _insert_events(
+        self, conn: Connection, rows: list[tuple[str, float, Mapping[str, Any]]]
+    ) -> None:
         if rows:
             conn.execute(
-                insert(events), [{"rover": r, "t_s": float(t), "text": x} for r, t, x in rows]
+                insert(events),
+                [{"rover": r, "t_s": float(t), **_event_columns(x)} for r, t, x in rows],
             )
 
     def _record_commands(self, conn: Connection, rows: list[dict[str, Any]]) -> None:
@@ -656,6 +724,11 @@ def _add_missing_columns(engine: Engine, meta: MetaData = metadata) -> list[str]
     return [f"{table.name}.{column.name}" for table, column in missing]
 
 
+def _event_columns(event: Mapping[str, Any]) -> dict[str, str]:
+    e = event_dict(event)
+    return {"text": str(e["text"]), "kind": str(e["kind"]), "severity": str(e["severity"])}
+
+
 def _command_row(
     rover: str,
     sequence_id: int | None,
@@ -705,7 +778,7 @@ class BatchWriter:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._frames: list[tuple[str, dict[str, Any]]] = []
-        self._events: list[tuple[str, float, str]] = []
+        self._events: list[tuple[str, float, Mapping[str, Any]]] = []
         self._commands: list[dict[str, Any]] = []
         self._checkpoints: dict[str, tuple[float, bytes]] = {}
 
@@ -722,10 +795,10 @@ class BatchWriter:
         with self._lock:
             self._frames.extend((rover, f) for f in frames)
 
-    def events(self, rover: str, events: list[tuple[float, str]]) -> None:
-        """Queue events as (t_s, text) pairs."""
+    def events(self, rover: str, events: list[tuple[float, Mapping[str, Any]]]) -> None:
+        """Queue events as (t_s, ``{"text", "kind", "severity"}``) pairs."""
         with self._lock:
-            self._events.extend((rover, float(t), text) for t, text in events)
+            self._events.extend((rover, float(t), e) for t, e in events)
 
     def command(self, rover: str, **fields: Any) -> None:
         """Queue one command execution (the keyword arguments of ``Store.add_command``)."""

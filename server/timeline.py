@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from server.alarms import alarm_json
+from server.eventlog import rest_event
 from server.runtime import RoverRuntime
 from server.storage import Store
 from sim.marsclock import t_s_to_utc
@@ -80,7 +81,7 @@ def sol_timeline(store: Store, runtime: RoverRuntime, sol: int) -> dict[str, Any
         ],
         "nate_modes": _intervals(runtime, frames, "nate_mode", t1),
         "aqf": _intervals(runtime, frames, "aqf", t1),
-        "events": [{**e, "lmst_h": runtime.lmst_h(float(e["t_s"]))} for e in events],
+        "events": [rest_event(runtime, e) for e in events],
         # alarms raised by the sol's end and not cleared before its start, oldest first
         "alarms": [alarm_json(a) for a in reversed(store.alarms(rover, span=(t0, t1)))],
         "distance_m": distance,

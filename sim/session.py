@@ -40,6 +40,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from estimation.aqf import AttitudeQuality
+from estimation.events import Event, Severity
 from estimation.hga_pointing import point_hga
 from estimation.ivp import earth_ll
 from estimation.nate import (
@@ -138,7 +139,7 @@ class TelemetryFrame:
     sun_ll_true: list[float]
     earth_ll_true: list[float]
     hga_boresight_ll_true: list[float]
-    events: list[str] = field(default_factory=list)
+    events: list[Event] = field(default_factory=list)
     estimators: dict[str, dict[str, Any]] = field(default_factory=dict)
     vo_failures_in_row: int = 0
     hga_margin_predicted_deg: float = math.nan
@@ -163,7 +164,7 @@ class CommandReport:
     start_t_s: float
     end_t_s: float
     reason: str | None = None
-    events: list[str] = field(default_factory=list)
+    events: list[Event] = field(default_factory=list)
     details: dict[str, Any] = field(default_factory=dict)
     results: list[Any] = field(default_factory=list)
 
@@ -220,7 +221,7 @@ class RoverSession:
         self._lon_west_deg = (360.0 - sim.site.lon_east_deg) % 360.0
         self._site_origins_true: list[FloatArray] = [sim.state.p_s.copy()]  # mission frame
         self._command = ""
-        self._events: list[str] = []
+        self._events: list[Event] = []
         unknown = [e for e in estimators if e not in ESTIMATORS]
         if unknown or "sapp" not in estimators:
             raise InputError(
@@ -259,7 +260,7 @@ class RoverSession:
             details = self._dispatch(command)
         except (CommandRefusedError, ValueError, InputError) as exc:
             report.status, report.reason = "refused", str(exc)
-            self._events.append(f"{command.name} refused: {exc}")
+            self._events.append(Event(f"{command.name} refused: {exc}", "command", "error"))
             self._frame_now(force=True)
         else:
             report.details = details
@@ -288,12 +289,12 @@ class RoverSession:
         if isinstance(c, cmd.PlantSite):
             index = nate.plant_site()
             self._site_origins_true.append(self.sim.state.p_s.copy())
-            self._events.append(f"Site {index} planted")
+            self._events.append(Event(f"Site {index} planted", "site"))
             self._frame_now(force=True)
             return {"site_index": index}
         if isinstance(c, cmd.SetParam):
             nate.set_param(c.param, c.value)
-            self._events.append(f"parameter {c.param} = {c.value}")
+            self._events.append(Event(f"parameter {c.param} = {c.value}", "parameter"))
             self._frame_now(force=True)
             return {}
         if isinstance(c, cmd.ArticulateStart):
@@ -372,7 +373,7 @@ class RoverSession:
     def _last_event(self) -> str:
         for frame in reversed(self.frames):
             if frame.events:
-                return frame.events[-1]
+                return frame.events[-1].text
         return ""
 
     def _wait(self, duration_s: float) -> None:
@@ -402,7 +403,8 @@ class RoverSession:
                 "HGA_PASS: Earth is below the horizon (IVP): no link possible"
             )
         if nate.aqf < AttitudeQuality.FINE:
-            self._events.append(f"HGA pass with AQF {nate.aqf.paper_name}: pointing not assured")
+            text = f"HGA pass with AQF {nate.aqf.paper_name}: pointing not assured"
+            self._events.append(Event(text, "hga", "warning"))
         first = len(self.frames)
         self._frame_now(force=True)
         end = sim.t_s + duration_s
@@ -418,10 +420,12 @@ class RoverSession:
         errors = [f.hga_error_deg for f in frames if f.earth_up]
         worst = max(errors) if errors else math.nan
         margin = 2.0 - worst
-        self.frames[-1].events.append(
-            f"HGA pass: worst error {worst:.2f} deg, margin {margin:.2f} deg"
-            + ("" if len(errors) == len(frames) else ", Earth set during the pass")
+        earth_set = len(errors) != len(frames)
+        text = f"HGA pass: worst error {worst:.2f} deg, margin {margin:.2f} deg" + (
+            ", Earth set during the pass" if earth_set else ""
         )
+        severity: Severity = "error" if margin < 0.0 else "warning" if earth_set else "info"
+        self.frames[-1].events.append(Event(text, "hga", severity))
         out: dict[str, Any] = {"hga_worst_error_deg": worst, "hga_min_margin_deg": margin}
         if margin < 0.0:
             out["failure"] = f"HGA margin gone: worst error {worst:.2f} deg > 2 deg"
@@ -516,22 +520,21 @@ class RoverSession:
         except (InputError, ValueError) as exc:  # e.g. the mast looking at nothing
             vo.reset()
             self._vo_failed(step)
-            self._events.append(f"VO step {step}/{steps} failed: {exc}; wheel odometry kept")
+            text = f"VO step {step}/{steps} failed: {exc}; wheel odometry kept"
+            self._events.append(Event(text, "vo", "warning"))
             return 0
         if step == 0:
             return 0  # the first pair: nothing to compare with yet
         if not result.converged or result.motion is None:
             self._vo_failed(step)
-            self._events.append(
-                f"VO step {step}/{steps} failed: {result.reason}; wheel odometry kept"
-            )
+            text = f"VO step {step}/{steps} failed: {result.reason}; wheel odometry kept"
+            self._events.append(Event(text, "vo", "warning"))
             return 0
         self._vo_failures_in_row = 0
         p_s, q_b_ll = corrected_pose(before, result.motion)
         self.nate.visual_odometry_update(p_s, q_b_ll if attitude else None)
-        self._events.append(
-            update_text(step, steps, p_s - after.p_s, result.n_inliers, result.n_tracked)
-        )
+        text = update_text(step, steps, p_s - after.p_s, result.n_inliers, result.n_tracked)
+        self._events.append(Event(text, "vo"))
         return 1
 
     def _vo_failed(self, step: int) -> None:
@@ -692,7 +695,7 @@ class RoverSession:
                 # The rover has driven and SAPP has its result: a comparison estimator that
                 # fails must not turn the drive into a refusal. It stops, and says why.
                 self.side.remove(runner)
-                self._events.append(f"{runner.name} stopped: {exc}")
+                self._events.append(Event(f"{runner.name} stopped: {exc}", "estimator", "warning"))
         return out
 
     def _segment_frames(

@@ -47,7 +47,7 @@ def test_frames_carry_the_predicted_margin_from_the_rovers_own_knowledge(
     session.execute(cmd.Wait(1.0))
     assert session.frames[-1].hga_margin_predicted_deg == -178.0  # AQF Unknown
     session.execute(cmd.GetFineAttitude())
-    events = [e for f in session.frames for e in f.events]
+    events = [e.text for f in session.frames for e in f.events]
     found = next(re.search(r"Sungaze: converged, 3σ ([\d.]+) deg", e) for e in events
                  if e.startswith("Sungaze"))  # fmt: skip
     assert found is not None

@@ -108,7 +108,7 @@ def completed(outs: list[NateOutput]) -> list[object]:
 
 
 def events(outs: list[NateOutput]) -> list[str]:
-    return [e for o in outs for e in o.events]
+    return [e.text for o in outs for e in o.events]
 
 
 def state(nate: Nate) -> tuple[object, ...]:

@@ -35,6 +35,7 @@ ROUTES: list[tuple[str, str, str, dict[str, Any]]] = [
     ("GET", "/api/rovers/spirit/sols/0/timeline", "viewer", {}),
     ("GET", "/api/rovers/spirit/sols/0/telemetry.csv", "viewer", {}),
     ("GET", "/api/rovers/spirit/telemetry", "viewer", {}),
+    ("GET", "/api/rovers/spirit/events", "viewer", {}),
     ("GET", "/api/rovers/spirit/scene", "viewer", {}),
     ("GET", "/viser/spirit", "viewer", {}),
     ("GET", "/viser/spirit/index.html", "viewer", {}),

@@ -118,6 +118,7 @@
     if (generation !== view.generation) return;
     const x0 = timeline.start.lmst_h;
     view.span = [x0, Math.max(timeline.end.lmst_h, x0 + MIN_SPAN_H)];
+    view.start = timeline.start;
     const link = byId("timeline-csv");
     link.href = csvPath(rover, sol);
     link.setAttribute("download", `${rover}_sol${sol}.csv`);
@@ -221,17 +222,22 @@
   }
 
   // Events at the same instant share one mark (its tooltip lists them all), so no mark
-  // hides another under the pointer.
+  // hides another under the pointer; the mark takes the worst severity of its events.
+  const SEVERITY_RANK = { info: 0, warning: 1, error: 2 };
+
   function eventMarks(events) {
     const groups = new Map();
     for (const e of events) {
       const key = e.t_s.toFixed(3);
-      if (!groups.has(key)) groups.set(key, { lmst_h: e.lmst_h, texts: [] });
-      groups.get(key).texts.push(e.text);
+      if (!groups.has(key)) groups.set(key, { lmst_h: e.lmst_h, texts: [], severity: "info" });
+      const g = groups.get(key);
+      g.texts.push(e.text);
+      if ((SEVERITY_RANK[e.severity] || 0) > SEVERITY_RANK[g.severity]) g.severity = e.severity;
     }
     return [...groups.values()].map((g) => {
       const mark = document.createElement("div");
-      mark.className = "tl-event";
+      mark.className = `tl-event sev-${g.severity}`;
+      mark.dataset.severity = g.severity;
       mark.dataset.testid = "timeline-event";
       mark.style.left = `${Math.max(0, Math.min(100, percent(g.lmst_h)))}%`;
       mark.title = `${hhmmss(g.lmst_h)} LMST\n${g.texts.join("\n")}`;
@@ -468,6 +474,21 @@
     });
   }
 
+  // ---- focus: another panel asks for a moment ("focus", {sol, t_s}) ------------------
+
+  const SOL_S = 88775.244; // a Mars solar day, s: 24 LMST hours
+
+  async function focus({ sol, t_s }) {
+    const picker = byId("timeline-sol");
+    if (![...picker.options].some((o) => Number(o.value) === sol)) await fillSols({ followLatest: false });
+    picker.value = String(sol);
+    await pickSol();
+    if (!view.span || Number(picker.value) !== sol) return;
+    const line = byId("timeline-hairline");
+    line.hidden = false;
+    line.style.left = `${Math.max(0, Math.min(100, percent(view.start.lmst_h + (24 * (t_s - view.start.t_s)) / SOL_S)))}%`;
+  }
+
   // ---- start ------------------------------------------------------------------------
 
   function start() {
@@ -478,6 +499,7 @@
     // the panel also changes width without a window resize (a scrollbar comes or goes)
     new ResizeObserver(resize).observe(byId("timeline-panel"));
     byId("timeline-hairline").hidden = true;
+    window.roverops.on("focus", focus);
     reload({ followLatest: true });
   }
 
