@@ -145,3 +145,12 @@ def test_alarms_raise_acknowledge_clear_in_two_browsers(server: str) -> None:  #
         lane = b.locator("[data-testid=timeline-alarm][data-channel=hga_margin_deg]")
         expect(lane.and_(b.locator("[data-level=warning]"))).to_have_count(1)
         b.get_by_test_id("timeline-panel").screenshot(path=str(ARTIFACTS / "alarms_timeline.png"))
+
+        # The panel fits a narrow window (its tables scroll inside it, not the page).
+        for width in (760, 1280, 1920):
+            b.set_viewport_size({"width": width, "height": 900})
+            box = b.get_by_test_id("alarms-panel").bounding_box()
+            assert box is not None and box["x"] >= 0 and box["x"] + box["width"] <= width
+            b.get_by_test_id("alarms-panel").screenshot(
+                path=str(ARTIFACTS / f"alarms-panel-{width}.png")
+            )
