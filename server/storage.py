@@ -51,6 +51,7 @@ from typing import Any
 
 from sqlalchemy import (
     JSON,
+    Boolean,
     Column,
     DateTime,
     Double,
@@ -220,6 +221,44 @@ def _frame_events(data: dict[str, Any]) -> dict[str, Any]:
     if got and any(isinstance(e, str) for e in got):
         data["events"] = [event_dict(e) for e in got]
     return data
+
+
+# ---- alarms and their limits (server.alarms, server.limits) ----------------------------
+
+alarms_table = Table(
+    "alarms",
+    metadata,
+    Column("id", Integer, primary_key=True, autoincrement=True),
+    Column("rover", String(64), nullable=False),
+    Column("channel", String(64), nullable=False),
+    Column("level", String(16), nullable=False),  # "warning" or "critical"
+    Column("truth", Boolean, nullable=False),  # a truth-view channel
+    Column("value", JSON, nullable=True),  # a number or a name (AQF, NATE mode)
+    Column("limit_value", JSON, nullable=True),  # the limit crossed (a list for states)
+    Column("units", String(16), nullable=False, default=""),
+    Column("message", Text, nullable=False),
+    Column("violations", Integer, nullable=False, default=1, server_default="1"),
+    Column("raised_t_s", Double, nullable=False),
+    Column("raised_utc", String(40), nullable=False),
+    Column("raised_lmst_h", Double, nullable=False),
+    Column("raised_sol", Integer, nullable=False),
+    Column("cleared_t_s", Double, nullable=True),
+    Column("cleared_utc", String(40), nullable=True),
+    Column("cleared_lmst_h", Double, nullable=True),
+    Column("acknowledged_by", String(64), nullable=True),
+    Column("acknowledged_at", DateTime(timezone=True), nullable=True),  # wall-clock UTC
+    Index("ix_alarms_rover_raised", "rover", "raised_t_s"),
+)
+
+alarm_limits = Table(
+    "alarm_limits",
+    metadata,
+    Column("rover", String(64), primary_key=True),
+    Column("channel", String(64), primary_key=True),
+    Column("levels", JSON, nullable=False),  # {"warning", "critical"[, "hysteresis"]}
+    Column("updated_by", String(64), nullable=True),
+    Column("updated_at", DateTime(timezone=True), nullable=False, default=_now),
+)
 
 
 def _finite(value: Any) -> Any:
@@ -504,6 +543,71 @@ class Store:
         with self.engine.connect() as conn:
             data: dict[str, Any] | None = conn.execute(query).scalar()
         return None if data is None else _frame_events(data)
+
+    # ---- alarms (server.alarms) and operators' limits (server.limits) ---------------
+
+    def add_alarm(self, row: dict[str, Any]) -> int:
+        """Store a raised alarm (the columns of ``alarms``); its id."""
+        with self.engine.begin() as conn:
+            key = conn.execute(insert(alarms_table).values(**row)).inserted_primary_key
+        assert key is not None
+        return int(key[0])
+
+    def update_alarm(self, alarm_id: int, values: dict[str, Any]) -> None:
+        """Change an alarm's columns (escalated, cleared, re-raised, acknowledged)."""
+        with self.engine.begin() as conn:
+            conn.execute(update(alarms_table).where(alarms_table.c.id == alarm_id).values(**values))
+
+    def alarms(
+        self,
+        rover: str | None = None,
+        listed: bool | None = None,
+        span: tuple[float, float] | None = None,
+        limit: int | None = None,
+        alarm_id: int | None = None,
+    ) -> list[dict[str, Any]]:
+        """Alarm rows, newest first: of ``rover``; ``listed`` True: still listed (not both
+        acknowledged and cleared), False: done; ``span`` (t0, t1): raised by t1 and not
+        cleared before t0."""
+        a = alarms_table.c
+        query = select(alarms_table).order_by(a.raised_t_s.desc(), a.id.desc())
+        if rover is not None:
+            query = query.where(a.rover == rover)
+        if alarm_id is not None:
+            query = query.where(a.id == alarm_id)
+        done = a.acknowledged_by.is_not(None) & a.cleared_t_s.is_not(None)
+        if listed is not None:
+            query = query.where(~done if listed else done)
+        if span is not None:
+            query = query.where(
+                a.raised_t_s <= span[1], a.cleared_t_s.is_(None) | (a.cleared_t_s >= span[0])
+            )
+        if limit is not None:
+            query = query.limit(limit)
+        with self.engine.connect() as conn:
+            return [_row_dict(r._mapping) for r in conn.execute(query)]
+
+    def set_limits(self, rover: str, channel: str, levels: dict[str, Any], by: str) -> None:
+        """Store an operator's levels for a channel (replacing earlier ones)."""
+        c = alarm_limits.c
+        with self.engine.begin() as conn:
+            conn.execute(delete(alarm_limits).where(c.rover == rover, c.channel == channel))
+            conn.execute(insert(alarm_limits).values(
+                rover=rover, channel=channel, levels=levels, updated_by=by, updated_at=_now()
+            ))  # fmt: skip
+
+    def reset_limits(self, rover: str, channel: str) -> None:
+        """Forget an operator's levels for a channel (the default applies again)."""
+        c = alarm_limits.c
+        with self.engine.begin() as conn:
+            conn.execute(delete(alarm_limits).where(c.rover == rover, c.channel == channel))
+
+    def stored_limits(self, rover: str) -> dict[str, dict[str, Any]]:
+        """The operators' levels of a rover by channel, with ``updated_by``/``updated_at``."""
+        c = alarm_limits.c
+        with self.engine.connect() as conn:
+            rows = conn.execute(select(alarm_limits).where(c.rover == rover))
+            return {r.channel: _row_dict(r._mapping) for r in rows}
 
     # ---- checkpoints: the latest simulation state, an opaque blob ---------------
 

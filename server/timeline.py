@@ -1,6 +1,7 @@
 """A sol's timeline for review, from storage: what ran, in which NATE mode and with which
 Attitude Quality Flag, what happened, and how good the estimate was.
 
+Alarms (``server.alarms``) listed are those active at some time of the sol.
 Intervals are built from the stored frames (a new interval wherever the mode or flag
 changes); times are given as TT seconds, UTC and LMST hours. The distance driven is the
 length of the true path over the sol.
@@ -13,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from server.alarms import alarm_json
 from server.eventlog import rest_event
 from server.runtime import RoverRuntime
 from server.storage import Store
@@ -80,6 +82,8 @@ def sol_timeline(store: Store, runtime: RoverRuntime, sol: int) -> dict[str, Any
         "nate_modes": _intervals(runtime, frames, "nate_mode", t1),
         "aqf": _intervals(runtime, frames, "aqf", t1),
         "events": [rest_event(runtime, e) for e in events],
+        # alarms raised by the sol's end and not cleared before its start, oldest first
+        "alarms": [alarm_json(a) for a in reversed(store.alarms(rover, span=(t0, t1)))],
         "distance_m": distance,
         "summary": {
             "frames": len(frames),

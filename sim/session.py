@@ -52,6 +52,7 @@ from estimation.nate import (
     NateOutput,
     NateParams,
 )
+from estimation.pointing_knowledge import PointingKnowledge
 from estimation.sun_modes import SunResult
 from estimation.vo.odometry import VisualOdometry
 from estimation.wheel_odometry import DriveKind, steer_six
@@ -102,6 +103,9 @@ class TelemetryFrame:
     order) are the true suspension and steering (``sim.truth``), for drawing the rover.
     ``sun_ll_true``, ``earth_ll_true`` and ``hga_boresight_ll_true`` are unit vectors in LL
     (truth): the sun, Earth, and where the dish really points.
+    ``vo_failures_in_row``: VO steps that failed since the last converged one (the flight
+    software's VO status); ``hga_margin_predicted_deg``: the HGA margin the rover predicts
+    from its own attitude knowledge (``estimation.pointing_knowledge``; no truth).
     ``hga_error_deg``/``hga_margin_deg`` as the module docstring says; ``earth_up`` whether
     Earth is above the horizon (truth). ``attitude_error_deg``: angle between the estimated
     and true attitude; ``position_error_m``: between estimated and true mission positions.
@@ -137,6 +141,8 @@ class TelemetryFrame:
     hga_boresight_ll_true: list[float]
     events: list[Event] = field(default_factory=list)
     estimators: dict[str, dict[str, Any]] = field(default_factory=dict)
+    vo_failures_in_row: int = 0
+    hga_margin_predicted_deg: float = math.nan
 
     def as_dict(self) -> dict[str, Any]:
         """The frame as a JSON-ready dict; a figure that does not exist (NaN, e.g. the
@@ -246,6 +252,8 @@ class RoverSession:
             self.side.append(RadioEkfRunner(sim, seed, x_m, y_m))
         self._side_now: dict[str, tuple[FloatArray, FloatArray | None]] | None = None
         self._vo: VisualOdometry | None = None  # made at the first vo=on drive
+        self._vo_failures_in_row = 0
+        self._knowledge = PointingKnowledge()
         self._last_frame_t = -math.inf
         self._last_mode = ""
         self._sky_t0 = math.nan  # interpolation node: Earth (IVP, truth), sun at t0, t0 + node
@@ -532,20 +540,28 @@ class RoverSession:
             )
         except (InputError, ValueError) as exc:  # e.g. the mast looking at nothing
             vo.reset()
+            self._vo_failed(step)
             text = f"VO step {step}/{steps} failed: {exc}; wheel odometry kept"
             self._events.append(Event(text, "vo", "warning"))
             return 0
         if step == 0:
             return 0  # the first pair: nothing to compare with yet
         if not result.converged or result.motion is None:
+            self._vo_failed(step)
             text = f"VO step {step}/{steps} failed: {result.reason}; wheel odometry kept"
             self._events.append(Event(text, "vo", "warning"))
             return 0
+        self._vo_failures_in_row = 0
         p_s, q_b_ll = corrected_pose(before, result.motion)
         self.nate.visual_odometry_update(p_s, q_b_ll if attitude else None)
         text = update_text(step, steps, p_s - after.p_s, result.n_inliers, result.n_tracked)
         self._events.append(Event(text, "vo"))
         return 1
+
+    def _vo_failed(self, step: int) -> None:
+        """Count a failed VO step (the first pair of a drive is not a step)."""
+        if step > 0:
+            self._vo_failures_in_row = getattr(self, "_vo_failures_in_row", 0) + 1
 
     def set_visual_odometry(self, vo: VisualOdometry) -> None:
         """Run ``vo=on`` drives with ``vo`` (a benchmark's wrapper that records each step,
@@ -744,6 +760,16 @@ class RoverSession:
         att_err = (Rotation.from_quat(out.q_b_ll) * q_b_ll_true.inv()).magnitude()
         events = list(out.events) + self._events
         self._events = []
+        knowledge: PointingKnowledge | None = getattr(self, "_knowledge", None)
+        if knowledge is None:  # a checkpoint from before it: from the flag on
+            knowledge = self._knowledge = PointingKnowledge()
+        done = out.completed
+        sungaze = (
+            math.degrees(done.three_sigma_rad)
+            if isinstance(done, SunResult) and done.success and done.updated
+            else None
+        )
+        predicted = knowledge.update(out.aqf, out.imu_integration_s, sungaze)
         self.frames.append(
             TelemetryFrame(
                 t_s=t,
@@ -776,6 +802,8 @@ class RoverSession:
                 hga_boresight_ll_true=[float(v) for v in boresight_ll],
                 events=events,
                 estimators=self._side_estimates(t, p_mission_true, q_b_ll_true),
+                vo_failures_in_row=getattr(self, "_vo_failures_in_row", 0),
+                hga_margin_predicted_deg=predicted,
             )
         )
         self._last_frame_t = t

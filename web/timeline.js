@@ -137,7 +137,7 @@
     link.setAttribute("aria-disabled", "true");
     byId("timeline-panel").classList.add("empty");
     byId("timeline-summary").replaceChildren();
-    for (const id of ["lane-commands", "lane-nate", "lane-aqf", "lane-events", "lane-vo", "lane-axis"]) {
+    for (const id of ["lane-commands", "lane-nate", "lane-aqf", "lane-events", "lane-vo", "lane-alarms", "lane-axis"]) {
       byId(id).replaceChildren();
     }
     destroyPlots();
@@ -261,6 +261,40 @@
     });
   }
 
+  // The Alarms lane (server.alarms): a bar per alarm from its raise to its clear (or the
+  // sol's end), coloured by level, hatched for a truth-view channel. Placed by t_s, since
+  // an alarm may have been raised on an earlier sol (LMST hours repeat each sol).
+  const LMST_HOUR_S = 88775.244 / 24; // a mean solar sol, s
+  const ALARM_ROW_PX = 14;
+  function drawAlarmLane(timeline) {
+    const lane = byId("lane-alarms");
+    if (!lane) return;
+    const at = (t_s) => timeline.start.lmst_h + (t_s - timeline.start.t_s) / LMST_HOUR_S;
+    const alarms = timeline.alarms || [];
+    const ends = []; // alarms that overlap in time go on rows of their own
+    const rows = alarms.map((a) => {
+      let row = ends.findIndex((e) => e <= a.raised.t_s);
+      if (row < 0) row = ends.push(0) - 1;
+      ends[row] = a.cleared ? a.cleared.t_s : Infinity;
+      return row;
+    });
+    lane.style.height = `${Math.max(2, ends.length) * ALARM_ROW_PX + 2}px`;
+    lane.replaceChildren(...alarms.map((a, i) => {
+      const end = a.cleared ? a.cleared.t_s : timeline.end.t_s;
+      const bar = placed(`tl-alarm level-${a.level}${a.truth ? " truth" : ""}`, at(a.raised.t_s), at(end));
+      bar.style.top = `${1 + ALARM_ROW_PX * rows[i]}px`;
+      bar.style.height = `${ALARM_ROW_PX - 2}px`;
+      bar.dataset.testid = "timeline-alarm";
+      bar.dataset.level = a.level;
+      bar.dataset.channel = a.channel;
+      const cleared = a.cleared ? `cleared ${hhmmss(a.cleared.lmst_h)} LMST` : "not cleared";
+      const ack = a.acknowledged ? `acknowledged by ${a.acknowledged.by}` : "not acknowledged";
+      bar.title = `${a.level.toUpperCase()}${a.truth ? " (truth view)" : ""}: ${a.message}\n` +
+        `raised sol ${a.raised.sol} ${hhmmss(a.raised.lmst_h)} LMST (${a.raised.utc} UTC)\n${cleared}; ${ack}`;
+      return withLabel(bar, a.channel);
+    }));
+  }
+
   function drawAxis() {
     const track = byId("lane-axis");
     if (!view.span) { track.replaceChildren(); return; }
@@ -291,6 +325,7 @@
     byId("lane-events").replaceChildren(
       ...eventMarks(timeline.events.filter((e) => !VO_EVENT.test(e.text))));
     byId("lane-vo").replaceChildren(...voMarks(timeline.events));
+    drawAlarmLane(timeline);
     drawAxis();
     fitLabels();
   }
