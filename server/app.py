@@ -60,13 +60,14 @@ from server.auth import (
     document_public_reads,
     websocket_principal,
 )
+from server.channels import add_routes as add_channel_routes
 from server.hub import MAX_RATE_HZ, TelemetryHub, next_message
 from server.origin import origin_allowed
 from server.routing import AuthFirstRoute, allow_every_method
 from server.runtime import MAX_SPEED, ROVERS, RoverRuntime
 from server.scene3d import RoverScene
 from server.storage import BatchWriter, Store
-from server.timeline import sol_timeline
+from server.timeline import sol_timeline, stored_command
 from server.uploads import ValidationSlots, read_body, request_error
 from server.validation_context import rover_site, validation_context
 from server.validation_pool import Checked, ValidationPool
@@ -335,6 +336,11 @@ class Server:
 
     def _command(self, rover: str, report: dict[str, Any]) -> None:
         self.writer.command(rover, **report)
+        if self.hub.count(rover):  # a live timeline shows it: written now, read back as listed
+            self.writer.flush()
+            entry = stored_command(self.store, self.rovers[rover], report)
+            if entry is not None:
+                self.hub.notify(rover, {"type": "command", "command": entry})
 
     def _sequence(self, sequence_id: int, status: str, detail: str | None) -> None:
         self.writer.flush()
@@ -658,6 +664,8 @@ def create_app(config: ServerConfig) -> FastAPI:
         if found is None:
             raise HTTPException(404, f"no telemetry on sol {sol}")
         return found
+
+    add_channel_routes(app, server)  # telemetry at a glance (server.channels)
 
     @app.get(
         "/api/rovers/{rover}/sols/{sol}/telemetry.csv",

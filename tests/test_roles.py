@@ -34,6 +34,8 @@ ROUTES: list[tuple[str, str, str, dict[str, Any]]] = [
     ("GET", "/api/rovers/spirit/sols/0/timeline", "viewer", {}),
     ("GET", "/api/rovers/spirit/sols/0/telemetry.csv", "viewer", {}),
     ("GET", "/api/rovers/spirit/telemetry", "viewer", {}),
+    ("GET", "/api/rovers/spirit/channels", "viewer", {}),
+    ("GET", "/api/rovers/spirit/channels/hga_margin_deg", "viewer", {}),
     ("GET", "/api/rovers/spirit/scene", "viewer", {}),
     ("GET", "/viser/spirit", "viewer", {}),
     ("GET", "/viser/spirit/index.html", "viewer", {}),
@@ -103,7 +105,7 @@ def test_every_route_has_a_role_here(setup: tuple[TestClient, dict[str, str], bo
     client = setup[0]
     listed = {(m, p) for m, p, _, _ in ROUTES} | OPEN
     templates = {"{rover}": "spirit", "{sequence_id:int}": "1", "{sol}": "0", "{name}": "victim",
-                 "{path:path}": "index.html"}  # fmt: skip
+                 "{path:path}": "index.html", "{channel}": "hga_margin_deg"}  # fmt: skip
     missing = []
     for route in client.app.routes:  # type: ignore[attr-defined]
         if isinstance(route, APIRoute) and (
