@@ -36,7 +36,7 @@
   const view = {
     rover: null, span: null, plots: [], plotData: [], generation: 0, sol: null, timeline: null,
     lastT: -Infinity, latestSol: null, loading: false, pending: [], focus: null,
-    wasBusy: false, liveFrames: 0, sides: [],
+    wasBusy: false, liveFrames: 0, lastTruePosition: null,
   };
 
   // ---- time formatting --------------------------------------------------------------
@@ -166,6 +166,7 @@
     if (generation !== view.generation) return;
     const x0 = timeline.start.lmst_h;
     view.span = [x0, Math.max(timeline.end.lmst_h, x0 + MIN_SPAN_H)];
+    const rover = view.rover;
     view.sol = sol;
     view.timeline = timeline;
     view.lastT = Math.max(timeline.end.t_s, frames.length ? frames.at(-1).t_s : -Infinity);
@@ -748,6 +749,7 @@
     s.commands = view.timeline.commands.length;
     s.commands_failed = view.timeline.commands.filter((k) => k.status !== "completed").length;
     for (const lane of Object.values(LANES)) if (lane.command) lane.command(c);
+    view.wasBusy = true; // the command may have run between two /state polls
     render();
   }
 
