@@ -36,7 +36,7 @@
   const view = {
     rover: null, span: null, plots: [], plotData: [], generation: 0, sol: null, timeline: null,
     lastT: -Infinity, latestSol: null, loading: false, pending: [], focus: null,
-    wasBusy: false, liveFrames: 0, lastTruePosition: null,
+    wasBusy: false, liveFrames: 0, lastTruePosition: null, droppedNotices: 0,
   };
 
   // ---- time formatting --------------------------------------------------------------
@@ -119,9 +119,9 @@
   }
 
   async function reload({ followLatest }) {
-    const generation = beginLoad();
     const rover = byId("rover").value;
     if (!rover) return;
+    const generation = beginLoad();
     if (rover !== view.rover) { view.latestSol = null; view.pending = []; }
     view.rover = rover;
     setStatus("Loading…");
@@ -705,20 +705,19 @@
   }
 
   function appendFrame(f) {
-    const previous = view.lastT;
     view.lastT = f.t_s;
     view.liveFrames += 1;
     view.span[1] = Math.max(view.span[1], f.lmst_h);
-    view.timeline.end = { t_s: f.t_s, lmst_h: f.lmst_h, utc: view.timeline.end.utc };
+    view.timeline.end = { t_s: f.t_s, lmst_h: f.lmst_h };
     for (const lane of Object.values(LANES)) if (lane.frame) lane.frame(f);
     addFrameEvents(f);
     appendPlots(f);
-    summarise(f, previous);
+    summarise(f);
     render();
   }
 
   // The summary's figures, moved on by one frame (storage's on the next load).
-  function summarise(f, previousT) {
+  function summarise(f) {
     const s = view.timeline.summary;
     const more = (a, b) => (a === null || a === undefined ? b : Math.max(a, b));
     if (Number.isFinite(f.position_error_m)) s.max_position_error_m = more(s.max_position_error_m, f.position_error_m);
@@ -728,7 +727,7 @@
       s.min_hga_margin_deg = s.min_hga_margin_deg === null ? f.hga_margin_deg : Math.min(s.min_hga_margin_deg, f.hga_margin_deg);
     }
     const last = view.lastTruePosition;
-    if (last && f.p_mission_true && previousT > -Infinity) {
+    if (last && f.p_mission_true) {
       s.distance_m += Math.hypot(f.p_mission_true[0] - last[0], f.p_mission_true[1] - last[1]);
     }
     view.lastTruePosition = f.p_mission_true;
@@ -791,7 +790,11 @@
     new ResizeObserver(resize).observe(byId("timeline-panel"));
     byId("timeline-hairline").hidden = true;
     roverops.on("frame", onFrame);
-    roverops.on("notice", (n) => { if (n.type === "command") onCommand(n.command); });
+    roverops.on("notice", (n) => {
+      // notices were lost (a client far behind): storage's word once the rover is idle
+      if ((n.dropped_notices || 0) > view.droppedNotices) { view.droppedNotices = n.dropped_notices; view.wasBusy = true; }
+      if (n.type === "command") onCommand(n.command);
+    });
     roverops.on("state", onState);
     roverops.on("focus", ({ sol, t_s }) => {
       view.focus = { sol, t_s };
