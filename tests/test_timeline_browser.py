@@ -276,6 +276,16 @@ def test_a_channel_is_plotted_over_the_chosen_sols(page: Page, server: str) -> N
         page.get_by_test_id("telemetry-panel").screenshot(
             path=str(ARTIFACTS / "telemetry-plot.png")
         )
+        # narrow: the panel and its plot shrink to the window
+        page.set_viewport_size({"width": 760, "height": 900})
+        page.wait_for_function(
+            "() => document.querySelector('[data-testid=channel-plot] canvas')"
+            ".getBoundingClientRect().right <= 760"
+        )
+        assert _box(page, "#telemetry-panel")["x"] + _box(page, "#telemetry-panel")["width"] <= 760
+        page.get_by_test_id("telemetry-panel").screenshot(
+            path=str(ARTIFACTS / "telemetry-plot-760.png")
+        )
         page.fill("[data-testid=plot-sol-to]", str(sol - 1))
         page.click("[data-testid=plot-draw]")
         expect(page.get_by_test_id("plot-status")).to_contain_text("no smaller")
