@@ -304,6 +304,18 @@ MARK_NODES = """() => {
 }"""
 
 
+# A frame 5 s after the rover's latest, carrying two events of frames it skipped (1 s and 2 s
+# after the latest), as the hub sends them; returns the latest frame's t_s.
+LIVE_EVENT_FRAME = """async () => {
+  const f = (await (await fetch('/api/rovers/spirit/state')).json()).frame;
+  const at = (dt) => ({ t_s: f.t_s + dt, sol: f.sol, lmst_h: f.lmst_h + dt * 24 / 88775.244 });
+  const event = (dt, text) => ({ text, kind: "server", severity: "info", ...at(dt) });
+  const events = [event(1, "test event A"), event(2, "test event B")];
+  window.roverops.emit("frame", { ...f, ...at(5), events });
+  return f.t_s;
+}"""
+
+
 def _loaded(page: Page) -> None:
     expect(page.get_by_test_id("timeline-status")).to_contain_text("frames plotted")
 
@@ -343,11 +355,21 @@ def test_a_command_appears_live_without_a_reload_or_a_redraw(page: Page, server:
         arg=points,
     )
     _wait(lambda: httpx.get(f"{server}/api/sequences/{seq_id}").json()["status"] == "completed")
+    # the rover fell idle: the lanes were checked against storage, in place
+    expect(page.get_by_test_id("timeline-panel")).to_have_attribute("data-reconciled", "1")
     assert page.locator("[data-marker=kept]").count() == 4, "a node drawn before was replaced"
     stored = httpx.get(f"{server}/api/rovers/spirit/sols/{sol}/timeline").json()["commands"]
     ids = commands.evaluate_all("els => els.map(e => Number(e.dataset.id))")
     assert ids == [c["id"] for c in stored]  # the boxes are storage's commands, in order
     page.get_by_test_id("timeline-panel").screenshot(path=str(ARTIFACTS / "timeline-live.png"))
+
+    # events as the event contract carries them on the WebSocket: objects with their own
+    # time (a frame of a batch carries the events of the frames it skipped)
+    base = page.evaluate(LIVE_EVENT_FRAME)
+    for text, dt in (("test event A", 1.0), ("test event B", 2.0)):
+        mark = page.locator(f"[data-testid=timeline-event][title*='{text}']")
+        expect(mark).to_have_count(1)
+        expect(mark).to_have_attribute("data-t", f"{base + dt:.3f}")  # its own time
 
 
 def test_following_live_moves_to_the_next_sol(page: Page, server: str) -> None:

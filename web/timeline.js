@@ -766,6 +766,8 @@
     view.lastT = Math.max(view.lastT, timeline.end.t_s);
     view.timeline = { ...timeline, end: view.lastT > timeline.end.t_s ? view.timeline.end : timeline.end };
     reconcilePlots(frames);
+    const panel = byId("timeline-panel");
+    panel.dataset.reconciled = String(Number(panel.dataset.reconciled || 0) + 1); // for tests
     render();
   }
 
