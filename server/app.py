@@ -61,6 +61,7 @@ from server.auth import (
     document_public_reads,
     websocket_principal,
 )
+from server.channels import add_routes as add_channel_routes
 from server.eventlog import LOG_KINDS, MAX_LIMIT, EventFilter, FilterError, event_log
 from server.hub import MAX_RATE_HZ, TelemetryHub, next_message
 from server.limits import LimitsError
@@ -69,7 +70,7 @@ from server.routing import AuthFirstRoute, allow_every_method
 from server.runtime import MAX_SPEED, ROVERS, RoverRuntime
 from server.scene3d import RoverScene
 from server.storage import BatchWriter, Store
-from server.timeline import sol_timeline
+from server.timeline import sol_timeline, stored_command
 from server.uploads import ValidationSlots, read_body, request_error
 from server.validation_context import rover_site, validation_context
 from server.validation_pool import Checked, ValidationPool
@@ -364,6 +365,11 @@ class Server:
 
     def _command(self, rover: str, report: dict[str, Any]) -> None:
         self.writer.command(rover, **report)
+        if self.hub.count(rover):  # a live timeline shows it: written now, read back as listed
+            self.writer.flush()
+            entry = stored_command(self.store, self.rovers[rover], report)
+            if entry is not None:
+                self.hub.notify(rover, {"type": "command", "command": entry})
 
     def _sequence(self, sequence_id: int, status: str, detail: str | None) -> None:
         self.writer.flush()
@@ -730,6 +736,7 @@ def create_app(config: ServerConfig) -> FastAPI:
             return event_log(server.store, runtime, flt)
         except FilterError as exc:
             raise request_error(("query", exc.param), str(exc), "value_error") from exc
+    add_channel_routes(app, server)  # telemetry at a glance (server.channels)
 
     @app.get(
         "/api/rovers/{rover}/sols/{sol}/telemetry.csv",

@@ -25,6 +25,40 @@ def _when(runtime: RoverRuntime, t_s: float) -> dict[str, Any]:
     return {"t_s": t_s, "utc": t_s_to_utc(t_s).isoformat(), "lmst_h": runtime.lmst_h(t_s)}
 
 
+def command_entry(
+    runtime: RoverRuntime, row: dict[str, Any], submitted_by: str | None
+) -> dict[str, Any]:
+    """One stored command row as the timeline lists it (and as the ``command`` WebSocket
+    notice carries it: both are built here, so they cannot differ)."""
+    return {
+        **row,
+        "submitted_by": submitted_by,
+        "start": _when(runtime, float(row["start_t_s"])),
+        "end": _when(runtime, float(row["end_t_s"])),
+    }
+
+
+def stored_command(
+    store: Store, runtime: RoverRuntime, report: dict[str, Any]
+) -> dict[str, Any] | None:
+    """The timeline entry of the command a runtime just reported (``on_command``'s
+    report), read back from storage once it is written: its id, reruns and submitter are
+    the stored ones. ``None`` if it is not stored (the writer dropped it)."""
+    rover = runtime.spec.name
+    start, end = float(report["start_t_s"]), float(report["end_t_s"])
+    rows = [
+        c
+        for c in store.commands(rover, start, end)
+        if c["sequence_id"] == report["sequence_id"] and c["step_index"] == report["step_index"]
+    ]
+    if not rows:
+        return None
+    row = max(rows, key=lambda c: int(c["id"]))
+    seq = row["sequence_id"]
+    submitted_by = store.submitters([seq]).get(seq) if seq else None
+    return command_entry(runtime, row, submitted_by)
+
+
 def _intervals(
     runtime: RoverRuntime, frames: list[dict[str, Any]], key: str, end_t_s: float
 ) -> list[dict[str, Any]]:
@@ -71,13 +105,7 @@ def sol_timeline(store: Store, runtime: RoverRuntime, sol: int) -> dict[str, Any
         "start": _when(runtime, t0),
         "end": _when(runtime, t1),
         "commands": [
-            {
-                **c,
-                "submitted_by": submitted_by.get(c["sequence_id"] or 0),
-                "start": _when(runtime, float(c["start_t_s"])),
-                "end": _when(runtime, float(c["end_t_s"])),
-            }
-            for c in commands
+            command_entry(runtime, c, submitted_by.get(c["sequence_id"] or 0)) for c in commands
         ],
         "nate_modes": _intervals(runtime, frames, "nate_mode", t1),
         "aqf": _intervals(runtime, frames, "aqf", t1),

@@ -36,6 +36,8 @@ ROUTES: list[tuple[str, str, str, dict[str, Any]]] = [
     ("GET", "/api/rovers/spirit/sols/0/telemetry.csv", "viewer", {}),
     ("GET", "/api/rovers/spirit/telemetry", "viewer", {}),
     ("GET", "/api/rovers/spirit/events", "viewer", {}),
+    ("GET", "/api/rovers/spirit/channels", "viewer", {}),
+    ("GET", "/api/rovers/spirit/channels/tilt_accel_deg", "viewer", {}),
     ("GET", "/api/rovers/spirit/scene", "viewer", {}),
     ("GET", "/viser/spirit", "viewer", {}),
     ("GET", "/viser/spirit/index.html", "viewer", {}),
