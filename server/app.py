@@ -736,6 +736,7 @@ def create_app(config: ServerConfig) -> FastAPI:
             return event_log(server.store, runtime, flt)
         except FilterError as exc:
             raise request_error(("query", exc.param), str(exc), "value_error") from exc
+
     add_channel_routes(app, server)  # telemetry at a glance (server.channels)
 
     @app.get(
