@@ -1109,6 +1109,7 @@ def _utc(text: str | None, name: str) -> datetime | None:
 CSV_COLUMNS = (
     "t_s", "sol", "lmst_h", "nate_mode", "aqf", "site_index", "imu_integration_s",
     "gyro_counter_s", "tilt_est_deg", "tilt_accel_deg", "hga_error_deg", "hga_margin_deg",
+    "hga_margin_predicted_deg", "vo_failures_in_row",
     "earth_up", "attitude_error_deg", "position_error_m", "command", "rocker_deg",
 )  # fmt: skip
 CSV_VECTORS = {
