@@ -51,6 +51,7 @@ from server.accounts import (
     UnknownUserError,
     UserExistsError,
 )
+from server.alarms import AlarmEngine, AlarmError
 from server.audit import AuditLog, AuditMiddleware, as_csv
 from server.auth import (
     COOKIE,
@@ -60,7 +61,10 @@ from server.auth import (
     document_public_reads,
     websocket_principal,
 )
+from server.channels import add_routes as add_channel_routes
+from server.eventlog import LOG_KINDS, MAX_LIMIT, EventFilter, FilterError, event_log
 from server.hub import MAX_RATE_HZ, TelemetryHub, next_message
+from server.limits import LimitsError
 from server.origin import origin_allowed
 from server.queue_view import QueueNotices, queue_json, recent_json
 from server.routing import AuthFirstRoute, allow_every_method
@@ -74,11 +78,12 @@ from server.runtime import (
 )
 from server.scene3d import RoverScene
 from server.storage import BatchWriter, Store
-from server.timeline import sol_timeline
+from server.timeline import sol_timeline, stored_command
 from server.uploads import ValidationSlots, read_body, request_error
 from server.validation_context import rover_site, validation_context
 from server.validation_pool import Checked, ValidationPool
 from server.viser_proxy import fetch, relay
+from sim.marsclock import t_s_to_utc
 from sim.side_estimators import ESTIMATORS
 
 MAX_UPLOAD_BYTES = 1_000_000
@@ -245,6 +250,24 @@ SequenceId = Annotated[int, PathParam(ge=1, le=MAX_ID, description="a sequence's
 Sol = Annotated[int, PathParam(ge=0, le=MAX_SOL, description="a sol of the mission")]
 
 
+LimitLevel = float | str | list[str] | None
+
+
+class LimitsBody(BaseModel):
+    """``PUT /api/rovers/{rover}/limits/{channel}``: a channel's levels (``server.limits``):
+    numbers (numeric), a level's name (ordinal, e.g. AQF), a list of states (state), or
+    null for no level; ``hysteresis`` (numeric only) in the channel's units."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
+    warning: LimitLevel = Field(description="the warning level, or null")
+    critical: LimitLevel = Field(description="the critical level, or null")
+    hysteresis: float | None = Field(default=None, ge=0.0, allow_inf_nan=False)
+
+
+Channel = Annotated[str, PathParam(max_length=64, description="a channel (GET .../limits)")]
+AlarmId = Annotated[int, PathParam(ge=1, le=MAX_ID, description="an alarm's id")]
+
+
 class SessionBody(BaseModel):
     """``POST /api/session``: sign this browser in with a token (kept in a cookie)."""
 
@@ -316,6 +339,7 @@ class Server:
             runtime.commit = self.writer.flush  # a clock change is stored when it answers
             runtime.on_queue = self.queue_notices.changed
             self.rovers[name] = runtime
+        self.alarms = AlarmEngine(self.store, self._when, self.hub.notify)
         self.scenes: dict[str, RoverScene] = {}
         if config.viewer_3d:
             self.scenes = {name: RoverScene(rt, self.store) for name, rt in self.rovers.items()}
@@ -346,8 +370,14 @@ class Server:
                 continue
             runtime.enqueue(summary["id"], result.sequence, stored["format"] == "command")
 
+    def _when(self, rover: str, t_s: float) -> dict[str, Any]:
+        runtime = self.rovers[rover]
+        return {"t_s": t_s, "utc": t_s_to_utc(t_s).isoformat(), "lmst_h": runtime.lmst_h(t_s),
+                "sol": runtime.sol(t_s)}  # fmt: skip
+
     def _frames(self, rover: str, frames: list[dict[str, Any]]) -> None:
         self.writer.frames(rover, frames)
+        self.alarms.frames(rover, frames)  # server.alarms: limits judged, alarms raised
         events = [(float(f["t_s"]), e) for f in frames for e in f.get("events", [])]
         if events:
             self.writer.events(rover, events)
@@ -355,6 +385,11 @@ class Server:
 
     def _command(self, rover: str, report: dict[str, Any]) -> None:
         self.writer.command(rover, **report)
+        if self.hub.count(rover):  # a live timeline shows it: written now, read back as listed
+            self.writer.flush()
+            entry = stored_command(self.store, self.rovers[rover], report)
+            if entry is not None:
+                self.hub.notify(rover, {"type": "command", "command": entry})
 
     def _sequence(self, sequence_id: int, status: str, detail: str | None) -> None:
         self.writer.flush()
@@ -750,6 +785,51 @@ def create_app(config: ServerConfig) -> FastAPI:
             raise HTTPException(404, f"no telemetry on sol {sol}")
         return found
 
+    @app.get("/api/rovers/{rover}/events", responses={**NOT_FOUND, **BAD_REQUEST})
+    def event_log_page(
+        rover: RoverName,
+        _: Viewer,
+        sol: Annotated[int | None, Query(ge=0, le=MAX_SOL, description="one sol")] = None,
+        sol_from: Annotated[int | None, Query(ge=0, le=MAX_SOL, description="first sol")] = None,
+        sol_to: Annotated[int | None, Query(ge=0, le=MAX_SOL, description="last sol")] = None,
+        kind: Annotated[
+            list[str] | None, Query(description=f"repeatable: {', '.join(LOG_KINDS)}")
+        ] = None,
+        severity: Annotated[
+            list[str] | None, Query(description="repeatable: info, warning, error")
+        ] = None,
+        min_severity: Annotated[str | None, Query(max_length=16)] = None,
+        text: Annotated[
+            str | None, Query(max_length=200, description="contained, any case")
+        ] = None,
+        before_t_s: Annotated[float | None, Query(description="events before this TT s")] = None,
+        limit: Annotated[int, Query(ge=1, le=MAX_LIMIT)] = 200,
+        offset: Annotated[int, Query(ge=0, le=MAX_ID)] = 0,
+    ) -> dict[str, Any]:
+        """The rover's events, newest first, filtered (server.eventlog): ``{"rover",
+        "kinds", "total", "offset", "limit", "events"}``; a filter that cannot be met is a
+        422 naming it."""
+        runtime = server.rover(rover)
+        server.writer.flush()
+        flt = EventFilter(
+            sol=sol,
+            sol_from=sol_from,
+            sol_to=sol_to,
+            kinds=tuple(dict.fromkeys(kind or [])),
+            severities=tuple(dict.fromkeys(severity or [])),
+            min_severity=min_severity,
+            text=text,
+            before_t_s=before_t_s,
+            limit=limit,
+            offset=offset,
+        )
+        try:
+            return event_log(server.store, runtime, flt)
+        except FilterError as exc:
+            raise request_error(("query", exc.param), str(exc), "value_error") from exc
+
+    add_channel_routes(app, server)  # telemetry at a glance (server.channels)
+
     @app.get(
         "/api/rovers/{rover}/sols/{sol}/telemetry.csv",
         response_class=Response,
@@ -809,6 +889,81 @@ def create_app(config: ServerConfig) -> FastAPI:
         if "text/csv" in request.headers.get("accept", ""):
             return Response(_csv(frames), media_type="text/csv")
         return frames
+
+    # ---- limits and alarms (server.limits, server.alarms) ---------------------------
+
+    @app.get("/api/rovers/{rover}/limits", responses=NOT_FOUND)
+    def get_limits(rover: RoverName, _: Viewer) -> list[dict[str, Any]]:
+        """Every channel's alarm limits for the rover: kind, direction, units, truth view
+        or not, why, the levels now and by default, and who last changed them."""
+        server.rover(rover)
+        return server.alarms.limits(rover)
+
+    @app.put(
+        "/api/rovers/{rover}/limits/{channel}",
+        responses={**AUTH_ERRORS, **NOT_FOUND, **TOO_LARGE, **BAD_REQUEST},
+    )
+    def put_limits(
+        rover: RoverName, channel: Channel, body: LimitsBody, request: Request, who: Operator
+    ) -> dict[str, Any]:
+        """Change a channel's levels (stored; judged at once against the latest frame)."""
+        runtime = server.rover(rover)
+        levels = body.model_dump(exclude_none=False)
+        if body.hysteresis is None:
+            levels.pop("hysteresis")
+        request.state.audit_action = f"set limits of {channel}: " + ", ".join(
+            f"{k}={v}" for k, v in levels.items()
+        )
+        try:
+            return server.alarms.set_limits(rover, channel, levels, who.name, runtime.last_frame)
+        except KeyError as unknown:
+            raise HTTPException(404, str(unknown.args[0])) from None
+        except LimitsError as bad:
+            raise request_error(("body",), str(bad), "limits") from None
+
+    @app.delete("/api/rovers/{rover}/limits/{channel}", responses={**AUTH_ERRORS, **NOT_FOUND})
+    def reset_limits(
+        rover: RoverName, channel: Channel, request: Request, _: Operator
+    ) -> dict[str, Any]:
+        """Back to the default levels for a channel."""
+        runtime = server.rover(rover)
+        request.state.audit_action = f"reset limits of {channel} to the defaults"
+        try:
+            return server.alarms.reset_limits(rover, channel, runtime.last_frame)
+        except KeyError as unknown:
+            raise HTTPException(404, str(unknown.args[0])) from None
+
+    @app.get("/api/rovers/{rover}/alarms", responses={**NOT_FOUND, **BAD_REQUEST})
+    def list_alarms(
+        rover: RoverName,
+        _: Viewer,
+        active: Annotated[
+            bool | None,
+            Query(
+                description="true: still listed (not both acknowledged and cleared); "
+                "false: done; absent: all"
+            ),
+        ] = None,
+        limit: Annotated[int, Query(ge=1, le=10_000)] = 500,
+    ) -> list[dict[str, Any]]:
+        """A rover's alarms, newest first."""
+        server.rover(rover)
+        return server.alarms.listed(rover, active, limit)
+
+    @app.post(
+        "/api/alarms/{alarm_id}/acknowledge",
+        responses={**AUTH_ERRORS, **NOT_FOUND, 409: _error("acknowledged already")},
+    )
+    def acknowledge_alarm(alarm_id: AlarmId, request: Request, who: Operator) -> dict[str, Any]:
+        """Acknowledge an alarm (who and when are kept; it leaves the list once cleared)."""
+        request.state.audit_action = f"acknowledge alarm #{alarm_id}"
+        try:
+            alarm = server.alarms.acknowledge(alarm_id, who.name)
+        except AlarmError as refused:
+            raise HTTPException(refused.status, str(refused)) from None
+        request.state.audit_rover = alarm["rover"]
+        request.state.audit_action = f"acknowledge alarm #{alarm_id} ({alarm['channel']})"
+        return alarm
 
     def scene_port(rover: str) -> int:
         server.rover(rover)
@@ -1045,6 +1200,7 @@ def _utc(text: str | None, name: str) -> datetime | None:
 CSV_COLUMNS = (
     "t_s", "sol", "lmst_h", "nate_mode", "aqf", "site_index", "imu_integration_s",
     "gyro_counter_s", "tilt_est_deg", "tilt_accel_deg", "hga_error_deg", "hga_margin_deg",
+    "hga_margin_predicted_deg", "vo_failures_in_row",
     "earth_up", "attitude_error_deg", "position_error_m", "command", "rocker_deg",
 )  # fmt: skip
 CSV_VECTORS = {
@@ -1091,7 +1247,7 @@ def _csv(frames: list[dict[str, Any]]) -> str:
             values = list(f.get(v) or [])
             row += values + [None] * (n - len(values))
         row += _side_cells(f)
-        row.append("; ".join(f.get("events", [])))
+        row.append("; ".join(e["text"] for e in f.get("events", [])))
         writer.writerow(row)
     return out.getvalue()
 

@@ -578,7 +578,7 @@ class RoverRuntime:
                     "reason": report.reason,
                     "start_t_s": report.start_t_s,
                     "end_t_s": report.end_t_s,
-                    "events": report.events,
+                    "events": [e.text for e in report.events],
                 },
             )
         self._queue_changed()

@@ -67,9 +67,12 @@ function showFrame(f) {
     `Site ${f.site_index}: est (${e[0].toFixed(2)}, ${e[1].toFixed(2)}) m, ` +
     `true (${t[0].toFixed(2)}, ${t[1].toFixed(2)}) m, diff ${diff.toFixed(2)} m`;
   roverops.emit("frame", f);
-  for (const text of f.events || []) {
+  // Each event at its own time: a message at max speed carries the events of the frames
+  // the hub skipped, each stamped with its frame's lmst_h.
+  for (const e of f.events || []) {
     const li = document.createElement("li");
-    li.textContent = `${lmst(f.lmst_h)} ${text}`;
+    li.textContent = `${lmst(e.lmst_h ?? f.lmst_h)} ${e.text}`;
+    li.className = `sev-${e.severity}`;
     $("events").prepend(li);
   }
 }
