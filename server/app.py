@@ -66,8 +66,16 @@ from server.eventlog import LOG_KINDS, MAX_LIMIT, EventFilter, FilterError, even
 from server.hub import MAX_RATE_HZ, TelemetryHub, next_message
 from server.limits import LimitsError
 from server.origin import origin_allowed
+from server.queue_view import QueueNotices, queue_json, recent_json
 from server.routing import AuthFirstRoute, allow_every_method
-from server.runtime import MAX_SPEED, ROVERS, RoverRuntime
+from server.runtime import (
+    MAX_SPEED,
+    ROVERS,
+    Cancelled,
+    NotQueuedError,
+    QueueError,
+    RoverRuntime,
+)
 from server.scene3d import RoverScene
 from server.storage import BatchWriter, Store
 from server.timeline import sol_timeline, stored_command
@@ -126,6 +134,14 @@ class CommandBody(BaseModel):
     model_config = ConfigDict(extra="forbid", strict=True)
     command: str = Field(description="a keyword of the command dictionary, e.g. DRIVE_STRAIGHT")
     args: dict[str, Any] = Field(default_factory=dict)
+
+
+class MoveBody(BaseModel):
+    """``POST /api/rovers/{rover}/queue/{sequence_id}/move``: the queued sequence's new
+    position (0 runs next; ``GET .../queue`` lists positions)."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
+    to: int = Field(ge=0, le=MAX_ID, description="the new position, 0 at the head")
 
 
 class Diagnostic(BaseModel):
@@ -302,6 +318,9 @@ class Server:
         self.hub = TelemetryHub()
         self.validation = ValidationPool(config.validation_processes)
         self.rovers: dict[str, RoverRuntime] = {}
+        self.queue_notices = QueueNotices(
+            self._queue_notice, self.hub.notify, lambda rover: self.hub.count(rover) > 0
+        )
         for name, spec in ROVERS.items():
             saved = self.store.load_checkpoint(name)
             runtime = (
@@ -318,6 +337,7 @@ class Server:
             runtime.on_sequence = self._sequence
             runtime.on_checkpoint = self.writer.checkpoint
             runtime.commit = self.writer.flush  # a clock change is stored when it answers
+            runtime.on_queue = self.queue_notices.changed
             self.rovers[name] = runtime
         self.alarms = AlarmEngine(self.store, self._when, self.hub.notify)
         self.scenes: dict[str, RoverScene] = {}
@@ -375,8 +395,16 @@ class Server:
         self.writer.flush()
         self.store.set_sequence_status(sequence_id, status, detail)
 
+    def _queue_notice(self, rover: str) -> dict[str, Any]:
+        return {
+            "type": "queue",
+            "rover": rover,
+            "queue": queue_json(self.rovers[rover], self.store),
+        }
+
     def start(self) -> None:
         self.writer.start()
+        self.queue_notices.start()
         self.validation.start(rover_site(next(iter(self.rovers.values()))))
         for scene in self.scenes.values():
             scene.start()
@@ -389,6 +417,7 @@ class Server:
         written: a graceful stop (SIGTERM) loses nothing."""
         for runtime in self.rovers.values():
             runtime.stop()
+        self.queue_notices.stop()
         for scene in self.scenes.values():
             scene.stop()
         self.validation.stop()
@@ -428,6 +457,19 @@ CSV_FILE: dict[str, Any] = {
     "description": "CSV, one row per frame",
     "content": {"text/csv": {"schema": {"type": "string"}}},
 }
+
+
+def cancelled_where(stopped: Cancelled) -> str:
+    """Where a cancelled sequence stopped, in words (its record's ``detail``)."""
+    if stopped.running_step is not None:
+        rest = stopped.steps - stopped.running_step - 1
+        left = f"; {rest} step(s) after it not run" if rest else ""
+        return (
+            f"during step {stopped.running_step + 1} of {stopped.steps} (it runs to its end){left}"
+        )
+    if stopped.done == 0:
+        return f"before it started ({stopped.steps} step(s) not run)"
+    return f"after step {stopped.done} of {stopped.steps} ({stopped.steps - stopped.done} not run)"
 
 
 def _steps_json(sequence: Sequence) -> list[dict[str, Any]]:
@@ -569,7 +611,8 @@ def create_app(config: ServerConfig) -> FastAPI:
             rover, name, checked.text, checked.fmt, "queued", [], diags["warnings"], steps,
             who.name,
         )  # fmt: skip
-        runtime.enqueue(seq_id, result.sequence)
+        # off the event loop: queueing rewrites the last checkpoint (tens of ms)
+        await run_in_threadpool(runtime.enqueue, seq_id, result.sequence)
         request.state.audit_action = f"upload sequence {name} (#{seq_id}): queued"
         return JSONResponse({"id": seq_id, "status": "queued", **diags}, status_code=201)
 
@@ -609,18 +652,66 @@ def create_app(config: ServerConfig) -> FastAPI:
         "/api/sequences/{sequence_id:int}",
         responses={**AUTH_ERRORS, **NOT_FOUND, 409: _error("the sequence is not queued")},
     )
-    def cancel_sequence(sequence_id: SequenceId, request: Request, _: Operator) -> dict[str, Any]:
-        """Cancel a queued sequence (a running one stops after its current command)."""
+    def cancel_sequence(sequence_id: SequenceId, request: Request, who: Operator) -> dict[str, Any]:
+        """Cancel a queued sequence (a running one stops after its current command, which
+        runs to its end); ``detail`` says where it stopped, as the sequence's record does."""
         request.state.audit_action = f"cancel sequence #{sequence_id}"
         found = server.store.get_sequence(sequence_id)
         if found is None:
             raise HTTPException(404, f"no sequence {sequence_id}")
         request.state.audit_rover = found["rover"]
         runtime = server.rover(found["rover"])
-        if not runtime.cancel(sequence_id):
+        stopped = runtime.cancel(sequence_id)
+        if stopped is None:
             raise HTTPException(409, f"sequence {sequence_id} is {found['status']}, not queued")
-        server.store.set_sequence_status(sequence_id, "cancelled", "cancelled by an operator")
-        return {"id": sequence_id, "status": "cancelled"}
+        detail = f"cancelled by {who.name} {cancelled_where(stopped)}"
+        server.store.set_sequence_status(sequence_id, "cancelled", detail)
+        return {"id": sequence_id, "status": "cancelled", "detail": detail}
+
+    @app.get("/api/rovers/{rover}/queue", responses=NOT_FOUND)
+    def rover_queue(rover: RoverName, _: Viewer) -> dict[str, Any]:
+        """The queue in order (``position`` 0 runs next), each sequence with every step's
+        status (pending, running, completed, failed, refused, skipped) and times, whether
+        it may move (``movable``; ``pinned`` says why not); then ``recent``: the last
+        sequences that left the queue (completed, failed or cancelled), newest first. The
+        telemetry WebSocket sends ``{"type": "queue", "queue": [...]}`` on every change."""
+        runtime = server.rover(rover)
+        server.writer.flush()
+        return {
+            "rover": rover,
+            "queue": queue_json(runtime, server.store),
+            "recent": recent_json(runtime, server.store),
+        }
+
+    @app.post(
+        "/api/rovers/{rover}/queue/{sequence_id:int}/move",
+        responses={
+            **AUTH_ERRORS,
+            **NOT_FOUND,
+            409: _error("the move is not allowed (the answer says why); nothing changed"),
+            **TOO_LARGE,
+            **BAD_REQUEST,
+        },
+    )
+    def move_in_queue(
+        rover: RoverName, sequence_id: SequenceId, body: MoveBody, request: Request, _: Operator
+    ) -> dict[str, Any]:
+        """Move a queued sequence to position ``to`` (0 runs next), the others keeping
+        their order. A sequence that has started and an immediate command keep their place
+        and nothing moves in front of them (409 saying so); the new order is stored before
+        this answers. The queue as ``GET .../queue`` lists it."""
+        runtime = server.rover(rover)
+        request.state.audit_action = f"move sequence #{sequence_id} to position {body.to}"
+        try:
+            runtime.move(sequence_id, body.to)
+        except NotQueuedError as error:
+            found = server.store.get_sequence(sequence_id)
+            if found is None or found["rover"] != rover:
+                raise HTTPException(404, f"no sequence {sequence_id} for rover {rover!r}") from None
+            raise HTTPException(409, f"{error}: it is {found['status']}") from None
+        except QueueError as error:
+            raise HTTPException(409, str(error)) from None
+        return {"rover": rover, "queue": queue_json(runtime, server.store)}
 
     @app.post(
         "/api/rovers/{rover}/commands",

@@ -26,6 +26,7 @@ TILT_LIMITS = {"warning": 20, "critical": 30}
 ROUTES: list[tuple[str, str, str, dict[str, Any]]] = [
     ("GET", "/api/rovers", "viewer", {}),
     ("GET", "/api/rovers/spirit/state", "viewer", {}),
+    ("GET", "/api/rovers/spirit/queue", "viewer", {}),
     ("GET", "/api/commands", "viewer", {}),
     ("GET", "/api/me", "viewer", {}),
     ("POST", "/api/sequences/validate", "viewer", {"content": SEQ}),
@@ -44,6 +45,7 @@ ROUTES: list[tuple[str, str, str, dict[str, Any]]] = [
     ("POST", "/api/rovers/spirit/sequences", "operator", {"content": SEQ}),
     ("POST", "/api/rovers/spirit/commands", "operator", {"json": {"command": "NADIR_UPDATE"}}),
     ("POST", "/api/rovers/spirit/clock", "operator", {"json": {"action": "pause"}}),
+    ("POST", "/api/rovers/spirit/queue/1/move", "operator", {"json": {"to": 0}}),
     ("DELETE", "/api/sequences/1", "operator", {}),
     ("GET", "/api/rovers/spirit/limits", "viewer", {}),
     ("GET", "/api/rovers/spirit/alarms", "viewer", {}),
