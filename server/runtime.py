@@ -14,7 +14,7 @@ its queue of accepted sequences, and a thread that runs the clock:
 - A command executes as a whole in the session (a drive takes a few seconds of wall time)
   and its frames are then *played out*: published (WebSocket subscribers, storage) as the
   clock reaches their time. So what is stored and shown never runs ahead of the clock.
-- Immediate commands (``POST .../commands``) run before the next queued step.
+- Immediate commands (``POST .../commands``) run before the next queued step, in the order sent.
 - Operators reorder the queue (``move``) and cancel from it (``cancel``). Only the head
   of the queue runs, and a step starts only if its sequence is still at the head when the
   clock thread takes it up (checked under ``lock``), so a move or a cancel never races a
@@ -275,11 +275,13 @@ class RoverRuntime:
             self.commit()
 
     def enqueue(self, sequence_id: int, sequence: Sequence, immediate: bool = False) -> None:
-        """Queue an accepted sequence (an immediate command goes first)."""
+        """Queue an accepted sequence. An immediate command goes before the sequences but
+        after the immediate commands sent before it, so commands run in the order sent."""
         with self.lock:
             item = QueuedSequence(sequence_id, sequence, immediate=immediate)
             if immediate:
-                self.queue.appendleft(item)
+                ahead = next((i for i, q in enumerate(self.queue) if not q.immediate), None)
+                self.queue.insert(len(self.queue) if ahead is None else ahead, item)
             else:
                 self.queue.append(item)
             self._checkpoint_queue()

@@ -229,3 +229,13 @@ def test_a_queued_sequence_from_an_older_checkpoint_restores() -> None:
     restored = pickle.loads(pickle.dumps(item))
     assert restored.started is False and restored.outcomes == []
     assert restored.has_started  # it is past its first step
+
+
+def test_immediate_commands_run_in_the_order_they_were_sent() -> None:
+    """Each immediate command goes before the queued sequences but after the immediate
+    commands sent before it: two commands sent A then B run A then B."""
+    runtime, _ = _runtime()
+    runtime.enqueue(1, _seq())
+    runtime.enqueue(2, _seq("NADIR_UPDATE\n"), immediate=True)
+    runtime.enqueue(3, _seq("GET_TILT_ATTITUDE\n"), immediate=True)
+    assert runtime.queued_ids() == [2, 3, 1]
