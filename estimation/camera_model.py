@@ -11,13 +11,13 @@ which is the usual ``u = f x/z + c_u``, ``v = f y/z + c_v`` in the camera frame.
 narrow field (16 deg) has negligible distortion for the sun finder, whose error budget
 (Eisenman, Liebe and Perez 2002, seed 000 ref. [3]) is dominated by centroiding.
 
-Frames (CONVENTIONS.md): the camera frame has ``z`` along the boresight, ``x`` right and
+Frames (docs/CONVENTIONS.md): the camera frame has ``z`` along the boresight, ``x`` right and
 ``y`` down in the image. Pixel coordinates ``(u, v)`` are (column, row) with the centre of
 the first pixel at ``(0, 0)``, so a ``W x H`` image spans ``[-0.5, W - 0.5]`` and its centre
 is ``((W - 1) / 2, (H - 1) / 2)``.
 
 This is flight software: numpy only, and bad arguments raise ``ValueError`` naming the
-parameter (``sim.errors.InputError`` is off limits here, see DESIGN.md).
+parameter (``sim.errors.InputError`` is off limits here, see docs/DESIGN.md).
 """
 
 from __future__ import annotations

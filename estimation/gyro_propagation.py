@@ -9,7 +9,7 @@ left, the rotation relative to the surface, propagates the estimate at 8 Hz::
     Δθ_rel^B = Δθ^B - R_b_ll(q̂) ω_mars^LL Δt                      (sec. 2.4.1)
     ^Bq_+^{LL} = δq^B(-Δθ_rel^B) ⊗ ^Bq_-^{LL}                        (as eq. 1's form)
 
-The correction is expressed in the body frame, so it multiplies on the left (CONVENTIONS.md,
+The correction is expressed in the body frame, so it multiplies on the left (docs/CONVENTIONS.md,
 and eq. 1 of seed 000); its sign is negative because a body that turns by ``φ`` relative to
 LL sees the LL frame turn by ``-φ``: ``R_b_ll+ = R(φ)ᵀ R_b_ll``. ``ω_mars^LL`` comes from
 the onboard IVP (``estimation.ivp.mars_rotation_ll``). At rest the subtraction cancels the

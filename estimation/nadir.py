@@ -75,7 +75,7 @@ from estimation.quaternion import quat_canonical, quat_from_rotvec, quat_multipl
 
 FloatArray = NDArray[np.float64]
 
-DOWN_LL = np.array([0.0, 0.0, 1.0])  # LL z is Down (CONVENTIONS.md)
+DOWN_LL = np.array([0.0, 0.0, 1.0])  # LL z is Down (docs/CONVENTIONS.md)
 IDENTITY_Q = np.array([0.0, 0.0, 0.0, 1.0])
 _WINDOW_REL_TOL = 1e-9  # a window of 80 x 0.1 s that sums to 7.9999999999 s is full
 

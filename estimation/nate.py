@@ -63,10 +63,19 @@ window (8 Hz samples); if that average fails the sanity checks it proceeds sun-o
 
 Attitude Acquisition Machine (sec. 2.2.4): ``get_tilt_attitude`` (Nadir Update),
 ``get_coarse_attitude`` (Nadir Update, Sunfind), ``get_fine_attitude`` (Nadir Update,
-Sunfind, Sungaze) run the primitives in order and abort at the first failure;
-``suncheck_sungaze`` (sec. 4's lesson) runs Sungaze after a Suncheck that saw the sun,
-whether or not it was within tolerance, since Sungaze needs only the sun in the field of
-view; a Suncheck that saw no sun aborts. ``gyrocompass`` (sec. 5's other lesson,
+Sunfind, Sungaze) run the primitives in order and abort at the first failure.
+``suncheck_sungaze`` is the operators' practice of sec. 4 (a Suncheck, then a Sungaze) as
+the one command sec. 5 wishes SAPP had. It runs Sungaze after a Suncheck that saw the sun,
+whether or not it was within tolerance: in that practice the Suncheck points the camera
+(it "leaves the camera pointed at the sun", sec. 2.3.2) and Sungaze "can determine the
+full attitude so long as the sun is in the field of view" (sec. 4; it "starts with no
+assumptions about the rover's attitude knowledge", sec. 2.2.3). A Suncheck that failed
+but saw the sun is an event of its own (the AQF is Unknown until Sungaze ends); one that
+saw no sun aborts the command (AQF Unknown, Sungaze not run). It is meant for an AQF of
+Coarse or better, the attitude knowledge sec. 4 relies on "to point the cameras at the
+sun"; it is not refused below that (a Suncheck that sees the sun is all Sungaze needs),
+but from Unknown or TiltOnly the sun may be outside the image: GetFineAttitude is the
+command for that. ``gyrocompass`` (sec. 5's other lesson,
 ``estimation.gyrocompass``) sums the gyro delta angles over a stationary span (IMU samples
 of any length) and corrects the heading; the flag becomes Coarse only if the predicted
 heading 3σ is within ``gyrocompass_coarse_3sigma_rad`` (default 8 deg, Pancam's half field:
@@ -103,12 +112,14 @@ from scipy.spatial.transform import Rotation
 
 from estimation.aqf import AttitudeQuality
 from estimation.camera_model import PANCAM, R_b_pancam
+from estimation.events import Event, Severity, failure_severity
 from estimation.gyro_propagation import propagate_gyro
 from estimation.gyrocompass import GyrocompassParams, GyrocompassResult, gyrocompass
 from estimation.hga_pointing import HgaCommand, point_hga
 from estimation.ivp import earth_ll, mars_rotation_ll, sun_ll
 from estimation.nadir import (
     AccelAverager,
+    NadirCheckOutcome,
     NadirCheckResult,
     NadirParams,
     NadirUpdateResult,
@@ -163,6 +174,12 @@ class NateMode(enum.Enum):
 _CAMERA_MODES = (NateMode.SUNFIND, NateMode.SUNGAZE, NateMode.SUNCHECK)
 _8HZ_MODES = (NateMode.NADIR_UPDATE, NateMode.NADIR_CHECK, NateMode.ARTICULATE, NateMode.MOBILITY)
 CONTROL_DT_S = 0.125  # 8 Hz (seed 000 sec. 2.4)
+# A Nadir Check that fails drops the flag (error); one that aborts could not judge (warning).
+_CHECK_SEVERITY: dict[NadirCheckOutcome, Severity] = {
+    NadirCheckOutcome.PASSED: "info",
+    NadirCheckOutcome.FAILED: "error",
+    NadirCheckOutcome.ABORTED: "warning",
+}
 
 
 @dataclass(frozen=True)
@@ -285,7 +302,7 @@ class NateOutput:
     the result of a mode that finished this cycle, else ``None``; ``t_s`` NATE's clock at
     the end of the cycle; ``acquisition`` the acquisition command running, if any;
     ``camera_request`` the image NATE waits for, if any; ``events`` what happened this
-    cycle, in words, for the operators.
+    cycle (``estimation.events``: words for the operators, a kind and a severity).
     """
 
     q_b_ll: FloatArray
@@ -301,7 +318,7 @@ class NateOutput:
     t_s: float = math.nan
     acquisition: str | None = None
     camera_request: PancamRequest | None = None
-    events: tuple[str, ...] = ()
+    events: tuple[Event, ...] = ()
 
 
 def _is_number(value: object) -> bool:
@@ -438,7 +455,7 @@ class Nate:
         self._gyro_sum_b = np.zeros(3)  # gyrocompassing: delta angles, time covered
         self._gyro_sum_s = 0.0
         self._gyro_span_s = 0.0
-        self._events: list[str] = []
+        self._events: list[Event] = []
 
     # ---- read-only state ----------------------------------------------------------
 
@@ -645,7 +662,8 @@ class Nate:
         self._acquire_sequence("GetFineAttitude", steps)
 
     def suncheck_sungaze(self) -> None:
-        """Suncheck then Sungaze as one command (sec. 4's lesson; module docstring)."""
+        """Suncheck then Sungaze as one command: sec. 4's practice, sec. 5's wish (module
+        docstring: Sungaze follows a Suncheck that saw the sun, passed or not)."""
         self._require("suncheck_sungaze", NateMode.IDLE)
         self._require_sun("suncheck_sungaze")
         self._acquire_sequence("SuncheckSungaze", [NateMode.SUNCHECK, NateMode.SUNGAZE])
@@ -894,11 +912,18 @@ class Nate:
         if self._acquisition == "SuncheckSungaze" and suncheck_done:
             assert isinstance(completed, SunResult)
             proceed = completed.sun_seen  # Sungaze needs only the sun in the field
+            if proceed and not completed.success:
+                text = (
+                    f"SuncheckSungaze: Suncheck failed ({completed.outcome.value}): "
+                    "Sungaze on the sun it saw"
+                )
+                self._events.append(Event(text, "acquisition", "warning"))  # degraded
         if proceed and self._pending:
             self._start_primitive(self._pending.pop(0))
             return
         verdict = "done" if proceed else "aborted"
-        self._events.append(f"{self._acquisition} {verdict}: AQF {self._aqf.paper_name}")
+        text = f"{self._acquisition} {verdict}: AQF {self._aqf.paper_name}"
+        self._events.append(Event(text, "acquisition", "info" if proceed else "error"))
         self._acquisition, self._pending = None, []
 
     def _acquire(
@@ -916,13 +941,19 @@ class Nate:
             self._q_b_ll = result.q_b_ll  # unchanged on failure (sec. 2.2.1)
             failure = result.failure
             verdict = "succeeded" if failure is None else f"failed: {failure.value}"
-            self._events.append(f"Nadir Update {verdict}")
+            self._events.append(
+                Event(f"Nadir Update {verdict}", "nadir", failure_severity(failure is None))
+            )
         else:
             nadir = dataclasses.replace(
                 self._params.nadir, check_tolerance_rad=self._check_tolerance_rad
             )
             result = nadir_check(self._q_b_ll, average, self._aqf, nadir)  # sec. 2.3.1
-            self._events.append(f"Nadir Check: {result.outcome.value}")
+            self._events.append(
+                Event(
+                    f"Nadir Check: {result.outcome.value}", "nadir", _CHECK_SEVERITY[result.outcome]
+                )
+            )
         self._aqf = result.aqf
         self._averager = None
         self._check_tolerance_rad = self._params.nadir.check_tolerance_rad
@@ -939,7 +970,8 @@ class Nate:
         self._averager = None
         failure = check_average(average, self._params.nadir)
         if failure is not None:
-            self._events.append(f"Sungaze: gravity average unusable ({failure.value}), sun only")
+            text = f"Sungaze: gravity average unusable ({failure.value}), sun only"
+            self._events.append(Event(text, "sungaze", "warning"))
             self._begin_sungaze_images(None)
         else:
             self._begin_sungaze_images(average.down_b)
@@ -962,21 +994,24 @@ class Nate:
                 self._set_attitude(result.q_b_ll, AttitudeQuality.COARSE)
             else:
                 self._aqf = AttitudeQuality.UNKNOWN  # estimate unchanged
-            self._events.append(f"Sunfind: {result.outcome.value} ({result.n_images} images)")
+            text = f"Sunfind: {result.outcome.value} ({result.n_images} images)"
+            self._events.append(Event(text, "sunfind", failure_severity(result.success)))
         elif mode is NateMode.SUNGAZE:
             if result.success:
                 self._set_attitude(result.q_b_ll, AttitudeQuality.FINE)  # resets counters
             else:
                 self._aqf = AttitudeQuality.UNKNOWN  # no update
-            self._events.append(
+            text = (
                 f"Sungaze: {result.outcome.value}, 3σ {math.degrees(result.three_sigma_rad):.2f} "
                 f"deg after {result.n_images} images"
             )
+            self._events.append(Event(text, "sungaze", failure_severity(result.success)))
         else:
             if not result.success:
                 self._aqf = AttitudeQuality.UNKNOWN  # the estimate is never changed
             err = math.degrees(result.error_rad)
-            self._events.append(f"Suncheck: {result.outcome.value} (error {err:.2f} deg)")
+            text = f"Suncheck: {result.outcome.value} (error {err:.2f} deg)"
+            self._events.append(Event(text, "suncheck", failure_severity(result.success)))
         self._mast = result.final_mast
         self._procedure = None
         self._mode = NateMode.IDLE
@@ -1003,7 +1038,7 @@ class Nate:
                 params=p.gyrocompass,
             )
         except ValueError as exc:
-            self._events.append(f"Gyrocompass refused: {exc}")
+            self._events.append(Event(f"Gyrocompass refused: {exc}", "gyrocompass", "error"))
             return GyrocompassOutcome(None, str(exc), False)
         mismatch = abs(result.horizontal_rate_rad_s / result.expected_horizontal_rate_rad_s - 1.0)
         if mismatch > p.gyrocompass_rate_tolerance:
@@ -1011,7 +1046,7 @@ class Nate:
                 f"measured horizontal rate is {100 * mismatch:.0f} % off Mars' (limit "
                 f"{100 * p.gyrocompass_rate_tolerance:.0f} %): the rover moved or a gyro failed"
             )
-            self._events.append(f"Gyrocompass refused: {reason}")
+            self._events.append(Event(f"Gyrocompass refused: {reason}", "gyrocompass", "error"))
             return GyrocompassOutcome(None, reason, False)
         # The 3σ assumes a measured tilt (Nadir Update): without one, never Coarse.
         tilt_known = self._aqf >= AttitudeQuality.TILT_ONLY
@@ -1019,10 +1054,11 @@ class Nate:
         # The heading is now the gyrocompass's: Coarse if good enough, else TiltOnly at best.
         aqf = AttitudeQuality.COARSE if coarse else min(self._aqf, AttitudeQuality.TILT_ONLY)
         self._set_attitude(result.q_b_ll, aqf)
-        self._events.append(
+        text = (
             f"Gyrocompass: heading {math.degrees(result.heading_rad):.1f} deg, 3σ "
             f"{math.degrees(result.heading_3sigma_rad):.1f} deg, AQF {self._aqf.paper_name}"
         )
+        self._events.append(Event(text, "gyrocompass"))
         return GyrocompassOutcome(result, None, coarse)
 
     def _propagate_gyros(self, d_theta_b: FloatArray, dt: float, valid: bool) -> None:

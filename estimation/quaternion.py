@@ -1,4 +1,5 @@
-"""Quaternion algebra in the project's convention (CONVENTIONS.md, "Rotations and quaternions").
+"""Quaternion algebra in the project's convention (docs/CONVENTIONS.md, "Rotations and
+quaternions").
 
 Quaternions are numpy arrays ``[x, y, z, w]`` (scalar last), multiplied with the Hamilton
 product, exactly as ``scipy.spatial.transform.Rotation`` stores them, so

@@ -25,7 +25,7 @@ those numbers are unverified (the recipe is the one in ../shared/REFERENCES.md).
 - Q7  ``X = (αI + βS + S²)Z`` (adjugate form of the Gibbs vector ``Y = X/γ``, S&O eq. 68).
 - Q8  optimal quaternion ``q̄ = [X, γ] / sqrt(γ² + |X|²)`` (S&O eq. 69), in Shuster's
   convention ``A(q̄) = (q₄² - |Q|²)I + 2QQᵀ - 2q₄[Q×]``. That is the *transpose* of the
-  Hamilton matrix of the same four numbers, so in this project's convention (CONVENTIONS.md)
+  Hamilton matrix of the same four numbers, so in this project's convention (docs/CONVENTIONS.md)
   ``q_b_r = [-X, γ] / norm``.
 - Q9  method of sequential rotations: ``γ`` and ``X`` both vanish at a 180 deg rotation.
   Rotating the reference frame by 180 deg about axis k (``r' = R_k r``, ``B' = B R_kᵀ``;

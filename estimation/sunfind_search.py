@@ -97,7 +97,7 @@ from estimation.quaternion import quat_canonical, quat_multiply
 
 FloatArray = NDArray[np.float64]
 
-DOWN_LL = np.array([0.0, 0.0, 1.0])  # LL z is Down (CONVENTIONS.md)
+DOWN_LL = np.array([0.0, 0.0, 1.0])  # LL z is Down (docs/CONVENTIONS.md)
 _TWO_PI = 2.0 * math.pi
 _STEP_SLACK = 1e-12  # 2π / Δξ_max = 30.000000000001 still means 30 guesses
 

@@ -6,7 +6,7 @@ It sees only the wheel encoders (rotation of each wheel), the steering potentiom
 driving software's command (straight, arc about a centre, turn in place).
 
 Wheel order everywhere: LF, LM, LR, RF, RM, RR. The corner wheels LF, LR, RF, RR steer; the
-middle wheels do not (their steering angle is 0). Frames (CONVENTIONS.md): body ``b`` is
+middle wheels do not (their steering angle is 0). Frames (docs/CONVENTIONS.md): body ``b`` is
 x forward, y right, z down; Site ``s`` is North-East-Down.
 
 Signs, checked against the geometry:

@@ -2,13 +2,13 @@
 
 One frozen dataclass per command; construction checks every argument and raises
 ``ValueError`` naming it, so an object that exists is a command the rover can be given.
-Units are in the argument names; angles are degrees here, at the edge (CONVENTIONS.md), and
+Units are in the argument names; angles are degrees here, at the edge (docs/CONVENTIONS.md), and
 the sequencer converts them. The text and JSON sequence formats (the operations-server
 issue) parse into these.
 
 SAPP's commands follow Ali et al. 2005 (seed 000): the NATE primitives (sec. 2.2-2.4), the
-acquisition commands of sec. 2.2.4, and the two lessons of sec. 4-5 (Suncheck then
-Sungaze as one command; gyrocompassing).
+acquisition commands of sec. 2.2.4, and the two lessons of sec. 5 (Suncheck then Sungaze
+as one command, the operators' practice of sec. 4; gyrocompassing).
 
 Each command declares its arguments once, in ``specs`` (an ``ArgSpec`` per argument: kind,
 unit, range, note); construction checks them and the server publishes them, so the console
@@ -436,7 +436,9 @@ class GetFineAttitude(Command):
 
 @dataclass(frozen=True)
 class SuncheckSungaze(Command):
-    """Suncheck followed by Sungaze as one command (seed 000 sec. 5)."""
+    """Suncheck followed by Sungaze as one command: the operators' practice of Ali et al.
+    2005 sec. 4, and sec. 5's wish for it as one command. Meant for an AQF of Coarse or
+    better (the validator warns below); Sungaze follows a Suncheck that saw the sun."""
 
     name: ClassVar[str] = "SUNCHECK_SUNGAZE"
 

@@ -1,6 +1,6 @@
 """The sequence language: text and JSON sequences to typed commands (``sequences.commands``).
 
-DESIGN.md sketches the format; ``docs/sequences.md`` is its precise definition (grammar,
+docs/DESIGN.md sketches the format; ``docs/sequences.md`` is its precise definition (grammar,
 commands, time tags, JSON form, diagnostics). This module is the syntax half: it turns a
 source into a ``Sequence`` of ``SequenceStep`` (line, column, time tag, command) and collects
 *every* problem it meets as a ``Diagnostic`` instead of stopping at the first, because an

@@ -23,6 +23,16 @@ warns where the plan is risky. The predictions are estimates, made without the s
   once that exceeds ``fine_to_coarse_s`` (900 s, seed 000 sec. 2.4; SET_PARAM may change it).
 - ``@ hh:mm LMST`` waits for the next time the LMST clock reads that; a passed
   ``@ sol N hh:mm LMST`` is assumed to start at once, late.
+- The commands that image the sun (SUNFIND, SUNGAZE, SUNCHECK, GET_COARSE_ATTITUDE,
+  GET_FINE_ATTITUDE, SUNCHECK_SUNGAZE) are refused by NATE when the sun is lower than its
+  ``min_sun_elevation_rad`` as the command starts (the camera modes' sanity check). With
+  the context's ``sun_elevation_deg`` and ``min_sun_elevation_deg`` (the rover's own
+  parameter: ``server.validation_context`` reads it from the flight software, since this
+  package imports none of it) the walk warns (``sun-too-low``), and follows a
+  ``SET_PARAM param=min_sun_elevation_rad``.
+- SUNCHECK_SUNGAZE is meant for an AQF of Coarse or better (Ali et al. 2005 sec. 4: the
+  propagated attitude points the camera at the sun): below that it warns
+  (``suncheck-not-coarse``); NATE runs it anyway (``estimation.nate``).
 
 >>> result = validate("DRIVE_STRAIGHT distance_m=0\\nWAIT duration=5")
 >>> [(d.line, d.code) for d in result.errors]
@@ -83,6 +93,8 @@ CODES: dict[str, str] = {
     "drive-not-fine": "warning",
     "fine-expires": "warning",
     "earth-below-horizon": "warning",
+    "sun-too-low": "warning",
+    "suncheck-not-coarse": "warning",
     "hga-not-fine": "warning",
     "imu-time": "warning",
     "tag-next-sol": "warning",
@@ -115,6 +127,14 @@ tests/test_validation_context.py ties it to the ephemeris and both missions' clo
 
 _DRIVES = (cmd.DriveStraight, cmd.DriveArc, cmd.TurnInPlace, cmd.DriveTo)
 _ALLOWED_IN_ARTICULATE = (cmd.ArticulateStop, cmd.Wait, cmd.HgaPass)
+_NEEDS_SUN = (  # NATE checks the sun's elevation when these start (estimation.nate)
+    cmd.Sunfind,
+    cmd.Sungaze,
+    cmd.Suncheck,
+    cmd.GetCoarseAttitude,
+    cmd.GetFineAttitude,
+    cmd.SuncheckSungaze,
+)
 _FIXED_S: dict[type[cmd.Command], float] = {
     cmd.Sunfind: SUNFIND_S,
     cmd.Suncheck: SUNCHECK_S,
@@ -140,14 +160,16 @@ _AQF_AFTER: dict[type[cmd.Command], str] = {
 class ValidationContext:
     """The rover at the start of the sequence, for the predicting warnings.
 
-    ``start_t_s``: when the sequence starts (TT seconds since J2000, CONVENTIONS.md);
+    ``start_t_s``: when the sequence starts (TT seconds since J2000, docs/CONVENTIONS.md);
     ``lmst_h(t_s)`` and ``sol(t_s)`` the rover's clock; ``t_s_for(sol, lmst_h)`` its inverse;
     ``earth_elevation_deg(t_s)`` Earth above the rover's horizon. ``aqf`` the flag and
     ``imu_integration_s`` the IMU time since the last Sungaze at the start; ``articulating``
     whether NATE is in Articulate then (without a context: Idle). ``ephemeris_end_t_s``: the
     last instant the rover's ephemeris covers; a step predicted to run past it is an error
     and nothing after it is predicted (the elevation functions are never asked beyond it).
-    ``sun_elevation_deg(t_s)``: the sun above the horizon, when the context has it.
+    ``sun_elevation_deg(t_s)``: the sun above the horizon, when the context has it;
+    ``min_sun_elevation_deg`` the lowest sun NATE's camera modes accept (the rover's
+    ``min_sun_elevation_rad``), when known: with both, the walk warns ``sun-too-low``.
     """
 
     start_t_s: float
@@ -160,6 +182,7 @@ class ValidationContext:
     articulating: bool = False
     ephemeris_end_t_s: float = math.inf
     sun_elevation_deg: Callable[[float], float] | None = None
+    min_sun_elevation_deg: float | None = None
 
     def __post_init__(self) -> None:
         if self.aqf not in AQF_RANK:
@@ -388,6 +411,7 @@ class _Prediction:
         self.fine_to_coarse_s = FINE_TO_COARSE_S
         self.gyrocompass_s = GYROCOMPASS_S
         self.imu_warned = False
+        self.min_sun_elevation_deg = context.min_sun_elevation_deg
 
     def warn(self, step: SequenceStep, code: str, text: str) -> None:
         self.result.warnings.append(_diag(step, "warning", code, text))
@@ -456,6 +480,23 @@ class _Prediction:
             if self.aqf != "Fine":
                 text = f"HGA pass with the AQF predicted {self.aqf}: pointing not assured"
                 self.warn(step, "hga-not-fine", text)
+        if isinstance(c, cmd.SuncheckSungaze) and AQF_RANK[self.aqf] < AQF_RANK["Coarse"]:
+            text = (
+                f"SUNCHECK_SUNGAZE with the AQF predicted {self.aqf}: it is meant for Coarse "
+                "or better, or the Suncheck may not see the sun (Ali et al. 2005 sec. 4); "
+                "GET_FINE_ATTITUDE?"
+            )
+            self.warn(step, "suncheck-not-coarse", text)
+        limit = self.min_sun_elevation_deg
+        if isinstance(c, _NEEDS_SUN) and ctx.sun_elevation_deg is not None and limit is not None:
+            sun = ctx.sun_elevation_deg(start)
+            if sun < limit:
+                text = (
+                    f"the sun is {sun:.1f} deg high at {ctx.clock(start)}, below the "
+                    f"{limit:.1f} deg NATE needs (min_sun_elevation_rad): "
+                    f"{c.name} would be refused"
+                )
+                self.warn(step, "sun-too-low", text)
 
     def advance(self, step: SequenceStep, duration: float) -> None:
         c = step.command
@@ -495,3 +536,5 @@ class _Prediction:
                 self.fine_to_coarse_s = float(c.value)
             elif c.param == "gyrocompass_duration_s":
                 self.gyrocompass_s = float(c.value)
+            elif c.param == "min_sun_elevation_rad":
+                self.min_sun_elevation_deg = math.degrees(float(c.value))

@@ -51,6 +51,7 @@ from server.accounts import (
     UnknownUserError,
     UserExistsError,
 )
+from server.alarms import AlarmEngine, AlarmError
 from server.audit import AuditLog, AuditMiddleware, as_csv
 from server.auth import (
     COOKIE,
@@ -60,17 +61,29 @@ from server.auth import (
     document_public_reads,
     websocket_principal,
 )
+from server.channels import add_routes as add_channel_routes
+from server.eventlog import LOG_KINDS, MAX_LIMIT, EventFilter, FilterError, event_log
 from server.hub import MAX_RATE_HZ, TelemetryHub, next_message
+from server.limits import LimitsError
 from server.origin import origin_allowed
+from server.queue_view import QueueNotices, queue_json, recent_json
 from server.routing import AuthFirstRoute, allow_every_method
-from server.runtime import MAX_SPEED, ROVERS, RoverRuntime
+from server.runtime import (
+    MAX_SPEED,
+    ROVERS,
+    Cancelled,
+    NotQueuedError,
+    QueueError,
+    RoverRuntime,
+)
 from server.scene3d import RoverScene
 from server.storage import BatchWriter, Store
-from server.timeline import sol_timeline
+from server.timeline import sol_timeline, stored_command
 from server.uploads import ValidationSlots, read_body, request_error
 from server.validation_context import rover_site, validation_context
 from server.validation_pool import Checked, ValidationPool
 from server.viser_proxy import fetch, relay
+from sim.marsclock import t_s_to_utc
 from sim.side_estimators import ESTIMATORS
 
 MAX_UPLOAD_BYTES = 1_000_000
@@ -121,6 +134,14 @@ class CommandBody(BaseModel):
     model_config = ConfigDict(extra="forbid", strict=True)
     command: str = Field(description="a keyword of the command dictionary, e.g. DRIVE_STRAIGHT")
     args: dict[str, Any] = Field(default_factory=dict)
+
+
+class MoveBody(BaseModel):
+    """``POST /api/rovers/{rover}/queue/{sequence_id}/move``: the queued sequence's new
+    position (0 runs next; ``GET .../queue`` lists positions)."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
+    to: int = Field(ge=0, le=MAX_ID, description="the new position, 0 at the head")
 
 
 class Diagnostic(BaseModel):
@@ -229,6 +250,24 @@ SequenceId = Annotated[int, PathParam(ge=1, le=MAX_ID, description="a sequence's
 Sol = Annotated[int, PathParam(ge=0, le=MAX_SOL, description="a sol of the mission")]
 
 
+LimitLevel = float | str | list[str] | None
+
+
+class LimitsBody(BaseModel):
+    """``PUT /api/rovers/{rover}/limits/{channel}``: a channel's levels (``server.limits``):
+    numbers (numeric), a level's name (ordinal, e.g. AQF), a list of states (state), or
+    null for no level; ``hysteresis`` (numeric only) in the channel's units."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
+    warning: LimitLevel = Field(description="the warning level, or null")
+    critical: LimitLevel = Field(description="the critical level, or null")
+    hysteresis: float | None = Field(default=None, ge=0.0, allow_inf_nan=False)
+
+
+Channel = Annotated[str, PathParam(max_length=64, description="a channel (GET .../limits)")]
+AlarmId = Annotated[int, PathParam(ge=1, le=MAX_ID, description="an alarm's id")]
+
+
 class SessionBody(BaseModel):
     """``POST /api/session``: sign this browser in with a token (kept in a cookie)."""
 
@@ -279,6 +318,9 @@ class Server:
         self.hub = TelemetryHub()
         self.validation = ValidationPool(config.validation_processes)
         self.rovers: dict[str, RoverRuntime] = {}
+        self.queue_notices = QueueNotices(
+            self._queue_notice, self.hub.notify, lambda rover: self.hub.count(rover) > 0
+        )
         for name, spec in ROVERS.items():
             saved = self.store.load_checkpoint(name)
             runtime = (
@@ -295,7 +337,9 @@ class Server:
             runtime.on_sequence = self._sequence
             runtime.on_checkpoint = self.writer.checkpoint
             runtime.commit = self.writer.flush  # a clock change is stored when it answers
+            runtime.on_queue = self.queue_notices.changed
             self.rovers[name] = runtime
+        self.alarms = AlarmEngine(self.store, self._when, self.hub.notify)
         self.scenes: dict[str, RoverScene] = {}
         if config.viewer_3d:
             self.scenes = {name: RoverScene(rt, self.store) for name, rt in self.rovers.items()}
@@ -326,8 +370,14 @@ class Server:
                 continue
             runtime.enqueue(summary["id"], result.sequence, stored["format"] == "command")
 
+    def _when(self, rover: str, t_s: float) -> dict[str, Any]:
+        runtime = self.rovers[rover]
+        return {"t_s": t_s, "utc": t_s_to_utc(t_s).isoformat(), "lmst_h": runtime.lmst_h(t_s),
+                "sol": runtime.sol(t_s)}  # fmt: skip
+
     def _frames(self, rover: str, frames: list[dict[str, Any]]) -> None:
         self.writer.frames(rover, frames)
+        self.alarms.frames(rover, frames)  # server.alarms: limits judged, alarms raised
         events = [(float(f["t_s"]), e) for f in frames for e in f.get("events", [])]
         if events:
             self.writer.events(rover, events)
@@ -335,13 +385,26 @@ class Server:
 
     def _command(self, rover: str, report: dict[str, Any]) -> None:
         self.writer.command(rover, **report)
+        if self.hub.count(rover):  # a live timeline shows it: written now, read back as listed
+            self.writer.flush()
+            entry = stored_command(self.store, self.rovers[rover], report)
+            if entry is not None:
+                self.hub.notify(rover, {"type": "command", "command": entry})
 
     def _sequence(self, sequence_id: int, status: str, detail: str | None) -> None:
         self.writer.flush()
         self.store.set_sequence_status(sequence_id, status, detail)
 
+    def _queue_notice(self, rover: str) -> dict[str, Any]:
+        return {
+            "type": "queue",
+            "rover": rover,
+            "queue": queue_json(self.rovers[rover], self.store),
+        }
+
     def start(self) -> None:
         self.writer.start()
+        self.queue_notices.start()
         self.validation.start(rover_site(next(iter(self.rovers.values()))))
         for scene in self.scenes.values():
             scene.start()
@@ -354,6 +417,7 @@ class Server:
         written: a graceful stop (SIGTERM) loses nothing."""
         for runtime in self.rovers.values():
             runtime.stop()
+        self.queue_notices.stop()
         for scene in self.scenes.values():
             scene.stop()
         self.validation.stop()
@@ -405,6 +469,19 @@ CSV_FILE: dict[str, Any] = {
     "description": "CSV, one row per frame",
     "content": {"text/csv": {"schema": {"type": "string"}}},
 }
+
+
+def cancelled_where(stopped: Cancelled) -> str:
+    """Where a cancelled sequence stopped, in words (its record's ``detail``)."""
+    if stopped.running_step is not None:
+        rest = stopped.steps - stopped.running_step - 1
+        left = f"; {rest} step(s) after it not run" if rest else ""
+        return (
+            f"during step {stopped.running_step + 1} of {stopped.steps} (it runs to its end){left}"
+        )
+    if stopped.done == 0:
+        return f"before it started ({stopped.steps} step(s) not run)"
+    return f"after step {stopped.done} of {stopped.steps} ({stopped.steps - stopped.done} not run)"
 
 
 def _steps_json(sequence: Sequence) -> list[dict[str, Any]]:
@@ -551,7 +628,8 @@ def create_app(config: ServerConfig) -> FastAPI:
             rover, name, checked.text, checked.fmt, "queued", [], diags["warnings"], steps,
             who.name,
         )  # fmt: skip
-        runtime.enqueue(seq_id, result.sequence)
+        # off the event loop: queueing rewrites the last checkpoint (tens of ms)
+        await run_in_threadpool(runtime.enqueue, seq_id, result.sequence)
         request.state.audit_action = f"upload sequence {name} (#{seq_id}): queued"
         return JSONResponse({"id": seq_id, "status": "queued", **diags}, status_code=201)
 
@@ -591,18 +669,66 @@ def create_app(config: ServerConfig) -> FastAPI:
         "/api/sequences/{sequence_id:int}",
         responses={**AUTH_ERRORS, **NOT_FOUND, 409: _error("the sequence is not queued")},
     )
-    def cancel_sequence(sequence_id: SequenceId, request: Request, _: Operator) -> dict[str, Any]:
-        """Cancel a queued sequence (a running one stops after its current command)."""
+    def cancel_sequence(sequence_id: SequenceId, request: Request, who: Operator) -> dict[str, Any]:
+        """Cancel a queued sequence (a running one stops after its current command, which
+        runs to its end); ``detail`` says where it stopped, as the sequence's record does."""
         request.state.audit_action = f"cancel sequence #{sequence_id}"
         found = server.store.get_sequence(sequence_id)
         if found is None:
             raise HTTPException(404, f"no sequence {sequence_id}")
         request.state.audit_rover = found["rover"]
         runtime = server.rover(found["rover"])
-        if not runtime.cancel(sequence_id):
+        stopped = runtime.cancel(sequence_id)
+        if stopped is None:
             raise HTTPException(409, f"sequence {sequence_id} is {found['status']}, not queued")
-        server.store.set_sequence_status(sequence_id, "cancelled", "cancelled by an operator")
-        return {"id": sequence_id, "status": "cancelled"}
+        detail = f"cancelled by {who.name} {cancelled_where(stopped)}"
+        server.store.set_sequence_status(sequence_id, "cancelled", detail)
+        return {"id": sequence_id, "status": "cancelled", "detail": detail}
+
+    @app.get("/api/rovers/{rover}/queue", responses=NOT_FOUND)
+    def rover_queue(rover: RoverName, _: Viewer) -> dict[str, Any]:
+        """The queue in order (``position`` 0 runs next), each sequence with every step's
+        status (pending, running, completed, failed, refused, skipped) and times, whether
+        it may move (``movable``; ``pinned`` says why not); then ``recent``: the last
+        sequences that left the queue (completed, failed or cancelled), newest first. The
+        telemetry WebSocket sends ``{"type": "queue", "queue": [...]}`` on every change."""
+        runtime = server.rover(rover)
+        server.writer.flush()
+        return {
+            "rover": rover,
+            "queue": queue_json(runtime, server.store),
+            "recent": recent_json(runtime, server.store),
+        }
+
+    @app.post(
+        "/api/rovers/{rover}/queue/{sequence_id:int}/move",
+        responses={
+            **AUTH_ERRORS,
+            **NOT_FOUND,
+            409: _error("the move is not allowed (the answer says why); nothing changed"),
+            **TOO_LARGE,
+            **BAD_REQUEST,
+        },
+    )
+    def move_in_queue(
+        rover: RoverName, sequence_id: SequenceId, body: MoveBody, request: Request, _: Operator
+    ) -> dict[str, Any]:
+        """Move a queued sequence to position ``to`` (0 runs next), the others keeping
+        their order. A sequence that has started and an immediate command keep their place
+        and nothing moves in front of them (409 saying so); the new order is stored before
+        this answers. The queue as ``GET .../queue`` lists it."""
+        runtime = server.rover(rover)
+        request.state.audit_action = f"move sequence #{sequence_id} to position {body.to}"
+        try:
+            runtime.move(sequence_id, body.to)
+        except NotQueuedError as error:
+            found = server.store.get_sequence(sequence_id)
+            if found is None or found["rover"] != rover:
+                raise HTTPException(404, f"no sequence {sequence_id} for rover {rover!r}") from None
+            raise HTTPException(409, f"{error}: it is {found['status']}") from None
+        except QueueError as error:
+            raise HTTPException(409, str(error)) from None
+        return {"rover": rover, "queue": queue_json(runtime, server.store)}
 
     @app.post(
         "/api/rovers/{rover}/commands",
@@ -676,6 +802,51 @@ def create_app(config: ServerConfig) -> FastAPI:
             raise HTTPException(404, f"no telemetry on sol {sol}")
         return found
 
+    @app.get("/api/rovers/{rover}/events", responses={**NOT_FOUND, **BAD_REQUEST})
+    def event_log_page(
+        rover: RoverName,
+        _: Viewer,
+        sol: Annotated[int | None, Query(ge=0, le=MAX_SOL, description="one sol")] = None,
+        sol_from: Annotated[int | None, Query(ge=0, le=MAX_SOL, description="first sol")] = None,
+        sol_to: Annotated[int | None, Query(ge=0, le=MAX_SOL, description="last sol")] = None,
+        kind: Annotated[
+            list[str] | None, Query(description=f"repeatable: {', '.join(LOG_KINDS)}")
+        ] = None,
+        severity: Annotated[
+            list[str] | None, Query(description="repeatable: info, warning, error")
+        ] = None,
+        min_severity: Annotated[str | None, Query(max_length=16)] = None,
+        text: Annotated[
+            str | None, Query(max_length=200, description="contained, any case")
+        ] = None,
+        before_t_s: Annotated[float | None, Query(description="events before this TT s")] = None,
+        limit: Annotated[int, Query(ge=1, le=MAX_LIMIT)] = 200,
+        offset: Annotated[int, Query(ge=0, le=MAX_ID)] = 0,
+    ) -> dict[str, Any]:
+        """The rover's events, newest first, filtered (server.eventlog): ``{"rover",
+        "kinds", "total", "offset", "limit", "events"}``; a filter that cannot be met is a
+        422 naming it."""
+        runtime = server.rover(rover)
+        server.writer.flush()
+        flt = EventFilter(
+            sol=sol,
+            sol_from=sol_from,
+            sol_to=sol_to,
+            kinds=tuple(dict.fromkeys(kind or [])),
+            severities=tuple(dict.fromkeys(severity or [])),
+            min_severity=min_severity,
+            text=text,
+            before_t_s=before_t_s,
+            limit=limit,
+            offset=offset,
+        )
+        try:
+            return event_log(server.store, runtime, flt)
+        except FilterError as exc:
+            raise request_error(("query", exc.param), str(exc), "value_error") from exc
+
+    add_channel_routes(app, server)  # telemetry at a glance (server.channels)
+
     @app.get(
         "/api/rovers/{rover}/sols/{sol}/telemetry.csv",
         response_class=Response,
@@ -735,6 +906,81 @@ def create_app(config: ServerConfig) -> FastAPI:
         if "text/csv" in request.headers.get("accept", ""):
             return Response(_csv(frames), media_type="text/csv")
         return frames
+
+    # ---- limits and alarms (server.limits, server.alarms) ---------------------------
+
+    @app.get("/api/rovers/{rover}/limits", responses=NOT_FOUND)
+    def get_limits(rover: RoverName, _: Viewer) -> list[dict[str, Any]]:
+        """Every channel's alarm limits for the rover: kind, direction, units, truth view
+        or not, why, the levels now and by default, and who last changed them."""
+        server.rover(rover)
+        return server.alarms.limits(rover)
+
+    @app.put(
+        "/api/rovers/{rover}/limits/{channel}",
+        responses={**AUTH_ERRORS, **NOT_FOUND, **TOO_LARGE, **BAD_REQUEST},
+    )
+    def put_limits(
+        rover: RoverName, channel: Channel, body: LimitsBody, request: Request, who: Operator
+    ) -> dict[str, Any]:
+        """Change a channel's levels (stored; judged at once against the latest frame)."""
+        runtime = server.rover(rover)
+        levels = body.model_dump(exclude_none=False)
+        if body.hysteresis is None:
+            levels.pop("hysteresis")
+        request.state.audit_action = f"set limits of {channel}: " + ", ".join(
+            f"{k}={v}" for k, v in levels.items()
+        )
+        try:
+            return server.alarms.set_limits(rover, channel, levels, who.name, runtime.last_frame)
+        except KeyError as unknown:
+            raise HTTPException(404, str(unknown.args[0])) from None
+        except LimitsError as bad:
+            raise request_error(("body",), str(bad), "limits") from None
+
+    @app.delete("/api/rovers/{rover}/limits/{channel}", responses={**AUTH_ERRORS, **NOT_FOUND})
+    def reset_limits(
+        rover: RoverName, channel: Channel, request: Request, _: Operator
+    ) -> dict[str, Any]:
+        """Back to the default levels for a channel."""
+        runtime = server.rover(rover)
+        request.state.audit_action = f"reset limits of {channel} to the defaults"
+        try:
+            return server.alarms.reset_limits(rover, channel, runtime.last_frame)
+        except KeyError as unknown:
+            raise HTTPException(404, str(unknown.args[0])) from None
+
+    @app.get("/api/rovers/{rover}/alarms", responses={**NOT_FOUND, **BAD_REQUEST})
+    def list_alarms(
+        rover: RoverName,
+        _: Viewer,
+        active: Annotated[
+            bool | None,
+            Query(
+                description="true: still listed (not both acknowledged and cleared); "
+                "false: done; absent: all"
+            ),
+        ] = None,
+        limit: Annotated[int, Query(ge=1, le=10_000)] = 500,
+    ) -> list[dict[str, Any]]:
+        """A rover's alarms, newest first."""
+        server.rover(rover)
+        return server.alarms.listed(rover, active, limit)
+
+    @app.post(
+        "/api/alarms/{alarm_id}/acknowledge",
+        responses={**AUTH_ERRORS, **NOT_FOUND, 409: _error("acknowledged already")},
+    )
+    def acknowledge_alarm(alarm_id: AlarmId, request: Request, who: Operator) -> dict[str, Any]:
+        """Acknowledge an alarm (who and when are kept; it leaves the list once cleared)."""
+        request.state.audit_action = f"acknowledge alarm #{alarm_id}"
+        try:
+            alarm = server.alarms.acknowledge(alarm_id, who.name)
+        except AlarmError as refused:
+            raise HTTPException(refused.status, str(refused)) from None
+        request.state.audit_rover = alarm["rover"]
+        request.state.audit_action = f"acknowledge alarm #{alarm_id} ({alarm['channel']})"
+        return alarm
 
     def scene_port(rover: str) -> int:
         server.rover(rover)
@@ -971,6 +1217,7 @@ def _utc(text: str | None, name: str) -> datetime | None:
 CSV_COLUMNS = (
     "t_s", "sol", "lmst_h", "nate_mode", "aqf", "site_index", "imu_integration_s",
     "gyro_counter_s", "tilt_est_deg", "tilt_accel_deg", "hga_error_deg", "hga_margin_deg",
+    "hga_margin_predicted_deg", "vo_failures_in_row",
     "earth_up", "attitude_error_deg", "position_error_m", "command", "rocker_deg",
 )  # fmt: skip
 CSV_VECTORS = {
@@ -1017,7 +1264,7 @@ def _csv(frames: list[dict[str, Any]]) -> str:
             values = list(f.get(v) or [])
             row += values + [None] * (n - len(values))
         row += _side_cells(f)
-        row.append("; ".join(f.get("events", [])))
+        row.append("; ".join(e["text"] for e in f.get("events", [])))
         writer.writerow(row)
     return out.getvalue()
 

@@ -21,7 +21,7 @@ meet (``EXCLUDED_CHECKS``, each with why).
 The sequence language's own fuzzer (``server.fuzz_language``, hypothesis mutations of the
 example sequences) is merged in by ``language_metrics`` when that module exists.
 
-Output contract: ``sim.bench._result`` (DESIGN.md "Benchmarks").
+Output contract: ``sim.bench._result`` (docs/DESIGN.md "Benchmarks").
 """
 
 from __future__ import annotations

@@ -25,7 +25,7 @@ reader never blocks the server). The delays come from one seeded ``random.Random
   ``SIGTERM_SPEED``, the ``t_s`` of its last stored frame (target: at most one frame,
   ``FRAME_EVERY_S``).
 
-Output contract: ``sim.bench._result`` (DESIGN.md "Benchmarks").
+Output contract: ``sim.bench._result`` (docs/DESIGN.md "Benchmarks").
 """
 
 from __future__ import annotations

@@ -35,7 +35,7 @@ an interpreter lock and the figures include the network stack.
   the p99 of ``STALL_IDLE_POLLS`` polls just before, with nothing validating (on a shared
   machine, the part of the stall that is not the server's).
 
-Output contract: ``sim.bench._result`` (DESIGN.md "Benchmarks").
+Output contract: ``sim.bench._result`` (docs/DESIGN.md "Benchmarks").
 """
 
 from __future__ import annotations
@@ -299,9 +299,11 @@ class Received:
     dropped: int = 0
 
     def add(self, message: str | bytes) -> dict[str, Any]:
-        """Record one message; the frame."""
+        """Record one frame (a notice is returned, not recorded); the message."""
         now = time.time()
         frame: dict[str, Any] = json.loads(message)
+        if "type" in frame:  # a notice (server.hub: an alarm, ...), not a frame
+            return frame
         self.wall.append(now)
         self.latency_s.append(now - float(frame["published_wall"]))
         self.t_s.append(float(frame["t_s"]))

@@ -40,7 +40,7 @@ by calling ``_draw`` directly, so a timing is the scene thread's work for one fr
   ``view_sol_frames_drawn``: how many frames the server's scene had drawn when the sol
   completed (median).
 
-Output contract: ``sim.bench._result`` (DESIGN.md "Benchmarks").
+Output contract: ``sim.bench._result`` (docs/DESIGN.md "Benchmarks").
 """
 
 from __future__ import annotations

@@ -4,8 +4,10 @@ Each client has its own bounded queue. The rover thread never waits: a full queu
 its oldest frame (``put_latest``), so a slow client loses frames, not the simulation, and
 never slows the other clients. Each client's sender sends at most ``MAX_RATE_HZ`` frames
 per wall second: it takes the newest frame waiting and carries the events of the frames
-it skipped, so no event is lost to decimation (a client too slow even for that loses
-whole frames, events included, and is told how many in ``dropped``).
+it skipped, each stamped with its own frame's ``t_s``, ``sol`` and ``lmst_h``
+(``stamped_events``), so no event is lost to decimation nor shown at the wrong time (a
+client too slow even for that loses whole frames, events included, and is told how many
+in ``dropped``).
 
 Besides frames, the hub carries *notices*: small messages with a ``type`` (``"command"``,
 ``"alarm"``, ``"queue"``, ...) that say something changed (``notify``). A frame has no
@@ -125,6 +127,13 @@ def pending_notice(client: Client) -> dict[str, Any] | None:
     return {**client.notices.popleft(), "dropped_notices": client.dropped_notices}
 
 
+def stamped_events(frame: dict[str, Any]) -> list[dict[str, Any]]:
+    """The frame's events, each with the frame's ``t_s``, ``sol`` and ``lmst_h``: a message
+    carries the events of the frames it skipped, and each keeps its own time."""
+    when = {key: frame.get(key) for key in ("t_s", "sol", "lmst_h")}
+    return [{**e, **when} for e in frame.get("events", [])]
+
+
 async def next_message(client: Client) -> dict[str, Any]:
     """The next message to send: a notice if one waits, else the newest frame with the
     skipped frames' events."""
@@ -137,10 +146,10 @@ async def next_message(client: Client) -> dict[str, Any]:
         client.wake.clear()
         await client.wake.wait()
     frame = client.queue.get_nowait()
-    events: list[str] = list(frame.get("events", []))
+    events = stamped_events(frame)
     while not client.queue.empty():
         frame = client.queue.get_nowait()
-        events.extend(frame.get("events", []))
+        events.extend(stamped_events(frame))
     out = dict(frame)
     out["events"] = events
     out["dropped"] = client.dropped

@@ -14,7 +14,15 @@ its queue of accepted sequences, and a thread that runs the clock:
 - A command executes as a whole in the session (a drive takes a few seconds of wall time)
   and its frames are then *played out*: published (WebSocket subscribers, storage) as the
   clock reaches their time. So what is stored and shown never runs ahead of the clock.
-- Immediate commands (``POST .../commands``) run before the next queued step.
+- Immediate commands (``POST .../commands``) run before the next queued step, in the order sent.
+- Operators reorder the queue (``move``) and cancel from it (``cancel``). Only the head
+  of the queue runs, and a step starts only if its sequence is still at the head when the
+  clock thread takes it up (checked under ``lock``), so a move or a cancel never races a
+  starting step. A sequence that has started, and an immediate command, keep their place
+  (nothing moves in front of them): a started sequence's later steps assume the rover its
+  earlier steps left, and an immediate command was sent to run next. Every queue change
+  is applied to the last checkpoint at once (``_checkpoint_queue``), so a restart keeps
+  the order the operators saw, and an ``on_queue`` hook hears of it (``server.queue_view``).
 - A step that fails (its mode ran and failed, e.g. a Sunfind that saw no sun) is reported
   and the sequence goes on; a step that is refused (it could not run, e.g. a drive while
   articulating) stops the sequence, whose later steps assumed it: the sequence ends
@@ -99,6 +107,16 @@ ROVERS: dict[str, RoverSpec] = {
 }
 
 
+@dataclass(frozen=True)
+class StepOutcome:
+    """How a step of a queued sequence ended (its command report, in short)."""
+
+    status: str  # "completed", "failed" or "refused"
+    reason: str | None
+    start_t_s: float
+    end_t_s: float
+
+
 @dataclass
 class QueuedSequence:
     """An accepted sequence in a rover's queue; ``next_step`` indexes ``sequence.steps``."""
@@ -110,6 +128,52 @@ class QueuedSequence:
     wait_left_s: float | None = None  # a WAIT under way in chunks: what is left of it
     problems: list[str] = field(default_factory=list)  # steps that failed or were refused
     halted: bool = False  # a refused step stopped the sequence
+    started: bool = False  # its first step has been taken up: it keeps its place
+    outcomes: list[StepOutcome] = field(default_factory=list)  # steps done, in order
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        # a checkpoint of an older version lacks the newer fields
+        self.__dict__.update({"started": False, "outcomes": [], **state})
+
+    @property
+    def has_started(self) -> bool:
+        """A step of it has run or is running (so its place in the queue is fixed)."""
+        return self.started or self.next_step > 0 or self.wait_left_s is not None
+
+
+class QueueError(Exception):
+    """A queue change refused; the message says why (``NotQueuedError``: not in it)."""
+
+
+class NotQueuedError(QueueError):
+    """The sequence is not in this rover's queue."""
+
+
+@dataclass(frozen=True)
+class QueueEntry:
+    """A copy of one queued sequence, taken under the runtime's lock (``queue_snapshot``):
+    ``pinned`` says why it cannot move (``None``: it can), ``running_step`` the index of
+    the step executing or playing out now (``None``: none of its steps)."""
+
+    sequence_id: int
+    sequence: Sequence
+    immediate: bool
+    started: bool
+    next_step: int
+    halted: bool
+    outcomes: tuple[StepOutcome, ...]
+    running_step: int | None
+    pinned: str | None
+
+
+@dataclass(frozen=True)
+class Cancelled:
+    """Where a cancelled sequence stopped: the steps done and the one still running (it
+    runs to its end: a command is not interrupted), if any."""
+
+    steps: int
+    done: int
+    running_step: int | None
 
 
 @dataclass
@@ -155,7 +219,9 @@ class RoverRuntime:
         self.on_sequence: Callable[[int, str, str | None], None] | None = None
         self.on_checkpoint: Callable[[str, float, bytes], None] | None = None
         self.commit: Callable[[], None] | None = None
+        self.on_queue: Callable[[str], None] | None = None  # the queue or a step changed
         self.executing: str = ""
+        self.current_step: tuple[int, int] | None = None  # (sequence id, step) executing
         self._playout: deque[dict[str, Any]] = deque()
         self._clock_t_s = self.session.sim.t_s  # the published clock (<= the session's)
         self._last_done_t_s = self._clock_t_s
@@ -217,27 +283,125 @@ class RoverRuntime:
             self.commit()
 
     def enqueue(self, sequence_id: int, sequence: Sequence, immediate: bool = False) -> None:
-        """Queue an accepted sequence (an immediate command goes first)."""
+        """Queue an accepted sequence. An immediate command goes before the sequences but
+        after the immediate commands sent before it, so commands run in the order sent."""
         with self.lock:
             item = QueuedSequence(sequence_id, sequence, immediate=immediate)
             if immediate:
-                self.queue.appendleft(item)
+                ahead = next((i for i, q in enumerate(self.queue) if not q.immediate), None)
+                self.queue.insert(len(self.queue) if ahead is None else ahead, item)
             else:
                 self.queue.append(item)
+            self._checkpoint_queue()
+        self._queue_changed()
 
-    def cancel(self, sequence_id: int) -> bool:
-        """Drop a queued sequence (a running one stops after its current command)."""
+    def cancel(self, sequence_id: int) -> Cancelled | None:
+        """Drop a queued sequence (a running one stops after its current command); where it
+        stopped, or ``None`` if it is not queued. Stored before this returns."""
         with self.lock:
-            for item in list(self.queue):
-                if item.sequence_id == sequence_id:
-                    self.queue.remove(item)
-                    return True
-        return False
+            item = next((q for q in self.queue if q.sequence_id == sequence_id), None)
+            if item is None:
+                return None
+            self.queue.remove(item)
+            running = self.current_step
+            stopped = Cancelled(
+                steps=len(item.sequence.steps),
+                done=min(item.next_step, len(item.sequence.steps)),
+                running_step=running[1] if running and running[0] == sequence_id else None,
+            )
+            self._checkpoint_queue(removed=sequence_id)
+        self._queue_changed(commit=True)
+        return stopped
+
+    def move(self, sequence_id: int, to: int) -> None:
+        """Put a queued sequence at position ``to`` (0 is the head), the others keeping
+        their order. Refused (``QueueError`` saying why; nothing changes) for a sequence
+        that has started or an immediate command, in front of one, or past the end
+        (module docstring). Stored before this returns."""
+        with self.lock:
+            items = list(self.queue)
+            at = next((i for i, q in enumerate(items) if q.sequence_id == sequence_id), None)
+            if at is None:
+                raise NotQueuedError(f"sequence {sequence_id} is not in {self.spec.name}'s queue")
+            why = _pinned(items[at])
+            if why is not None:
+                raise QueueError(f"sequence {sequence_id} {why}: it keeps its place")
+            if to >= len(items):
+                raise QueueError(
+                    f"position {to} is past the end of the queue (positions 0 to {len(items) - 1})"
+                )
+            pinned = [i for i, q in enumerate(items) if _pinned(q) is not None]
+            if pinned and to <= pinned[-1]:
+                head = items[pinned[-1]]
+                raise QueueError(
+                    f"position {to} is in front of sequence {head.sequence_id}, which "
+                    f"{_pinned(head)}: the highest free position is {pinned[-1] + 1}"
+                )
+            if to == at:
+                return
+            item = items.pop(at)
+            items.insert(to, item)
+            self.queue = deque(items)
+            self._checkpoint_queue()
+        self._queue_changed(commit=True)
 
     def queued_ids(self) -> list[int]:
         """Sequence ids in queue order."""
         with self.lock:
             return [q.sequence_id for q in self.queue]
+
+    def queue_snapshot(self) -> list[QueueEntry]:
+        """The queue in order, copied under the lock (safe to read from any thread)."""
+        with self.lock:
+            running = self.current_step
+            return [
+                QueueEntry(
+                    sequence_id=q.sequence_id,
+                    sequence=q.sequence,
+                    immediate=q.immediate,
+                    started=q.has_started,
+                    next_step=q.next_step,
+                    halted=q.halted,
+                    outcomes=tuple(q.outcomes),
+                    running_step=running[1] if running and running[0] == q.sequence_id else None,
+                    pinned=_pinned(q),
+                )
+                for q in self.queue
+            ]
+
+    def _checkpoint_queue(self, removed: int | None = None) -> None:
+        """Apply a queue change to the last checkpoint and store it (the caller holds
+        ``lock``), as ``set_clock`` does a clock change: the session may be mid-command in
+        the clock thread, so it is not pickled from here. The checkpoint's queue is an
+        older copy: sequences that finished since keep their places there (a restart runs
+        them again, as before), ``removed`` goes, one queued since is added as new, and
+        the others take the order they have now."""
+        if self._last_blob is None or self.on_checkpoint is None:
+            return
+        state = pickle.loads(self._last_blob)
+        saved: list[QueuedSequence] = [q for q in state["queue"] if q.sequence_id != removed]
+        held = {q.sequence_id for q in saved}
+        for q in self.queue:
+            if q.sequence_id not in held:
+                fresh = QueuedSequence(q.sequence_id, q.sequence, immediate=q.immediate)
+                if q.immediate:
+                    saved.insert(0, fresh)
+                else:
+                    saved.append(fresh)
+        order = {q.sequence_id: i for i, q in enumerate(self.queue)}
+        slots = [i for i, q in enumerate(saved) if q.sequence_id in order]
+        ordered = sorted((saved[i] for i in slots), key=lambda q: order[q.sequence_id])
+        for slot, q in zip(slots, ordered, strict=True):
+            saved[slot] = q
+        state["queue"] = saved
+        self._save(state)
+
+    def _queue_changed(self, commit: bool = False) -> None:
+        """Store a queue change at once (``commit``) and tell ``on_queue``."""
+        if commit and self.commit is not None and self._last_blob is not None:
+            self.commit()
+        if self.on_queue is not None:
+            self.on_queue(self.spec.name)
 
     # ---- state for the API ----------------------------------------------------------
 
@@ -354,6 +518,7 @@ class RoverRuntime:
                 status = "failed" if item.halted else "completed"
                 detail = "; ".join(item.problems) or None
                 self._sequence_status(item.sequence_id, status, detail)
+                self._queue_changed()
             return None
 
     def _start_time(self, tag: TimeTag) -> float:
@@ -383,9 +548,15 @@ class RoverRuntime:
 
     def _execute(self, item: QueuedSequence) -> None:
         session = self.session
+        with self.lock:  # moved or cancelled since it was picked: the next tick picks again
+            if not self.queue or self.queue[0] is not item:
+                return
+            item.started = True
+            self.current_step = (item.sequence_id, item.next_step)
         step = item.sequence.steps[item.next_step]
         if item.next_step == 0 and item.wait_left_s is None:
             self._sequence_status(item.sequence_id, "running", None)
+            self._queue_changed()
         command = step.command
         with self.lock:
             self.executing = command.describe()
@@ -412,6 +583,9 @@ class RoverRuntime:
         if report.status != "completed":
             item.problems.append(f"step {index + 1} {report.status}: {report.reason}")
         with self.lock:
+            item.outcomes.append(
+                StepOutcome(report.status, report.reason, report.start_t_s, report.end_t_s)
+            )
             item.next_step += 1
             if report.status == "refused":  # the rest assumed this step: stop the sequence
                 item.next_step = len(item.sequence.steps)
@@ -427,9 +601,10 @@ class RoverRuntime:
                     "reason": report.reason,
                     "start_t_s": report.start_t_s,
                     "end_t_s": report.end_t_s,
-                    "events": report.events,
+                    "events": [e.text for e in report.events],
                 },
             )
+        self._queue_changed()
         if report.status != "completed":
             log.info("rover %s: %s: %s", self.spec.name, report.status, report.reason)
 
@@ -439,10 +614,14 @@ class RoverRuntime:
         with self.lock:
             while self._playout and self._playout[0]["t_s"] <= limit:
                 out.append(self._playout.popleft())
+            ended = not self._playout and self.current_step is not None
             if not self._playout:
                 self.executing = ""
+                self.current_step = None
         if out:
             self._emit(out)
+        if ended:
+            self._queue_changed()
         if not math.isinf(budget_s):  # the clock moves by the whole budget, not frame to frame
             ahead = self._playout[0]["t_s"] if self._playout else self.session.sim.t_s
             self._clock_t_s = max(self._clock_t_s, min(limit, ahead))
@@ -484,6 +663,7 @@ class RoverRuntime:
                     "playout": list(self._playout),
                     "clock_t_s": self._clock_t_s,
                     "executing": self.executing,
+                    "current_step": self.current_step,
                 }
             )
 
@@ -505,8 +685,19 @@ class RoverRuntime:
         runtime._playout = deque(state["playout"])
         runtime._clock_t_s = state["clock_t_s"]
         runtime.executing = state["executing"]
+        runtime.current_step = state.get("current_step")
         runtime._last_blob = blob
         return runtime
+
+
+def _pinned(item: QueuedSequence) -> str | None:
+    """Why ``item`` keeps its place in the queue (``None``: it may move)."""
+    if item.immediate:
+        return "is an immediate command (it runs before every queued step)"
+    if item.has_started:
+        steps = len(item.sequence.steps)
+        return f"has started (at step {min(item.next_step + 1, steps)} of {steps})"
+    return None
 
 
 def _speed_json(speed: float) -> float | str:

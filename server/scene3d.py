@@ -94,7 +94,7 @@ SLIDER_LABEL = "Sol time (LMST h)"
 
 
 def wxyz_from_q(q_xyzw: ArrayLike) -> tuple[float, float, float, float]:
-    """viser's scalar-first ``wxyz`` from our scalar-last ``[x, y, z, w]`` (CONVENTIONS.md:
+    """viser's scalar-first ``wxyz`` from our scalar-last ``[x, y, z, w]`` (docs/CONVENTIONS.md:
     the one conversion, at the scene boundary).
 
     >>> wxyz_from_q([0.0, 0.0, 0.0, 1.0])

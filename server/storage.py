@@ -3,7 +3,7 @@
 One SQLAlchemy 2 (Core) layer over any database URL, so that the embedded default (SQLite,
 a file under the data directory) and a shared server (PostgreSQL) behave the same and run
 the same tests. ``Store`` is the synchronous API the request handlers call; ``BatchWriter``
-takes the high-rate writes off the simulation threads (DESIGN.md: "server stores frames
+takes the high-rate writes off the simulation threads (docs/DESIGN.md: "server stores frames
 (batched)") and commits them together at least once per ``interval_s`` of wall time, so a
 server killed with SIGKILL loses at most the writes of the last interval (issue 4, item 5).
 
@@ -23,14 +23,18 @@ Choices worth knowing:
   the step again from its checkpoint, and recording it again updates the row and counts
   the re-run (``reruns``). The rule lives in the write path, not in a unique index, so a
   database that already holds such duplicates opens as before.
+- Events (``estimation.events``) are stored with their kind and severity; those stored
+  before events had them (as a column or inside a stored frame) read back as kind
+  ``unknown``, severity ``info`` (``event_dict``).
 - The schema grows in place: opening a database adds the columns and indexes this version
   declares and it lacks (``_upgrade_schema``), so a database of an older version keeps
   working; a column added this way must be nullable or have a ``server_default``.
 
 >>> store = Store("sqlite://")
->>> store.add_events("spirit", [(10.0, "Site planted")])
+>>> planted = {"text": "Site 1 planted", "kind": "site", "severity": "info"}
+>>> store.add_events("spirit", [(10.0, planted)])
 >>> store.events("spirit", 0.0, 20.0)
-[{'t_s': 10.0, 'text': 'Site planted'}]
+[{'t_s': 10.0, 'text': 'Site 1 planted', 'kind': 'site', 'severity': 'info'}]
 >>> store.close()
 """
 
@@ -47,6 +51,7 @@ from typing import Any
 
 from sqlalchemy import (
     JSON,
+    Boolean,
     Column,
     DateTime,
     Double,
@@ -127,6 +132,10 @@ events = Table(
     Column("rover", String(64), nullable=False),
     Column("t_s", Double, nullable=False),
     Column("text", Text, nullable=False),
+    # estimation.events: kind and severity; rows from before they existed read as
+    # LEGACY_KIND / LEGACY_SEVERITY
+    Column("kind", String(32), nullable=False, server_default="unknown"),
+    Column("severity", String(16), nullable=False, server_default="info"),
     Index("ix_events_rover_t", "rover", "t_s"),
 )
 
@@ -191,6 +200,64 @@ audit_log = Table(
     Column("result", String(16), nullable=False),  # "accepted" or "refused"
     Column("detail", Text, nullable=True),  # why it was refused
     Index("ix_audit_at", "at"),
+)
+
+
+LEGACY_KIND = "unknown"  # an event stored before events had a kind
+LEGACY_SEVERITY = "info"
+
+
+def event_dict(event: str | Mapping[str, Any]) -> dict[str, Any]:
+    """An event of a frame as ``{"text", "kind", "severity"}`` (plus any other keys it
+    has), whether stored by this version or as the bare text of an older one."""
+    if isinstance(event, str):
+        return {"text": event, "kind": LEGACY_KIND, "severity": LEGACY_SEVERITY}
+    return {"kind": LEGACY_KIND, "severity": LEGACY_SEVERITY, **event}
+
+
+def _frame_events(data: dict[str, Any]) -> dict[str, Any]:
+    """A stored frame with its events in this version's shape (module docstring)."""
+    got = data.get("events")
+    if got and any(isinstance(e, str) for e in got):
+        data["events"] = [event_dict(e) for e in got]
+    return data
+
+
+# ---- alarms and their limits (server.alarms, server.limits) ----------------------------
+
+alarms_table = Table(
+    "alarms",
+    metadata,
+    Column("id", Integer, primary_key=True, autoincrement=True),
+    Column("rover", String(64), nullable=False),
+    Column("channel", String(64), nullable=False),
+    Column("level", String(16), nullable=False),  # "warning" or "critical"
+    Column("truth", Boolean, nullable=False),  # a truth-view channel
+    Column("value", JSON, nullable=True),  # a number or a name (AQF, NATE mode)
+    Column("limit_value", JSON, nullable=True),  # the limit crossed (a list for states)
+    Column("units", String(16), nullable=False, default=""),
+    Column("message", Text, nullable=False),
+    Column("violations", Integer, nullable=False, default=1, server_default="1"),
+    Column("raised_t_s", Double, nullable=False),
+    Column("raised_utc", String(40), nullable=False),
+    Column("raised_lmst_h", Double, nullable=False),
+    Column("raised_sol", Integer, nullable=False),
+    Column("cleared_t_s", Double, nullable=True),
+    Column("cleared_utc", String(40), nullable=True),
+    Column("cleared_lmst_h", Double, nullable=True),
+    Column("acknowledged_by", String(64), nullable=True),
+    Column("acknowledged_at", DateTime(timezone=True), nullable=True),  # wall-clock UTC
+    Index("ix_alarms_rover_raised", "rover", "raised_t_s"),
+)
+
+alarm_limits = Table(
+    "alarm_limits",
+    metadata,
+    Column("rover", String(64), primary_key=True),
+    Column("channel", String(64), primary_key=True),
+    Column("levels", JSON, nullable=False),  # {"warning", "critical"[, "hysteresis"]}
+    Column("updated_by", String(64), nullable=True),
+    Column("updated_at", DateTime(timezone=True), nullable=False, default=_now),
 )
 
 
@@ -359,21 +426,58 @@ class Store:
 
     # ---- events ------------------------------------------------------------------
 
-    def add_events(self, rover: str, events: list[tuple[float, str]]) -> None:
-        """Store events as (t_s, text) pairs."""
+    def add_events(self, rover: str, events: list[tuple[float, Mapping[str, Any]]]) -> None:
+        """Store events as (t_s, ``{"text", "kind", "severity"}``) pairs."""
         with self.engine.begin() as conn:
-            self._insert_events(conn, [(rover, t, text) for t, text in events])
+            self._insert_events(conn, [(rover, t, e) for t, e in events])
 
     def events(self, rover: str, t_from: float, t_to: float) -> list[dict[str, Any]]:
-        """Events with t_from <= t_s <= t_to, in time order, as ``{"t_s", "text"}``."""
+        """Events with t_from <= t_s <= t_to, in time order, as
+        ``{"t_s", "text", "kind", "severity"}``."""
+        return self.event_log(rover, t_from, t_to, newest_first=False)[0]
+
+    def event_log(
+        self,
+        rover: str,
+        t_from: float,
+        t_to: float,
+        *,
+        kinds: Iterable[str] = (),
+        severities: Iterable[str] = (),
+        text_contains: str | None = None,
+        before_t_s: float | None = None,
+        limit: int | None = None,
+        offset: int = 0,
+        newest_first: bool = True,
+    ) -> tuple[list[dict[str, Any]], int]:
+        """Events with t_from <= t_s < ``before_t_s`` (if given) and t_s <= t_to, of one of
+        ``kinds`` and ``severities`` (all if empty) whose text contains ``text_contains``
+        (any case); the page of ``limit`` from ``offset``, newest first unless
+        ``newest_first`` is false, and the number of events matching in all."""
         e = events.c
-        query = (
-            select(e.t_s, e.text)
-            .where(e.rover == rover, e.t_s >= t_from, e.t_s <= t_to)
-            .order_by(e.t_s, e.id)
-        )
+        where = [e.rover == rover, e.t_s >= t_from, e.t_s <= t_to]
+        if before_t_s is not None:
+            where.append(e.t_s < before_t_s)
+        kinds, severities = list(kinds), list(severities)
+        if kinds:
+            where.append(e.kind.in_(kinds))
+        if severities:
+            where.append(e.severity.in_(severities))
+        if text_contains:
+            escaped = text_contains.replace("\\", "\\\\").replace("%", "\\%").replace("_", "\\_")
+            where.append(func.lower(e.text).like(f"%{escaped.lower()}%", escape="\\"))
+        order = (e.t_s.desc(), e.id.desc()) if newest_first else (e.t_s, e.id)
+        query = select(e.t_s, e.text, e.kind, e.severity).where(*where).order_by(*order)
+        if offset:
+            query = query.offset(offset)
+        if limit is not None:
+            query = query.limit(limit)
         with self.engine.connect() as conn:
-            return [{"t_s": r.t_s, "text": r.text} for r in conn.execute(query)]
+            rows = [dict(r._mapping) for r in conn.execute(query)]
+            total = len(rows) if limit is None and not offset else None
+            if total is None:
+                total = int(conn.execute(select(func.count()).where(*where)).scalar_one())
+        return rows, total
 
     # ---- telemetry frames --------------------------------------------------------
 
@@ -412,7 +516,7 @@ class Store:
                 if every_s > 0.0 and row.t_s - last < every_s and not data.get("events"):
                     continue
                 last = row.t_s
-                out.append(data)
+                out.append(_frame_events(data))
                 if limit is not None and len(out) >= limit:
                     break
         return out
@@ -438,7 +542,72 @@ class Store:
         query = select(f.data).where(f.rover == rover).order_by(f.t_s.desc(), f.id.desc()).limit(1)
         with self.engine.connect() as conn:
             data: dict[str, Any] | None = conn.execute(query).scalar()
-        return data
+        return None if data is None else _frame_events(data)
+
+    # ---- alarms (server.alarms) and operators' limits (server.limits) ---------------
+
+    def add_alarm(self, row: dict[str, Any]) -> int:
+        """Store a raised alarm (the columns of ``alarms``); its id."""
+        with self.engine.begin() as conn:
+            key = conn.execute(insert(alarms_table).values(**row)).inserted_primary_key
+        assert key is not None
+        return int(key[0])
+
+    def update_alarm(self, alarm_id: int, values: dict[str, Any]) -> None:
+        """Change an alarm's columns (escalated, cleared, re-raised, acknowledged)."""
+        with self.engine.begin() as conn:
+            conn.execute(update(alarms_table).where(alarms_table.c.id == alarm_id).values(**values))
+
+    def alarms(
+        self,
+        rover: str | None = None,
+        listed: bool | None = None,
+        span: tuple[float, float] | None = None,
+        limit: int | None = None,
+        alarm_id: int | None = None,
+    ) -> list[dict[str, Any]]:
+        """Alarm rows, newest first: of ``rover``; ``listed`` True: still listed (not both
+        acknowledged and cleared), False: done; ``span`` (t0, t1): raised by t1 and not
+        cleared before t0."""
+        a = alarms_table.c
+        query = select(alarms_table).order_by(a.raised_t_s.desc(), a.id.desc())
+        if rover is not None:
+            query = query.where(a.rover == rover)
+        if alarm_id is not None:
+            query = query.where(a.id == alarm_id)
+        done = a.acknowledged_by.is_not(None) & a.cleared_t_s.is_not(None)
+        if listed is not None:
+            query = query.where(~done if listed else done)
+        if span is not None:
+            query = query.where(
+                a.raised_t_s <= span[1], a.cleared_t_s.is_(None) | (a.cleared_t_s >= span[0])
+            )
+        if limit is not None:
+            query = query.limit(limit)
+        with self.engine.connect() as conn:
+            return [_row_dict(r._mapping) for r in conn.execute(query)]
+
+    def set_limits(self, rover: str, channel: str, levels: dict[str, Any], by: str) -> None:
+        """Store an operator's levels for a channel (replacing earlier ones)."""
+        c = alarm_limits.c
+        with self.engine.begin() as conn:
+            conn.execute(delete(alarm_limits).where(c.rover == rover, c.channel == channel))
+            conn.execute(insert(alarm_limits).values(
+                rover=rover, channel=channel, levels=levels, updated_by=by, updated_at=_now()
+            ))  # fmt: skip
+
+    def reset_limits(self, rover: str, channel: str) -> None:
+        """Forget an operator's levels for a channel (the default applies again)."""
+        c = alarm_limits.c
+        with self.engine.begin() as conn:
+            conn.execute(delete(alarm_limits).where(c.rover == rover, c.channel == channel))
+
+    def stored_limits(self, rover: str) -> dict[str, dict[str, Any]]:
+        """The operators' levels of a rover by channel, with ``updated_by``/``updated_at``."""
+        c = alarm_limits.c
+        with self.engine.connect() as conn:
+            rows = conn.execute(select(alarm_limits).where(c.rover == rover))
+            return {r.channel: _row_dict(r._mapping) for r in rows}
 
     # ---- checkpoints: the latest simulation state, an opaque blob ---------------
 
@@ -464,10 +633,13 @@ class Store:
                  for r, f in rows],
             )  # fmt: skip
 
-    def _insert_events(self, conn: Connection, rows: list[tuple[str, float, str]]) -> None:
+    def _insert_events(
+        self, conn: Connection, rows: list[tuple[str, float, Mapping[str, Any]]]
+    ) -> None:
         if rows:
             conn.execute(
-                insert(events), [{"rover": r, "t_s": float(t), "text": x} for r, t, x in rows]
+                insert(events),
+                [{"rover": r, "t_s": float(t), **_event_columns(x)} for r, t, x in rows],
             )
 
     def _record_commands(self, conn: Connection, rows: list[dict[str, Any]]) -> None:
@@ -552,6 +724,11 @@ def _add_missing_columns(engine: Engine, meta: MetaData = metadata) -> list[str]
     return [f"{table.name}.{column.name}" for table, column in missing]
 
 
+def _event_columns(event: Mapping[str, Any]) -> dict[str, str]:
+    e = event_dict(event)
+    return {"text": str(e["text"]), "kind": str(e["kind"]), "severity": str(e["severity"])}
+
+
 def _command_row(
     rover: str,
     sequence_id: int | None,
@@ -601,7 +778,7 @@ class BatchWriter:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._frames: list[tuple[str, dict[str, Any]]] = []
-        self._events: list[tuple[str, float, str]] = []
+        self._events: list[tuple[str, float, Mapping[str, Any]]] = []
         self._commands: list[dict[str, Any]] = []
         self._checkpoints: dict[str, tuple[float, bytes]] = {}
 
@@ -618,10 +795,10 @@ class BatchWriter:
         with self._lock:
             self._frames.extend((rover, f) for f in frames)
 
-    def events(self, rover: str, events: list[tuple[float, str]]) -> None:
-        """Queue events as (t_s, text) pairs."""
+    def events(self, rover: str, events: list[tuple[float, Mapping[str, Any]]]) -> None:
+        """Queue events as (t_s, ``{"text", "kind", "severity"}``) pairs."""
         with self._lock:
-            self._events.extend((rover, float(t), text) for t, text in events)
+            self._events.extend((rover, float(t), e) for t, e in events)
 
     def command(self, rover: str, **fields: Any) -> None:
         """Queue one command execution (the keyword arguments of ``Store.add_command``)."""

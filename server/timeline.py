@@ -1,6 +1,7 @@
 """A sol's timeline for review, from storage: what ran, in which NATE mode and with which
 Attitude Quality Flag, what happened, and how good the estimate was.
 
+Alarms (``server.alarms``) listed are those active at some time of the sol.
 Intervals are built from the stored frames (a new interval wherever the mode or flag
 changes); times are given as TT seconds, UTC and LMST hours. The distance driven is the
 length of the true path over the sol.
@@ -13,6 +14,8 @@ from typing import Any
 
 import numpy as np
 
+from server.alarms import alarm_json
+from server.eventlog import rest_event
 from server.runtime import RoverRuntime
 from server.storage import Store
 from sim.marsclock import t_s_to_utc
@@ -20,6 +23,40 @@ from sim.marsclock import t_s_to_utc
 
 def _when(runtime: RoverRuntime, t_s: float) -> dict[str, Any]:
     return {"t_s": t_s, "utc": t_s_to_utc(t_s).isoformat(), "lmst_h": runtime.lmst_h(t_s)}
+
+
+def command_entry(
+    runtime: RoverRuntime, row: dict[str, Any], submitted_by: str | None
+) -> dict[str, Any]:
+    """One stored command row as the timeline lists it (and as the ``command`` WebSocket
+    notice carries it: both are built here, so they cannot differ)."""
+    return {
+        **row,
+        "submitted_by": submitted_by,
+        "start": _when(runtime, float(row["start_t_s"])),
+        "end": _when(runtime, float(row["end_t_s"])),
+    }
+
+
+def stored_command(
+    store: Store, runtime: RoverRuntime, report: dict[str, Any]
+) -> dict[str, Any] | None:
+    """The timeline entry of the command a runtime just reported (``on_command``'s
+    report), read back from storage once it is written: its id, reruns and submitter are
+    the stored ones. ``None`` if it is not stored (the writer dropped it)."""
+    rover = runtime.spec.name
+    start, end = float(report["start_t_s"]), float(report["end_t_s"])
+    rows = [
+        c
+        for c in store.commands(rover, start, end)
+        if c["sequence_id"] == report["sequence_id"] and c["step_index"] == report["step_index"]
+    ]
+    if not rows:
+        return None
+    row = max(rows, key=lambda c: int(c["id"]))
+    seq = row["sequence_id"]
+    submitted_by = store.submitters([seq]).get(seq) if seq else None
+    return command_entry(runtime, row, submitted_by)
 
 
 def _intervals(
@@ -68,17 +105,13 @@ def sol_timeline(store: Store, runtime: RoverRuntime, sol: int) -> dict[str, Any
         "start": _when(runtime, t0),
         "end": _when(runtime, t1),
         "commands": [
-            {
-                **c,
-                "submitted_by": submitted_by.get(c["sequence_id"] or 0),
-                "start": _when(runtime, float(c["start_t_s"])),
-                "end": _when(runtime, float(c["end_t_s"])),
-            }
-            for c in commands
+            command_entry(runtime, c, submitted_by.get(c["sequence_id"] or 0)) for c in commands
         ],
         "nate_modes": _intervals(runtime, frames, "nate_mode", t1),
         "aqf": _intervals(runtime, frames, "aqf", t1),
-        "events": [{**e, "lmst_h": runtime.lmst_h(float(e["t_s"]))} for e in events],
+        "events": [rest_event(runtime, e) for e in events],
+        # alarms raised by the sol's end and not cleared before its start, oldest first
+        "alarms": [alarm_json(a) for a in reversed(store.alarms(rover, span=(t0, t1)))],
         "distance_m": distance,
         "summary": {
             "frames": len(frames),

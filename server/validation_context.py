@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from estimation.nate import NateParams
 from sequences.validate import AqfName, ValidationContext
 from sim.ephemeris import C_KM_S, Body, astrometric_from_mars_j2000_km, coverage_t_s
 from sim.ephemeris import mars_velocity_j2000_km_s as mars_velocity
@@ -45,7 +46,9 @@ from sim.marsclock import (
 
 if TYPE_CHECKING:  # the validation process (server.validation_pool) imports no runtime
     from server.runtime import RoverRuntime
+    from server.storage import Store
 
+MIN_SUN_ELEVATION_RAD = NateParams().min_sun_elevation_rad  # NATE's default (5 deg)
 COARSE_S = SOL_S / 4.0  # s between ephemeris samples
 BLOCK = 128  # samples per ephemeris call: 32 sols
 
@@ -133,10 +136,12 @@ def site_context(
     aqf: AqfName = "Unknown",
     imu_integration_s: float = 0.0,
     articulating: bool = False,
+    min_sun_elevation_rad: float = MIN_SUN_ELEVATION_RAD,
 ) -> ValidationContext:
     """A context for a rover of ``mission`` (its sol clock) at a site (planetographic
     latitude, East longitude, rad) from ``start_t_s`` (TT s since J2000), with Earth's and
-    the sun's elevation sampled (``SampledElevation``) up to the end of DE421."""
+    the sun's elevation sampled (``SampledElevation``) up to the end of DE421, and the
+    lowest sun NATE's camera modes accept (``min_sun_elevation_rad``, NATE's parameter)."""
     lon_west_deg = get_mission(mission).lon_west_deg
     end_t_s = coverage_t_s()[1]
     origin = min(start_t_s, end_t_s)
@@ -152,6 +157,7 @@ def site_context(
         articulating=articulating,
         ephemeris_end_t_s=end_t_s,
         sun_elevation_deg=SampledElevation("sun", lat_rad, lon_east_rad, origin, end_t_s),
+        min_sun_elevation_deg=math.degrees(min_sun_elevation_rad),
     )
 
 
@@ -168,6 +174,7 @@ class RoverSite:
     aqf: AqfName = "Unknown"
     imu_integration_s: float = 0.0
     articulating: bool = False
+    min_sun_elevation_rad: float = MIN_SUN_ELEVATION_RAD
 
     def context(self) -> ValidationContext:
         """The ``ValidationContext`` of this site (``site_context``)."""
@@ -179,6 +186,7 @@ class RoverSite:
             aqf=self.aqf,
             imu_integration_s=self.imu_integration_s,
             articulating=self.articulating,
+            min_sun_elevation_rad=self.min_sun_elevation_rad,
         )
 
 
@@ -194,9 +202,26 @@ def rover_site(runtime: RoverRuntime) -> RoverSite:
         aqf=frame.get("aqf", runtime.session.nate.aqf.paper_name),
         imu_integration_s=float(frame.get("imu_integration_s", 0.0)),
         articulating=runtime.session.nate.mode.value == "Articulate",
+        min_sun_elevation_rad=runtime.session.nate.params.min_sun_elevation_rad,
     )
 
 
 def validation_context(runtime: RoverRuntime) -> ValidationContext:
     """What validation needs to know of a rover, from its state now."""
     return rover_site(runtime).context()
+
+
+def stored_rover_site(store: Store, rover: str) -> RoverSite | None:
+    """A rover's ``RoverSite`` from its last checkpoint in ``store`` (``None`` if it has
+    none): the state a server restarted on that database would resume, and validate
+    against, with the last stored frame as the latest telemetry, as ``Server._resume``
+    sets it. ``roverops validate --rover NAME`` reads it when no ``--server`` is given."""
+    from server.runtime import ROVERS, RoverRuntime
+
+    spec = ROVERS[rover]
+    saved = store.load_checkpoint(rover)
+    if saved is None:
+        return None
+    runtime = RoverRuntime.restore(spec, saved[1])
+    runtime.last_frame = store.last_frame(rover)
+    return rover_site(runtime)

@@ -1,6 +1,6 @@
 """``roverops bench``: speed figures of the simulator, as medians over repeats.
 
-Output contract (DESIGN.md): ``{"bench": NAME, "metrics": {...}, "targets": {...},
+Output contract (docs/DESIGN.md): ``{"bench": NAME, "metrics": {...}, "targets": {...},
 "ok": bool}``, every metric with its unit in its key. A target ``{"le": x}`` holds when
 the metric is at most ``x``, ``{"ge": x}`` when it is at least ``x``. Wall-clock figures
 depend on the machine; the ``machine`` entry says which one ran them.

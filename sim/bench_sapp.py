@@ -107,7 +107,7 @@ def _heading_error_deg(q_b_ll_est: Any, q_b_ll_true: Any) -> float:
 
 def _frame_with(frames: list[TelemetryFrame], prefix: str) -> TelemetryFrame | None:
     for f in frames:
-        if any(e.startswith(prefix) for e in f.events):
+        if any(e.text.startswith(prefix) for e in f.events):
             return f
     return None
 

@@ -1,6 +1,6 @@
 """How well the HGA really points: the onboard command against the truth.
 
-What only a simulator can show (DESIGN.md): the angle between where the flight software
+What only a simulator can show (docs/DESIGN.md): the angle between where the flight software
 pointed the HGA (``estimation.hga_pointing``, from its estimate and IVP) and where Earth
 really is in the body frame (the truth attitude and the DE421 Earth direction), and the
 margin left against MER's 2° (3σ) pointing requirement (seed 000, sec. 1).

@@ -6,7 +6,7 @@ Implements the Mars24 algorithm of Allison and McEwen (2000, Planet. Space Sci. 
 ../shared/REFERENCES.md, "Mars time and the Sun"). Each line of math carries its step
 number, A-1 .. D-6.
 
-Time scales (CONVENTIONS.md):
+Time scales (docs/CONVENTIONS.md):
 
 - ``utc``: a ``datetime``; aware ones are converted to UTC, naive ones are taken as UTC.
   Python's datetimes, like Mars24's Java milliseconds, do not count leap seconds, so an

@@ -1,6 +1,6 @@
 """MER-like six-wheel rocker-bogie geometry and its forward kinematics.
 
-Frames (CONVENTIONS.md): the rover body frame ``b`` has x forward, y right, z down, its
+Frames (docs/CONVENTIONS.md): the rover body frame ``b`` has x forward, y right, z down, its
 origin at the bottom of the body, midway between the two middle wheels in x and y.
 
 The suspension is the MER rocker-bogie (Lindemann and Voorhees 2005, "Mars Exploration

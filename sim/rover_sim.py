@@ -2,7 +2,7 @@
 
 ``RoverSim`` owns the terrain of a named site, the Mars clock, the rover's truth state and
 its sensors (IMU, wheel and steering encoders). Each motion command produces its truth as
-a batch at the 8 Hz control rate (DESIGN.md, "One control cycle") and the sensor samples
+a batch at the 8 Hz control rate (docs/DESIGN.md, "One control cycle") and the sensor samples
 for that batch; an idle span is jumped over in one step, with one aggregated IMU sample
 that is distributed exactly as the sum of its 8 Hz samples (``sim.imu``).
 

@@ -214,7 +214,7 @@ def _run_sapp(
             "status": r.status,
             "reason": r.reason,
             "duration_s": r.end_t_s - r.start_t_s,
-            "events": r.events,
+            "events": [e.as_dict() for e in r.events],
         }
         for r in reports
     ]

@@ -1,6 +1,6 @@
 """A rover session: the flight software in the loop on the simulated rover, command by command.
 
-DESIGN.md, "One control cycle": ``sim`` advances the truth and makes the measurements, the
+docs/DESIGN.md, "One control cycle": ``sim`` advances the truth and makes the measurements, the
 sequencer hands the next command to the flight software when the previous one completes,
 SAPP's NATE (``estimation.nate``) steps on the measurements, and a telemetry frame puts the
 estimate beside the truth with the derived figures (HGA pointing error and margin, position
@@ -40,6 +40,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from estimation.aqf import AttitudeQuality
+from estimation.events import Event, Severity
 from estimation.hga_pointing import point_hga
 from estimation.ivp import earth_ll
 from estimation.nate import (
@@ -51,6 +52,8 @@ from estimation.nate import (
     NateOutput,
     NateParams,
 )
+from estimation.pointing_knowledge import PointingKnowledge
+from estimation.sun_modes import SunResult
 from estimation.vo.odometry import VisualOdometry
 from estimation.wheel_odometry import DriveKind, steer_six
 from sequences import commands as cmd
@@ -92,7 +95,7 @@ WAIT_CHUNK_S = 600.0  # 8 Hz waits are simulated in chunks of this length
 
 @dataclass(frozen=True)
 class TelemetryFrame:
-    """One control cycle's telemetry (DESIGN.md's frame, plus derived figures).
+    """One control cycle's telemetry (docs/DESIGN.md's frame, plus derived figures).
 
     Angles in degrees at this edge; positions in metres: ``p_s_*`` in the current Site,
     ``p_mission_*`` in the mission frame (the first Site; the chain of Site offsets).
@@ -100,6 +103,9 @@ class TelemetryFrame:
     order) are the true suspension and steering (``sim.truth``), for drawing the rover.
     ``sun_ll_true``, ``earth_ll_true`` and ``hga_boresight_ll_true`` are unit vectors in LL
     (truth): the sun, Earth, and where the dish really points.
+    ``vo_failures_in_row``: VO steps that failed since the last converged one (the flight
+    software's VO status); ``hga_margin_predicted_deg``: the HGA margin the rover predicts
+    from its own attitude knowledge (``estimation.pointing_knowledge``; no truth).
     ``hga_error_deg``/``hga_margin_deg`` as the module docstring says; ``earth_up`` whether
     Earth is above the horizon (truth). ``attitude_error_deg``: angle between the estimated
     and true attitude; ``position_error_m``: between estimated and true mission positions.
@@ -133,8 +139,10 @@ class TelemetryFrame:
     sun_ll_true: list[float]
     earth_ll_true: list[float]
     hga_boresight_ll_true: list[float]
-    events: list[str] = field(default_factory=list)
+    events: list[Event] = field(default_factory=list)
     estimators: dict[str, dict[str, Any]] = field(default_factory=dict)
+    vo_failures_in_row: int = 0
+    hga_margin_predicted_deg: float = math.nan
 
     def as_dict(self) -> dict[str, Any]:
         """The frame as a JSON-ready dict; a figure that does not exist (NaN, e.g. the
@@ -156,9 +164,27 @@ class CommandReport:
     start_t_s: float
     end_t_s: float
     reason: str | None = None
-    events: list[str] = field(default_factory=list)
+    events: list[Event] = field(default_factory=list)
     details: dict[str, Any] = field(default_factory=dict)
     results: list[Any] = field(default_factory=list)
+
+
+def _name_a_failed_suncheck(details: dict[str, Any], results: list[Any]) -> None:
+    """SUNCHECK_SUNGAZE's result names its Suncheck's failure (Ali et al. 2005 sec. 4's
+    practice, ``estimation.nate``): out of tolerance, the command goes on to Sungaze and,
+    if Sungaze converges, completes (its purpose, a Fine attitude, is reached; the Suncheck
+    only pointed the camera) with ``details["suncheck"]`` saying how far off the estimate
+    was; with no sun in the image, it fails with that as its reason."""
+    check = results[0] if results else None
+    if not isinstance(check, SunResult) or check.success:
+        return
+    said = f"Suncheck failed: {check.outcome.value}"
+    if math.isfinite(check.error_rad):
+        said += f" (error {math.degrees(check.error_rad):.2f} deg)"
+    if len(results) > 1:
+        details["suncheck"] = f"{said}; Sungaze ran on the sun it saw"
+    else:
+        details["failure"] = f"{said}; Sungaze not run, AQF {details['aqf']}"
 
 
 class CommandRefusedError(Exception):
@@ -213,7 +239,7 @@ class RoverSession:
         self._lon_west_deg = (360.0 - sim.site.lon_east_deg) % 360.0
         self._site_origins_true: list[FloatArray] = [sim.state.p_s.copy()]  # mission frame
         self._command = ""
-        self._events: list[str] = []
+        self._events: list[Event] = []
         unknown = [e for e in estimators if e not in ESTIMATORS]
         if unknown or "sapp" not in estimators:
             raise InputError(
@@ -226,6 +252,8 @@ class RoverSession:
             self.side.append(RadioEkfRunner(sim, seed, x_m, y_m))
         self._side_now: dict[str, tuple[FloatArray, FloatArray | None]] | None = None
         self._vo: VisualOdometry | None = None  # made at the first vo=on drive
+        self._vo_failures_in_row = 0
+        self._knowledge = PointingKnowledge()
         self._last_frame_t = -math.inf
         self._last_mode = ""
         self._sky_t0 = math.nan  # interpolation node: Earth (IVP, truth), sun at t0, t0 + node
@@ -250,7 +278,7 @@ class RoverSession:
             details = self._dispatch(command)
         except (CommandRefusedError, ValueError, InputError) as exc:
             report.status, report.reason = "refused", str(exc)
-            self._events.append(f"{command.name} refused: {exc}")
+            self._events.append(Event(f"{command.name} refused: {exc}", "command", "error"))
             self._frame_now(force=True)
         else:
             report.details = details
@@ -279,12 +307,12 @@ class RoverSession:
         if isinstance(c, cmd.PlantSite):
             index = nate.plant_site()
             self._site_origins_true.append(self.sim.state.p_s.copy())
-            self._events.append(f"Site {index} planted")
+            self._events.append(Event(f"Site {index} planted", "site"))
             self._frame_now(force=True)
             return {"site_index": index}
         if isinstance(c, cmd.SetParam):
             nate.set_param(c.param, c.value)
-            self._events.append(f"parameter {c.param} = {c.value}")
+            self._events.append(Event(f"parameter {c.param} = {c.value}", "parameter"))
             self._frame_now(force=True)
             return {}
         if isinstance(c, cmd.ArticulateStart):
@@ -301,7 +329,10 @@ class RoverSession:
         if isinstance(c, cmd.HgaPass):
             return self._hga_pass(c.duration_min * 60.0)
         self._start_acquisition(c)
-        return self._run_until_idle()
+        details = self._run_until_idle()
+        if isinstance(c, cmd.SuncheckSungaze):
+            _name_a_failed_suncheck(details, self._results)
+        return details
 
     def _start_acquisition(self, c: cmd.Command) -> None:
         nate = self.nate
@@ -363,7 +394,7 @@ class RoverSession:
     def _last_event(self) -> str:
         for frame in reversed(self.frames):
             if frame.events:
-                return frame.events[-1]
+                return frame.events[-1].text
         return ""
 
     def _wait(self, duration_s: float) -> None:
@@ -393,7 +424,8 @@ class RoverSession:
                 "HGA_PASS: Earth is below the horizon (IVP): no link possible"
             )
         if nate.aqf < AttitudeQuality.FINE:
-            self._events.append(f"HGA pass with AQF {nate.aqf.paper_name}: pointing not assured")
+            text = f"HGA pass with AQF {nate.aqf.paper_name}: pointing not assured"
+            self._events.append(Event(text, "hga", "warning"))
         first = len(self.frames)
         self._frame_now(force=True)
         end = sim.t_s + duration_s
@@ -409,10 +441,12 @@ class RoverSession:
         errors = [f.hga_error_deg for f in frames if f.earth_up]
         worst = max(errors) if errors else math.nan
         margin = 2.0 - worst
-        self.frames[-1].events.append(
-            f"HGA pass: worst error {worst:.2f} deg, margin {margin:.2f} deg"
-            + ("" if len(errors) == len(frames) else ", Earth set during the pass")
+        earth_set = len(errors) != len(frames)
+        text = f"HGA pass: worst error {worst:.2f} deg, margin {margin:.2f} deg" + (
+            ", Earth set during the pass" if earth_set else ""
         )
+        severity: Severity = "error" if margin < 0.0 else "warning" if earth_set else "info"
+        self.frames[-1].events.append(Event(text, "hga", severity))
         out: dict[str, Any] = {"hga_worst_error_deg": worst, "hga_min_margin_deg": margin}
         if margin < 0.0:
             out["failure"] = f"HGA margin gone: worst error {worst:.2f} deg > 2 deg"
@@ -506,21 +540,28 @@ class RoverSession:
             )
         except (InputError, ValueError) as exc:  # e.g. the mast looking at nothing
             vo.reset()
-            self._events.append(f"VO step {step}/{steps} failed: {exc}; wheel odometry kept")
+            self._vo_failed(step)
+            text = f"VO step {step}/{steps} failed: {exc}; wheel odometry kept"
+            self._events.append(Event(text, "vo", "warning"))
             return 0
         if step == 0:
             return 0  # the first pair: nothing to compare with yet
         if not result.converged or result.motion is None:
-            self._events.append(
-                f"VO step {step}/{steps} failed: {result.reason}; wheel odometry kept"
-            )
+            self._vo_failed(step)
+            text = f"VO step {step}/{steps} failed: {result.reason}; wheel odometry kept"
+            self._events.append(Event(text, "vo", "warning"))
             return 0
+        self._vo_failures_in_row = 0
         p_s, q_b_ll = corrected_pose(before, result.motion)
         self.nate.visual_odometry_update(p_s, q_b_ll if attitude else None)
-        self._events.append(
-            update_text(step, steps, p_s - after.p_s, result.n_inliers, result.n_tracked)
-        )
+        text = update_text(step, steps, p_s - after.p_s, result.n_inliers, result.n_tracked)
+        self._events.append(Event(text, "vo"))
         return 1
+
+    def _vo_failed(self, step: int) -> None:
+        """Count a failed VO step (the first pair of a drive is not a step)."""
+        if step > 0:
+            self._vo_failures_in_row = getattr(self, "_vo_failures_in_row", 0) + 1
 
     def set_visual_odometry(self, vo: VisualOdometry) -> None:
         """Run ``vo=on`` drives with ``vo`` (a benchmark's wrapper that records each step,
@@ -675,7 +716,7 @@ class RoverSession:
                 # The rover has driven and SAPP has its result: a comparison estimator that
                 # fails must not turn the drive into a refusal. It stops, and says why.
                 self.side.remove(runner)
-                self._events.append(f"{runner.name} stopped: {exc}")
+                self._events.append(Event(f"{runner.name} stopped: {exc}", "estimator", "warning"))
         return out
 
     def _segment_frames(
@@ -719,6 +760,16 @@ class RoverSession:
         att_err = (Rotation.from_quat(out.q_b_ll) * q_b_ll_true.inv()).magnitude()
         events = list(out.events) + self._events
         self._events = []
+        knowledge: PointingKnowledge | None = getattr(self, "_knowledge", None)
+        if knowledge is None:  # a checkpoint from before it: from the flag on
+            knowledge = self._knowledge = PointingKnowledge()
+        done = out.completed
+        sungaze = (
+            math.degrees(done.three_sigma_rad)
+            if isinstance(done, SunResult) and done.success and done.updated
+            else None
+        )
+        predicted = knowledge.update(out.aqf, out.imu_integration_s, sungaze)
         self.frames.append(
             TelemetryFrame(
                 t_s=t,
@@ -751,6 +802,8 @@ class RoverSession:
                 hga_boresight_ll_true=[float(v) for v in boresight_ll],
                 events=events,
                 estimators=self._side_estimates(t, p_mission_true, q_b_ll_true),
+                vo_failures_in_row=getattr(self, "_vo_failures_in_row", 0),
+                hga_margin_predicted_deg=predicted,
             )
         )
         self._last_frame_t = t

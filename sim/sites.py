@@ -13,7 +13,7 @@
 
 Locations: Spirit's landing site 14.57° S, 175.48° E (``gusev``, and ``eq22`` and ``flat``,
 which need a place for the Sun); Opportunity's 1.95° S, 354.47° E (``meridiani``).
-Latitudes are planetographic, longitudes East (CONVENTIONS.md). Every terrain's ground
+Latitudes are planetographic, longitudes East (docs/CONVENTIONS.md). Every terrain's ground
 (before rocks) passes through elevation 0 at the Site origin.
 
 Albedo (Lambert, approximate, from orbital albedo maps): Meridiani is among the darkest

@@ -1,6 +1,6 @@
 """The terrain contract every surface in the simulator fulfils, and the analytic surfaces.
 
-Coordinates are those of the Site frame (CONVENTIONS.md): ``x`` North and ``y`` East in
+Coordinates are those of the Site frame (docs/CONVENTIONS.md): ``x`` North and ``y`` East in
 metres; heights are elevations *up* in metres (the Site frame's ``z`` is Down, so a surface
 point is ``(x, y, -h)`` in Site coordinates).
 

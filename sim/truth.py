@@ -4,7 +4,7 @@ The simulator produces truth a segment at a time (one drive primitive, or one id
 interval) as arrays, so the expensive parts (settling the suspension, generating sensor
 samples) vectorise over time. The control loop later walks these arrays cycle by cycle.
 
-Frames (CONVENTIONS.md): ``s`` is the Site frame (N, E, Down) of the scenario; ``ll``
+Frames (docs/CONVENTIONS.md): ``s`` is the Site frame (N, E, Down) of the scenario; ``ll``
 the Local-Level frame at the rover; ``b`` the rover body (x forward, y right, z down).
 """
 

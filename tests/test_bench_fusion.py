@@ -1,5 +1,5 @@
 """``roverops bench fusion`` at its smallest: one run of each part, the output contract of
-DESIGN.md ("Benchmarks") and the issue's keys; figures are checked for sense, never for
+docs/DESIGN.md ("Benchmarks") and the issue's keys; figures are checked for sense, never for
 speed."""
 
 from __future__ import annotations

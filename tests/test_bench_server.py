@@ -1,6 +1,6 @@
 """``roverops bench server`` in a quick version: the same pieces on a small scale (5
 WebSocket clients for 2 s, a 1,000-line validation, a 2 m drive and a 1 min HGA pass),
-checking the output contract of DESIGN.md and that the figures make sense. No speed is
+checking the output contract of docs/DESIGN.md and that the figures make sense. No speed is
 asserted (TESTING.md: benchmarks measure, tests assert correctness)."""
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """``roverops bench view3d`` in a quick version: a 2 m drive drawn without and with a viewer,
 two terrain re-cuts, and one sol with a 2 m drive through the real server with the 3D view
-on and off; the output contract of DESIGN.md, figures that are positive, finite and
+on and off; the output contract of docs/DESIGN.md, figures that are positive, finite and
 consistent with each other, and the parsing of viser's wire format. No speed is asserted
 (TESTING.md: benchmarks measure, tests assert correctness)."""
 

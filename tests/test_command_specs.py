@@ -139,7 +139,7 @@ def test_every_argument_is_published_with_the_spec_validation_uses(
             spec = kind.specs[arg["name"]]
             assert arg["type"] == spec.kind
             assert (arg["unit"] is not None) == (spec.kind == "number")
-            # a unit in the name (CONVENTIONS.md) is the unit published
+            # a unit in the name (docs/CONVENTIONS.md) is the unit published
             if spec.kind == "number":
                 assert arg["name"].endswith(f"_{arg['unit']}")
 

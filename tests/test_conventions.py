@@ -1,4 +1,4 @@
-"""Pin the frame and quaternion conventions of CONVENTIONS.md against scipy and geometry."""
+"""Pin the frame and quaternion conventions of docs/CONVENTIONS.md against scipy and geometry."""
 
 import numpy as np
 from scipy.spatial.transform import Rotation

@@ -9,6 +9,9 @@ import pytest
 
 from server.hub import QUEUE_NOTICES, TelemetryHub, next_message
 
+EV_A = {"text": "a", "kind": "site", "severity": "info"}
+EV_B = {"text": "b", "kind": "nadir", "severity": "error"}
+
 
 def _run(coro):  # type: ignore[no-untyped-def]
     return asyncio.run(coro)
@@ -18,15 +21,39 @@ def test_notices_go_before_frames_and_frames_are_merged_to_the_newest() -> None:
     async def scenario() -> list[dict]:  # type: ignore[type-arg]
         hub = TelemetryHub()
         client = hub.subscribe("spirit")
-        hub.publish("spirit", [{"t_s": 1.0, "events": ["a"]}, {"t_s": 2.0, "events": ["b"]}])
+        hub.publish("spirit", [{"t_s": 1.0, "events": [EV_A]}, {"t_s": 2.0, "events": [EV_B]}])
         hub.notify("spirit", {"type": "command", "command": "DRIVE_STRAIGHT"})
         await asyncio.sleep(0)  # let call_soon_threadsafe deliver
         return [await next_message(client), await next_message(client)]
 
     notice, frame = _run(scenario())
     assert notice["type"] == "command" and notice["dropped_notices"] == 0
-    assert frame["t_s"] == 2.0 and frame["events"] == ["a", "b"]
+    assert frame["t_s"] == 2.0 and [e["text"] for e in frame["events"]] == ["a", "b"]
     assert "type" not in frame
+
+
+def test_each_merged_event_keeps_the_time_of_its_own_frame() -> None:
+    """Issue 14, item 5: at max speed one message carries the events of the frames it
+    skipped; each event keeps its own frame's t_s, sol and LMST, not the message's."""
+    frames = [
+        {"t_s": 100.0 + i, "sol": 3 + i // 2, "lmst_h": 10.0 + i / 10, "events": [ev]}
+        for i, ev in enumerate([EV_A, EV_B, {**EV_A, "text": "c"}])
+    ]
+
+    async def scenario() -> dict:  # type: ignore[type-arg]
+        hub = TelemetryHub()
+        client = hub.subscribe("spirit")
+        hub.publish("spirit", frames)
+        await asyncio.sleep(0)
+        return await next_message(client)
+
+    message = _run(scenario())
+    assert message["t_s"] == 102.0  # the newest frame ...
+    assert message["events"] == [  # ... with every event at its own time
+        {"text": "a", "kind": "site", "severity": "info", "t_s": 100.0, "sol": 3, "lmst_h": 10.0},
+        {"text": "b", "kind": "nadir", "severity": "error", "t_s": 101.0, "sol": 3, "lmst_h": 10.1},
+        {"text": "c", "kind": "site", "severity": "info", "t_s": 102.0, "sol": 4, "lmst_h": 10.2},
+    ]
 
 
 def test_a_waiting_client_wakes_for_a_notice() -> None:

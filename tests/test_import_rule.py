@@ -1,4 +1,5 @@
-"""DESIGN.md's one rule: the flight software (estimation/) imports nothing of sim/ or server/."""
+"""docs/DESIGN.md's one rule: the flight software (estimation/) imports nothing of sim/,
+server/ or sequences/."""
 
 import ast
 from pathlib import Path

@@ -108,7 +108,7 @@ def completed(outs: list[NateOutput]) -> list[object]:
 
 
 def events(outs: list[NateOutput]) -> list[str]:
-    return [e for o in outs for e in o.events]
+    return [e.text for o in outs for e in o.events]
 
 
 def state(nate: Nate) -> tuple[object, ...]:
@@ -373,6 +373,36 @@ def test_suncheck_sungaze_runs_sungaze_after_an_out_of_tolerance_suncheck() -> N
     assert Aqf.UNKNOWN in flags  # the failed check's verdict, before Sungaze
     assert nate.aqf is Aqf.FINE and angle_deg(nate.q_b_ll, q_true(sim)) < 0.5
     assert events(outs)[-1] == "SuncheckSungaze done: AQF Fine"
+    # the failed Suncheck is an event of its own, before Sungaze starts (issue 14, item 9)
+    said = "SuncheckSungaze: Suncheck failed (sun out of tolerance): Sungaze on the sun it saw"
+    assert said in events(outs)
+    assert events(outs).index(said) < events(outs).index("SuncheckSungaze done: AQF Fine")
+
+
+def test_suncheck_sungaze_from_unknown_runs_when_the_sun_is_in_the_image() -> None:
+    """Ali et al. 2005 sec. 4: Sungaze needs only the sun in the field of view, so NATE
+    does not refuse the command below Coarse (the validator warns instead); from Unknown
+    it reaches Fine when the Suncheck's image holds the sun, and says the Suncheck failed."""
+    sim, nate = rover()
+    nate.load_attitude(turned(q_true(sim), 4.0), Aqf.UNKNOWN)
+    nate.suncheck_sungaze()
+    outs = run(nate, sim)
+    check, gaze = completed(outs)
+    assert isinstance(check, SunResult) and not check.success and check.sun_seen
+    assert isinstance(gaze, SunResult) and gaze.success
+    assert nate.aqf is Aqf.FINE
+    assert any(e.startswith("SuncheckSungaze: Suncheck failed") for e in events(outs))
+
+
+def test_suncheck_sungaze_after_a_passed_suncheck_names_no_failure() -> None:
+    sim, nate = rover()
+    nate.load_attitude(turned(q_true(sim), 0.5), Aqf.COARSE)
+    nate.suncheck_sungaze()
+    outs = run(nate, sim)
+    check, _ = completed(outs)
+    assert isinstance(check, SunResult) and check.success
+    assert not any("Suncheck failed" in e for e in events(outs))
+    assert nate.aqf is Aqf.FINE
 
 
 def test_suncheck_sungaze_aborts_when_the_suncheck_sees_no_sun() -> None:

@@ -136,7 +136,7 @@ def test_a_failing_estimator_beside_sapp_stops_without_refusing_the_drive(
     report = session.execute(cmd.DriveStraight(distance_m=1.0))
     assert report.status == "completed"
     assert report.details["distance_truth_m"] > 0.9
-    assert any(e.startswith("radio_ekf stopped: tile_cells") for e in report.events)
+    assert any(e.text.startswith("radio_ekf stopped: tile_cells") for e in report.events)
     assert session.side == [] and session.frames[-1].estimators == {}
 
 

@@ -19,12 +19,14 @@ from server.app import ServerConfig, create_app, data_dir_url
 
 BOOTSTRAP = "roles-bootstrap-token"
 SEQ = "SEQUENCE roles\nNADIR_UPDATE\n"
+TILT_LIMITS = {"warning": 20, "critical": 30}
 
 # (method, path, lowest role, request keyword arguments). Paths name real things so the
 # allowed call does its work: sequence 1 exists (made by the fixture), user "victim" too.
 ROUTES: list[tuple[str, str, str, dict[str, Any]]] = [
     ("GET", "/api/rovers", "viewer", {}),
     ("GET", "/api/rovers/spirit/state", "viewer", {}),
+    ("GET", "/api/rovers/spirit/queue", "viewer", {}),
     ("GET", "/api/commands", "viewer", {}),
     ("GET", "/api/me", "viewer", {}),
     ("POST", "/api/sequences/validate", "viewer", {"content": SEQ}),
@@ -34,13 +36,22 @@ ROUTES: list[tuple[str, str, str, dict[str, Any]]] = [
     ("GET", "/api/rovers/spirit/sols/0/timeline", "viewer", {}),
     ("GET", "/api/rovers/spirit/sols/0/telemetry.csv", "viewer", {}),
     ("GET", "/api/rovers/spirit/telemetry", "viewer", {}),
+    ("GET", "/api/rovers/spirit/events", "viewer", {}),
+    ("GET", "/api/rovers/spirit/channels", "viewer", {}),
+    ("GET", "/api/rovers/spirit/channels/tilt_accel_deg", "viewer", {}),
     ("GET", "/api/rovers/spirit/scene", "viewer", {}),
     ("GET", "/viser/spirit", "viewer", {}),
     ("GET", "/viser/spirit/index.html", "viewer", {}),
     ("POST", "/api/rovers/spirit/sequences", "operator", {"content": SEQ}),
     ("POST", "/api/rovers/spirit/commands", "operator", {"json": {"command": "NADIR_UPDATE"}}),
     ("POST", "/api/rovers/spirit/clock", "operator", {"json": {"action": "pause"}}),
+    ("POST", "/api/rovers/spirit/queue/1/move", "operator", {"json": {"to": 0}}),
     ("DELETE", "/api/sequences/1", "operator", {}),
+    ("GET", "/api/rovers/spirit/limits", "viewer", {}),
+    ("GET", "/api/rovers/spirit/alarms", "viewer", {}),
+    ("PUT", "/api/rovers/spirit/limits/tilt_accel_deg", "operator", {"json": TILT_LIMITS}),
+    ("DELETE", "/api/rovers/spirit/limits/tilt_accel_deg", "operator", {}),
+    ("POST", "/api/alarms/1/acknowledge", "operator", {}),  # none raised: 404 once allowed
     ("GET", "/api/users", "admin", {}),
     ("POST", "/api/users", "admin", {"json": {"name": "newcomer", "role": "viewer"}}),
     ("PATCH", "/api/users/victim", "admin", {"json": {"role": "operator"}}),
@@ -76,6 +87,7 @@ def _snapshot(client: TestClient) -> dict[str, Any]:
         rover: {
             "sequences": client.get(f"/api/rovers/{rover}/sequences", headers=admin).json(),
             "state": {k: v for k, v in runtime.state().items() if k != "frame"},
+            "limits": client.get(f"/api/rovers/{rover}/limits", headers=admin).json(),
         }
         for rover, runtime in server.rovers.items()
     } | {"users": client.get("/api/users", headers=admin).json()}
@@ -103,7 +115,8 @@ def test_every_route_has_a_role_here(setup: tuple[TestClient, dict[str, str], bo
     client = setup[0]
     listed = {(m, p) for m, p, _, _ in ROUTES} | OPEN
     templates = {"{rover}": "spirit", "{sequence_id:int}": "1", "{sol}": "0", "{name}": "victim",
-                 "{path:path}": "index.html"}  # fmt: skip
+                 "{path:path}": "index.html", "{channel}": "tilt_accel_deg",
+                 "{alarm_id}": "1"}  # fmt: skip
     missing = []
     for route in client.app.routes:  # type: ignore[attr-defined]
         if isinstance(route, APIRoute) and (

@@ -39,6 +39,7 @@ from sequences.validate import (
     estimate_duration_s,
     validate,
 )
+from server.cli import NO_ROVER_NOTE
 from tests.test_cli import _run as run_cli
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -586,7 +587,11 @@ def test_cli_valid_file_exits_0(capsys: pytest.CaptureFixture[str]) -> None:
     assert "0 error(s)" in err
     code, out, _ = _cli(capsys, "validate", path, "--json")
     assert code == 0
-    assert json.loads(out) == {"file": path, "ok": True, "errors": [], "warnings": []}
+    report = json.loads(out)
+    assert report == {"file": path, "ok": True, "errors": [], "warnings": [], **NO_ROVER}
+
+
+NO_ROVER = {"rover": None, "note": NO_ROVER_NOTE}
 
 
 def test_cli_errors_and_warnings_in_compiler_format(
@@ -683,7 +688,7 @@ def test_ten_thousand_lines_validate(capsys: pytest.CaptureFixture[str]) -> None
 
 
 def test_sequences_imports_nothing_of_sim_server_or_estimation() -> None:
-    """DESIGN.md: ``server, sim -> sequences``; the rover's world comes in by the context."""
+    """docs/DESIGN.md: ``server, sim -> sequences``; the rover's world comes in by the context."""
     import ast
 
     offenders = []

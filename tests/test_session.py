@@ -1,4 +1,4 @@
-"""``RoverSession`` end to end: SAPP in the loop on the simulated rover (DESIGN.md, "One
+"""``RoverSession`` end to end: SAPP in the loop on the simulated rover (docs/DESIGN.md, "One
 control cycle"; seed 000 sec. 2.2.4 GetFineAttitude, sec. 2.5 position, sec. 1 HGA).
 
 Gusev, 2004-04-14 16:30 UTC (sun 47 deg up, Earth 75 deg up): GetFineAttitude, a 5 m
@@ -19,13 +19,14 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from estimation.aqf import AttitudeQuality as Aqf
+from estimation.events import Event
 from sequences import commands as cmd
 from sim.session import CommandReport, RoverSession
 
 DAY = datetime(2004, 4, 14, 16, 30, tzinfo=UTC)
 NIGHT = datetime(2004, 4, 14, 4, 0, tzinfo=UTC)
 SEED = 1
-# DESIGN.md, "Contracts": the telemetry frame
+# docs/DESIGN.md, "Contracts": the telemetry frame
 TELEMETRY_KEYS = {
     "t_s", "sol", "lmst_h", "nate_mode", "aqf", "q_b_ll_est", "q_b_ll_true", "p_s_est",
     "p_s_true", "site_index", "imu_integration_s", "gyro_counter_s", "tilt_est_deg",
@@ -91,8 +92,8 @@ def test_the_commands_complete_and_get_fine_attitude_reaches_fine(day: Day) -> N
     for report in (day.fine, day.drive, day.plant, day.hga, day.articulate, day.stop):
         assert report.status == "completed", (report.command, report.reason)
     assert day.fine.details["aqf_before"] == "Unknown" and day.fine.details["aqf"] == "Fine"
-    assert day.fine.events[-1] == "GetFineAttitude done: AQF Fine"
-    assert any(e.startswith("Sungaze: converged") for e in day.fine.events)
+    assert day.fine.events[-1] == Event("GetFineAttitude done: AQF Fine", "acquisition")
+    assert any(e.text.startswith("Sungaze: converged") for e in day.fine.events)
     assert math.degrees(day.fine_error_rad) < 0.5  # truth: well inside 1.5 deg 3σ
     last = day.session.frames[day.fine_frame_count - 1]
     assert last.aqf == "Fine" and last.nate_mode == "Idle"
@@ -155,7 +156,10 @@ def test_a_drive_during_articulate_is_refused_and_leaves_nate_unchanged(day: Day
     assert day.refused_after == day.refused_before
     assert day.refused_t[1] == day.refused_t[0]  # no time passed, nothing moved
     assert day.refused_before[2].value == "Articulate"  # type: ignore[attr-defined]
-    assert any("DRIVE_STRAIGHT refused" in e for e in day.refused.events)
+    assert any(
+        "DRIVE_STRAIGHT refused" in e.text and (e.kind, e.severity) == ("command", "error")
+        for e in day.refused.events
+    )
     assert day.session.nate.mode.value == "Idle"  # ArticulateStop still worked
 
 

@@ -259,16 +259,90 @@ def test_missing_columns_are_added_to_any_table(store_url: str) -> None:
         store.close()
 
 
+def ev(text: str, kind: str = "site", severity: str = "info") -> dict[str, str]:
+    return {"text": text, "kind": kind, "severity": severity}
+
+
 def test_events_round_trip(store: Store) -> None:
-    store.add_events("spirit", [(20.0, "Site planted"), (10.0, "Sunfind failed")])
-    store.add_events("opportunity", [(15.0, "HGA pass, margin 1.2 deg")])
+    planted, failed = ev("Site 1 planted"), ev("Sunfind: no sun", "sunfind", "error")
+    store.add_events("spirit", [(20.0, planted), (10.0, failed)])
+    store.add_events("opportunity", [(15.0, ev("HGA pass, margin 1.2 deg", "hga"))])
     store.add_events("spirit", [])
     assert store.events("spirit", 0.0, 100.0) == [
-        {"t_s": 10.0, "text": "Sunfind failed"},
-        {"t_s": 20.0, "text": "Site planted"},
+        {"t_s": 10.0, **failed},
+        {"t_s": 20.0, **planted},
     ]
-    assert store.events("spirit", 10.0, 10.0) == [{"t_s": 10.0, "text": "Sunfind failed"}]
+    assert store.events("spirit", 10.0, 10.0) == [{"t_s": 10.0, **failed}]
     assert store.events("spirit", 11.0, 19.0) == []
+
+
+def test_an_old_events_table_gains_kind_and_severity(
+    store_url: str, real_frames: list[dict[str, Any]]
+) -> None:
+    """A database from before events had a kind and a severity: opening it adds both
+    columns; its events, and the bare-text events inside its stored frames, read back as
+    kind ``unknown``, severity ``info``, beside the new ones."""
+    from sqlalchemy import inspect, text
+
+    store = Store(store_url)
+    old_frame = {**real_frames[0], "events": ["Nadir Update succeeded"]}
+    store.add_frames("spirit", [old_frame])
+    with store.engine.begin() as conn:
+        conn.execute(text("DROP INDEX ix_events_rover_t"))
+        conn.execute(text("ALTER TABLE events DROP COLUMN kind"))
+        conn.execute(text("ALTER TABLE events DROP COLUMN severity"))
+        conn.execute(
+            text("INSERT INTO events (rover, t_s, text) VALUES ('spirit', 1.0, 'Site planted')")
+        )
+    store.close()
+
+    store = Store(store_url)
+    try:
+        columns = {c["name"] for c in inspect(store.engine).get_columns("events")}
+        assert {"kind", "severity"} <= columns
+        store.add_events("spirit", [(2.0, ev("Sunfind: no sun", "sunfind", "error"))])
+        assert store.events("spirit", 0.0, 3.0) == [
+            {"t_s": 1.0, "text": "Site planted", "kind": "unknown", "severity": "info"},
+            {"t_s": 2.0, "text": "Sunfind: no sun", "kind": "sunfind", "severity": "error"},
+        ]
+        (frame,) = all_frames(store)
+        assert frame["events"] == [
+            {"text": "Nadir Update succeeded", "kind": "unknown", "severity": "info"}
+        ]
+        assert store.last_frame("spirit") == frame
+    finally:
+        store.close()
+
+
+def test_the_event_log_filters_and_pages(store: Store) -> None:
+    """``event_log``: kinds, severities, text (any case, ``%`` and ``_`` literal), a time
+    window and before-t_s paging, newest first, with the count of all that match."""
+    rows = [
+        (1.0, ev("Site 1 planted")),
+        (2.0, ev("Sunfind: 100% no sun_x", "sunfind", "error")),
+        (3.0, ev("Sungaze: converged", "sungaze")),
+        (4.0, ev("HGA pass with AQF Coarse: pointing not assured", "hga", "warning")),
+        (5.0, ev("Site 2 planted")),
+    ]
+    store.add_events("spirit", rows)
+    store.add_events("opportunity", rows)
+
+    def texts(**kw: Any) -> tuple[list[str], int]:
+        got, total = store.event_log("spirit", 0.0, 10.0, **kw)
+        return [e["text"][:6] for e in got], total
+
+    assert texts() == (["Site 2", "HGA pa", "Sungaz", "Sunfin", "Site 1"], 5)
+    assert texts(kinds=["site", "hga"]) == (["Site 2", "HGA pa", "Site 1"], 3)
+    assert texts(severities=["warning", "error"]) == (["HGA pa", "Sunfin"], 2)
+    assert texts(text_contains="SUN") == (["Sungaz", "Sunfin"], 2)
+    assert texts(text_contains="100%") == (["Sunfin"], 1)
+    assert texts(text_contains="n_x") == (["Sunfin"], 1)
+    assert texts(text_contains="0%_") == ([], 0)
+    assert texts(limit=2) == (["Site 2", "HGA pa"], 5)
+    assert texts(limit=2, offset=2) == (["Sungaz", "Sunfin"], 5)
+    assert texts(before_t_s=4.0, limit=2) == (["Sungaz", "Sunfin"], 3)
+    assert texts(kinds=["site"], newest_first=False) == (["Site 1", "Site 2"], 2)
+    assert store.event_log("spirit", 2.0, 3.0)[1] == 2
 
 
 # ---- telemetry frames -------------------------------------------------------------------
@@ -387,7 +461,7 @@ def test_batch_writer_flushes_on_its_own(store: Store, real_frames: list[dict[st
     writer.start()
     try:
         writer.frames("spirit", real_frames[:10])
-        writer.events("spirit", [(real_frames[3]["t_s"], "Sungaze converged")])
+        writer.events("spirit", [(real_frames[3]["t_s"], ev("Sungaze converged", "sungaze"))])
         writer.command(
             "spirit", sequence_id=seq, step_index=0, command="SUNGAZE", status="completed",
             reason=None, start_t_s=1.0, end_t_s=2.0, events=["Sungaze converged"],
@@ -418,10 +492,10 @@ def test_batch_writer_stop_and_flush_write_everything(
     writer.flush()
     assert len(all_frames(store)) == 5
     writer.frames("spirit", real_frames[5:])
-    writer.events("spirit", [(1.0, "e")])
+    writer.events("spirit", [(1.0, ev("e"))])
     writer.stop()
     assert all_frames(store) == real_frames
-    assert store.events("spirit", 0.0, 2.0) == [{"t_s": 1.0, "text": "e"}]
+    assert store.events("spirit", 0.0, 2.0) == [{"t_s": 1.0, **ev("e")}]
 
 
 def test_batch_writer_drops_only_a_bad_row(

@@ -227,3 +227,200 @@ def test_the_estimators_beside_sapp_are_lines_on_the_error_plots(page: Page) -> 
     page.get_by_test_id("timeline-panel").screenshot(
         path=str(ARTIFACTS / "timeline-estimators.png")
     )
+
+
+# ---- telemetry at a glance (web/plot.js) ------------------------------------------------
+
+TRUTH_RGB = (0xE6, 0x5A, 0xC8)  # plot.js COLOURS.truth
+ROVER_RGB = (0x3D, 0x8B, 0xFD)  # plot.js COLOURS.rover
+
+
+def _channel(server: str, name: str, sol: int) -> dict[str, Any]:
+    params: dict[str, Any] = {"sol_from": sol, "sol_to": sol, "max_points": 2000}
+    got: dict[str, Any] = httpx.get(
+        f"{server}/api/rovers/spirit/channels/{name}", params=params
+    ).json()
+    return got
+
+
+def test_a_channel_is_plotted_over_the_chosen_sols(page: Page, server: str) -> None:
+    """Pick a channel and a sol range: the plot has the API's points, LMST labels with the
+    sol, and the truth-view marker exactly when the channel is scored against truth."""
+    sol = httpx.get(f"{server}/api/rovers/spirit/sols").json()[-1]
+    httpx.post(f"{server}/api/rovers/spirit/clock", json={"action": "pause"}, headers=AUTH)
+    try:
+        plot = page.get_by_test_id("channel-plot")
+        expect(plot).to_have_attribute("data-channel", "hga_margin_deg")  # the first draw
+        page.select_option("[data-testid=plot-channel]", "position_error_m")
+        page.fill("[data-testid=plot-sol-from]", str(sol))
+        page.fill("[data-testid=plot-sol-to]", str(sol))
+        page.click("[data-testid=plot-draw]")
+        api = _channel(server, "position_error_m", sol)
+        assert len(api["t_s"]) > 20
+        expect(plot).to_have_attribute("data-channel", "position_error_m")
+        expect(plot).to_have_attribute("data-points", str(len(api["t_s"])))
+        expect(page.get_by_test_id("plot-truth")).to_be_visible()
+        assert plot.locator("canvas").evaluate(COUNT_COLOUR, TRUTH_RGB) > 40
+        plot.locator(".u-over").hover()  # the legend reads the x under the pointer
+        expect(plot.locator(".u-legend")).to_contain_text(re.compile(rf"Sol {sol} \d\d:\d\d"))
+        page.get_by_test_id("telemetry-panel").screenshot(
+            path=str(ARTIFACTS / "telemetry-plot-truth.png")
+        )
+
+        page.select_option("[data-testid=plot-channel]", "imu_integration_s")
+        api = _channel(server, "imu_integration_s", sol)
+        expect(plot).to_have_attribute("data-channel", "imu_integration_s")
+        expect(plot).to_have_attribute("data-points", str(len(api["t_s"])))
+        expect(page.get_by_test_id("plot-truth")).to_be_hidden()
+        assert plot.locator("canvas").evaluate(COUNT_COLOUR, ROVER_RGB) > 40
+        page.get_by_test_id("telemetry-panel").screenshot(
+            path=str(ARTIFACTS / "telemetry-plot.png")
+        )
+        # narrow: the panel and its plot shrink to the window
+        page.set_viewport_size({"width": 760, "height": 900})
+        page.wait_for_function(
+            "() => document.querySelector('[data-testid=channel-plot] canvas')"
+            ".getBoundingClientRect().right <= 760"
+        )
+        assert _box(page, "#telemetry-panel")["x"] + _box(page, "#telemetry-panel")["width"] <= 760
+        page.get_by_test_id("telemetry-panel").screenshot(
+            path=str(ARTIFACTS / "telemetry-plot-760.png")
+        )
+        page.fill("[data-testid=plot-sol-to]", str(sol - 1))
+        page.click("[data-testid=plot-draw]")
+        expect(page.get_by_test_id("plot-status")).to_contain_text("no smaller")
+    finally:
+        httpx.post(f"{server}/api/rovers/spirit/clock", json={"action": "resume"}, headers=AUTH)
+
+
+# ---- the live timeline ------------------------------------------------------------------
+
+SOL_S = 88775.244
+MARK_NODES = """() => {
+  for (const selector of ['[data-testid=timeline-command]', '[data-testid=timeline-aqf]',
+      '[data-testid=timeline-event]', '[data-testid=plot-position-error] canvas']) {
+    document.querySelector(selector).dataset.marker = 'kept';
+  }
+}"""
+
+
+# A frame 5 s after the rover's latest, carrying two events of frames it skipped (1 s and 2 s
+# after the latest), as the hub sends them; returns the latest frame's t_s.
+LIVE_EVENT_FRAME = """async () => {
+  const f = (await (await fetch('/api/rovers/spirit/state')).json()).frame;
+  const at = (dt) => ({ t_s: f.t_s + dt, sol: f.sol, lmst_h: f.lmst_h + dt * 24 / 88775.244 });
+  const event = (dt, text) => ({ text, kind: "server", severity: "info", ...at(dt) });
+  const events = [event(1, "test event A"), event(2, "test event B")];
+  window.roverops.emit("frame", { ...f, ...at(5), events });
+  return f.t_s;
+}"""
+
+
+def _loaded(page: Page) -> None:
+    expect(page.get_by_test_id("timeline-status")).to_contain_text("frames plotted")
+
+
+def _command(server: str, command: str, args: dict[str, Any] | None = None) -> int:
+    body = {"command": command, "args": args or {}}
+    r = httpx.post(f"{server}/api/rovers/spirit/commands", json=body, headers=AUTH)
+    assert r.status_code == 201, r.text
+    seq_id: int = r.json()["id"]
+    return seq_id
+
+
+def test_a_command_appears_live_without_a_reload_or_a_redraw(page: Page, server: str) -> None:
+    """With the current sol on screen, an immediate command's box appears in the commands
+    lane, its mode in the NATE lane and its points on the plots, with no Refresh; the nodes
+    drawn before (marked) are still the page's."""
+    sol = httpx.get(f"{server}/api/rovers/spirit/sols").json()[-1]
+    listed = httpx.get(f"{server}/api/rovers/spirit/sols/{sol}/timeline").json()["commands"]
+    _loaded(page)
+    commands = page.get_by_test_id("timeline-command")
+    expect(commands).to_have_count(len(listed))
+    plot = page.get_by_test_id("channel-plot")
+    expect(plot).to_have_attribute("data-channel", "hga_margin_deg")
+    points = int(plot.get_attribute("data-points") or 0)
+    page.evaluate(MARK_NODES)
+
+    seq_id = _command(server, "NADIR_UPDATE")
+    expect(commands).to_have_count(len(listed) + 1)
+    expect(commands.last).to_have_attribute("title", re.compile(r"^NADIR_UPDATE\ncompleted"))
+    expect(
+        page.locator("[data-testid=timeline-nate][data-value=NadirUpdate]").first
+    ).to_be_attached()
+    expect(page.get_by_test_id("timeline-summary")).to_contain_text(f"{len(listed) + 1} commands")
+    expect(page.get_by_test_id("timeline-status")).to_contain_text("live:")
+    page.wait_for_function(
+        "n => Number(document.querySelector('[data-testid=channel-plot]').dataset.points) > n",
+        arg=points,
+    )
+    _wait(lambda: httpx.get(f"{server}/api/sequences/{seq_id}").json()["status"] == "completed")
+    # the rover fell idle: the lanes were checked against storage, in place
+    expect(page.get_by_test_id("timeline-panel")).to_have_attribute(
+        "data-reconciled", re.compile(r"^[1-9]\d*$")
+    )
+    assert page.locator("[data-marker=kept]").count() == 4, "a node drawn before was replaced"
+    stored = httpx.get(f"{server}/api/rovers/spirit/sols/{sol}/timeline").json()["commands"]
+    ids = commands.evaluate_all("els => els.map(e => Number(e.dataset.id))")
+    assert ids == [c["id"] for c in stored]  # the boxes are storage's commands, in order
+    page.get_by_test_id("timeline-panel").screenshot(path=str(ARTIFACTS / "timeline-live.png"))
+
+    # events as the event contract carries them on the WebSocket: objects with their own
+    # time (a frame of a batch carries the events of the frames it skipped)
+    base = page.evaluate(LIVE_EVENT_FRAME)
+    for text, dt in (("test event A", 1.0), ("test event B", 2.0)):
+        mark = page.locator(f"[data-testid=timeline-event][title*='{text}']")
+        expect(mark).to_have_count(1)
+        expect(mark).to_have_attribute("data-t", f"{base + dt:.3f}")  # its own time
+
+
+def test_following_live_moves_to_the_next_sol(page: Page, server: str) -> None:
+    """The rover waits past midnight: with Follow live on, the timeline shows the new sol
+    without a reload."""
+    state = httpx.get(f"{server}/api/rovers/spirit/state").json()
+    sol = state["sol"]
+    _loaded(page)
+    picker = page.get_by_test_id("timeline-sol")
+    expect(picker).to_have_value(str(sol))
+    expect(page.get_by_test_id("timeline-follow")).to_be_checked()
+    _command(server, "WAIT", {"duration_s": (24.0 - state["lmst_h"]) * SOL_S / 24.0 + 120.0})
+    expect(picker).to_have_value(str(sol + 1))
+    expect(page.get_by_test_id("timeline-summary")).to_contain_text(f"Sol {sol + 1},")
+
+
+def test_focus_shows_the_sol_with_the_hairline_at_the_time(page: Page, server: str) -> None:
+    """roverops.emit("focus", {sol, t_s}) (the event log's link) shows that sol with the
+    hairline on the event; the live rover, now on a later sol, leaves that view alone."""
+    sols = httpx.get(f"{server}/api/rovers/spirit/sols").json()
+    old = next(
+        s
+        for s in sols
+        if httpx.get(f"{server}/api/rovers/spirit/sols/{s}/timeline").json()["summary"]["commands"]
+        >= 2
+    )
+    assert old < sols[-1], "the previous test moved the rover to a later sol"
+    timeline = httpx.get(f"{server}/api/rovers/spirit/sols/{old}/timeline").json()
+    event = next(e for e in timeline["events"] if "Sungaze: converged" in e["text"])
+    _loaded(page)
+    picker = page.get_by_test_id("timeline-sol")
+    expect(picker).to_have_value(str(sols[-1]))
+
+    page.evaluate("([sol, t]) => window.roverops.emit('focus', {sol, t_s: t})", [old, event["t_s"]])
+    expect(picker).to_have_value(str(old))
+    expect(page.get_by_test_id("timeline-summary")).to_contain_text(f"Sol {old},")
+    hairline = page.locator("#timeline-hairline")
+    expect(hairline).to_be_visible()
+    expect(hairline).to_have_attribute("data-focus-ts", str(event["t_s"]))
+    mark = page.locator(f"[data-testid=timeline-event][data-t='{event['t_s']:.3f}']")
+    line_box, mark_box = _box(page, "#timeline-hairline"), mark.bounding_box()
+    assert mark_box is not None
+    assert abs(line_box["x"] - (mark_box["x"] + mark_box["width"] / 2)) <= 2.0
+    page.get_by_test_id("timeline-panel").screenshot(path=str(ARTIFACTS / "timeline-focus.png"))
+
+    count = page.get_by_test_id("timeline-command").count()
+    seq_id = _command(server, "NADIR_UPDATE")
+    _wait(lambda: httpx.get(f"{server}/api/sequences/{seq_id}").json()["status"] == "completed")
+    expect(page.get_by_test_id("sol-clock")).to_contain_text(f"Sol {sols[-1]}")
+    expect(picker).to_have_value(str(old))
+    assert page.get_by_test_id("timeline-command").count() == count
+    expect(hairline).to_have_attribute("data-focus-ts", str(event["t_s"]))

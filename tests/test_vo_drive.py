@@ -92,7 +92,8 @@ def test_a_vo_drive_steps_images_and_updates(attitude: bool) -> None:
     details = report.details
     assert details["vo_steps"] == 2
     assert details["vo_updates"] + details["vo_failures"] == 2
-    vo_events = [e for e in report.events if e.startswith("VO step")]
+    vo_events = [e.text for e in report.events if e.kind == "vo"]
+    assert all(e.startswith("VO step") for e in vo_events)
     assert len(vo_events) == 2
     assert sum("failed" in e for e in vo_events) == details["vo_failures"]
     assert details["distance_truth_m"] == pytest.approx(1.5, rel=0.1)

@@ -94,9 +94,12 @@ function showFrame(f) {
   }
   showPosition(f);
   roverops.emit("frame", f);
-  for (const text of f.events || []) {
+  // Each event at its own time: a message at max speed carries the events of the frames
+  // the hub skipped, each stamped with its frame's lmst_h.
+  for (const e of f.events || []) {
     const li = document.createElement("li");
-    li.textContent = `${lmst(f.lmst_h)} ${text}`;
+    li.textContent = `${lmst(e.lmst_h ?? f.lmst_h)} ${e.text}`;
+    li.className = `sev-${e.severity}`;
     $("events").prepend(li);
   }
 }

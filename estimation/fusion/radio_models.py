@@ -5,7 +5,7 @@ the rover's body origin (rad) and its North and East velocity on the surface (m/
 
 - Eq. 1: the body-to-navigation rotation from the 3-2-1 Euler angles. The paper's
   navigation frame is East-North-Up; ours is the Local-Level frame (North, East, Down,
-  CONVENTIONS.md), where the same yaw-pitch-roll sequence gives
+  docs/CONVENTIONS.md), where the same yaw-pitch-roll sequence gives
   ``R_ll_b = R_z(ψ) R_y(θ) R_x(φ)`` (yaw clockwise from North, pitch nose up, roll right).
 - Eq. 2: ``dp/dt = D v``, ``dv/dt = Ξ[R_ll_b (ã - b_a)]_{3→2}``. The accelerometers read
   specific force; gravity lies along LL Down, so the first two (North, East) components of

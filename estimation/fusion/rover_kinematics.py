@@ -7,7 +7,7 @@ equator (sec. 2.2.4). The flight software may not import the simulator, so it ke
 own copy of the rover's dimensions; ``tests/test_kinematic_ekf_sensors.py`` checks that
 they equal the simulated rover's.
 
-Frames (CONVENTIONS.md): body ``b`` x forward, y right, z down. A wheel frame ``w`` is
+Frames (docs/CONVENTIONS.md): body ``b`` x forward, y right, z down. A wheel frame ``w`` is
 ``R_b_w = Ry(link) Rz(σ)``: ``link`` the pitch of the link that carries the wheel (rocker,
 or rocker + bogie), ``σ`` the steering angle (positive turns the front to the right; zero
 on the middle wheels). In ``w`` the axle is +y, forward +x, down +z. The contact frame is

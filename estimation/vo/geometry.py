@@ -7,7 +7,7 @@ the pair's geometry at the mast pointing of the moment. This module fixes it onc
 the rig's pinhole model (``estimation.vo.stereo_rig``), ``R_b_cam`` (camera to body, the
 same for both eyes of the rectified pair) and the eyes' optical centres in the body frame.
 
-Frames (CONVENTIONS.md): ``b`` the rover body (x forward, y right, z down); the cameras
+Frames (docs/CONVENTIONS.md): ``b`` the rover body (x forward, y right, z down); the cameras
 ``navcam_l``/``navcam_r`` have z along the boresight, x right, y down. Pixels ``(u, v)`` are
 (column, row) as in ``estimation.camera_model``. Flight software: numpy only.
 """

@@ -13,7 +13,7 @@ converge, then no motion estimate update will be produced and the initial estima
 Whatever the outcome, the new pair becomes the reference for the next step (after a
 failure VO re-initialises on the pair it has, as MER did after too large a motion).
 
-Frames (CONVENTIONS.md): ``b0`` the body at the previous pair, ``b1`` at the new one;
+Frames (docs/CONVENTIONS.md): ``b0`` the body at the previous pair, ``b1`` at the new one;
 ``R_b0_b1`` takes ``b1`` coordinates to ``b0`` (the new attitude relative to the old);
 ``p_b1_b0`` is the new body origin in ``b0``, m. ``R_s_b0`` is the estimated attitude in the
 Site frame at the previous pair (for the sanity constraints only). Mast angles as in
@@ -72,7 +72,7 @@ class VoMotion:
 
     @property
     def q_b0_b1(self) -> FloatArray:
-        """``R_b0_b1`` as an ``[x, y, z, w]`` quaternion (CONVENTIONS.md)."""
+        """``R_b0_b1`` as an ``[x, y, z, w]`` quaternion (docs/CONVENTIONS.md)."""
         out: FloatArray = Rotation.from_matrix(self.R_b0_b1).as_quat()
         return out
 

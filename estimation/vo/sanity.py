@@ -10,7 +10,7 @@ active set of constraints is treated as a failure to converge."
 The update is what VO changes relative to the wheel-odometry (predicted) motion of the same
 step: the position update ``Δp_s = R_s_b0 (p_b1_b0(VO) - p_b1_b0(wheels))`` in the Site frame
 and the differences of roll, pitch and yaw of the new attitude ``R_s_b1 = R_s_b0 R_b0_b1``
-(z-y-x Euler angles of ``R_s_b``, CONVENTIONS.md: Site is North-East-Down, body
+(z-y-x Euler angles of ``R_s_b``, docs/CONVENTIONS.md: Site is North-East-Down, body
 forward-right-down). Downslope is the direction of steepest descent in the plane of the
 rover's deck: ``down_s`` minus its component along the body ``z`` axis. Slip carries the
 rover downhill, so an honest update points roughly downslope; on nearly level ground the
@@ -31,7 +31,7 @@ from estimation.camera_model import check_rotation_matrix
 
 FloatArray = NDArray[np.float64]
 
-DOWN_S = np.array([0.0, 0.0, 1.0])  # Site z points down (CONVENTIONS.md)
+DOWN_S = np.array([0.0, 0.0, 1.0])  # Site z points down (docs/CONVENTIONS.md)
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,7 @@ sec. 4); ``NAVCAM.at_resolution(256)`` is that camera.
 The pair is modelled rectified (both eyes share one orientation, the right eye displaced
 along the image ``x`` axis by the baseline), the ideal the CAHVOR calibration and
 epipolar rectification produce: a point images on the same row in both eyes, with
-disparity ``d = u_left - u_right = f B / z > 0``. Frames (CONVENTIONS.md): ``navcam_l``
+disparity ``d = u_left - u_right = f B / z > 0``. Frames (docs/CONVENTIONS.md): ``navcam_l``
 and ``navcam_r`` have z along the boresight, x right, y down in the image. The mast
 pointing is that of ``estimation.camera_model.R_b_pancam`` (azimuth clockwise from body
 +x about Down, elevation up from the body x-y plane).

@@ -1,0 +1,246 @@
+"""Telemetry at a glance: any numeric channel of the telemetry frame against time, over a
+sol or a range of sols, decimated on the server so that spikes survive.
+
+A channel is a numeric field of ``sim.session.TelemetryFrame`` (``hga_margin_deg``), one
+component of a numeric list field (``p_mission_est_0``), or a figure of an estimator
+running beside SAPP (``kinematic_ekf_position_error_m``): the names are the telemetry CSV's
+column names. Channels scored against the simulator's truth (``TRUTH_CHANNELS``, and every
+``*_true`` field) carry ``truth: true``: a real operator would not have them.
+
+Decimation keeps, per time bucket, the bucket's smallest and largest value (at their own
+times), so a one-frame spike is never averaged or skipped away; a bucket with a missing
+value (NaN, Earth below the horizon) keeps one gap.
+"""
+
+from __future__ import annotations
+
+import math
+import typing
+from collections.abc import Callable
+from dataclasses import dataclass, fields
+from typing import Annotated, Any
+
+from fastapi import FastAPI, HTTPException, Query
+
+from server.auth import Viewer
+from server.uploads import request_error
+from sim.marsclock import t_s_for_sol_lmst
+from sim.session import TelemetryFrame
+from sim.truth import STEERED_WHEELS
+
+MAX_SOLS = 7  # sols per request: a sol is up to ~90 000 stored frames at 1 Hz
+MAX_POINTS = 10_000
+DEFAULT_POINTS = 2000
+MIN_POINTS = 4  # two buckets of min and max
+MAX_SOL = 100_000  # as server.app
+AXES = ("t_s", "sol", "lmst_h")  # the x axis, not channels
+# Components of the list fields (TelemetryFrame's docstring: quaternions [x, y, z, w],
+# positions and unit vectors [x, y, z] in their frame, bogies [left, right]).
+LENGTHS = {"q_": 4, "p_": 3, "bogie_deg": 2, "steer_deg": len(STEERED_WHEELS), "_ll_true": 3}
+# Scored against the simulator's truth (besides every *_true field).
+TRUTH_CHANNELS = {"position_error_m", "attitude_error_deg", "hga_error_deg", "hga_margin_deg"}
+SIDE_FIELDS = {"position_error_m": None, "attitude_error_deg": None, "p_mission": 3, "q_b_ll": 4}
+UNITS = (("_deg", "deg"), ("_m", "m"), ("_s", "s"))
+
+
+@dataclass(frozen=True)
+class Channel:
+    """One plottable channel: its name (a CSV column), unit, truth flag and getter."""
+
+    name: str
+    unit: str
+    truth: bool
+    read: Callable[[dict[str, Any]], Any]
+
+    def describe(self) -> dict[str, Any]:
+        return {"name": self.name, "unit": self.unit, "truth": self.truth}
+
+
+def _unit(field_name: str) -> str:
+    if field_name.startswith("p_"):
+        return "m"
+    for suffix, unit in UNITS:
+        if field_name.endswith(suffix):
+            return unit
+    return ""  # quaternion components, unit vectors, counts
+
+
+def _length(field_name: str) -> int:
+    for key, n in LENGTHS.items():
+        if field_name.startswith(key) or field_name.endswith(key):
+            return n
+    raise ValueError(f"no known length for the list field {field_name}")
+
+
+def _is_truth(field_name: str) -> bool:
+    return field_name in TRUTH_CHANNELS or field_name.endswith("_true")
+
+
+def _component(key: str, i: int) -> Callable[[dict[str, Any]], Any]:
+    def read(f: dict[str, Any]) -> Any:
+        value = f.get(key) or []
+        return value[i] if len(value) > i else None
+
+    return read
+
+
+def _scalar(key: str) -> Callable[[dict[str, Any]], Any]:
+    return lambda f: f.get(key)
+
+
+def _side(name: str, key: str, i: int | None) -> Callable[[dict[str, Any]], Any]:
+    def read(f: dict[str, Any]) -> Any:
+        value = ((f.get("estimators") or {}).get(name) or {}).get(key)
+        if i is None or value is None:
+            return value
+        return value[i] if len(value) > i else None
+
+    return read
+
+
+def frame_channels() -> dict[str, Channel]:
+    """The numeric channels of every frame, from ``TelemetryFrame``'s field types."""
+    hints = typing.get_type_hints(TelemetryFrame)
+    out: dict[str, Channel] = {}
+    for f in fields(TelemetryFrame):
+        hint = hints[f.name]
+        if f.name in AXES:
+            continue
+        if hint in (float, int):
+            out[f.name] = Channel(f.name, _unit(f.name), _is_truth(f.name), _scalar(f.name))
+        elif typing.get_origin(hint) is list and typing.get_args(hint) == (float,):
+            for i in range(_length(f.name)):
+                name = f"{f.name}_{i}"
+                out[name] = Channel(name, _unit(f.name), _is_truth(f.name), _component(f.name, i))
+    return out
+
+
+def side_channels(estimators: list[str]) -> dict[str, Channel]:
+    """The figures of the estimators running beside SAPP (their error figures are scored
+    against truth; their estimates are not)."""
+    out: dict[str, Channel] = {}
+    for name in estimators:
+        for key, n in SIDE_FIELDS.items():
+            for i in [None] if n is None else list(range(n)):
+                full = f"{name}_{key}" + ("" if i is None else f"_{i}")
+                out[full] = Channel(full, _unit(key), _is_truth(key), _side(name, key, i))
+    return out
+
+
+def channels_of(last_frame: dict[str, Any] | None) -> dict[str, Channel]:
+    """The channels of a rover: the frame's, and those of the estimators its last frame
+    shows running beside SAPP."""
+    running = sorted((last_frame or {}).get("estimators") or {})
+    return frame_channels() | side_channels(running)
+
+
+def _number(value: Any) -> float | None:
+    if value is None or isinstance(value, bool):
+        return None
+    x = float(value)
+    return x if math.isfinite(x) else None
+
+
+def decimate(t: list[float], values: list[float | None], max_points: int) -> list[int]:
+    """The indices to keep of a time series (``t`` ascending) so that at most
+    ``max_points`` remain: per time bucket, the first gap and the smallest and largest
+    value, in time order. Every index when there are few enough."""
+    n = len(t)
+    if n <= max_points:
+        return list(range(n))
+    buckets = max(1, max_points // 3)  # up to a gap, a min and a max each
+    t0, span = t[0], (t[-1] - t[0]) or 1.0
+    keep: list[int] = []
+    start = 0
+    for b in range(buckets):
+        end = n if b == buckets - 1 else start
+        edge = t0 + span * (b + 1) / buckets
+        while end < n and t[end] < edge:
+            end += 1
+        if end > start:
+            lo = hi = gap = None
+            for i in range(start, end):
+                v = values[i]
+                if v is None:
+                    gap = i if gap is None else gap
+                    continue
+                if lo is None or v < values[lo]:  # type: ignore[operator]
+                    lo = i
+                if hi is None or v > values[hi]:  # type: ignore[operator]
+                    hi = i
+            keep.extend(sorted({i for i in (lo, hi, gap) if i is not None}))
+        start = end
+    return keep
+
+
+def channel_series(
+    frames: list[dict[str, Any]], channel: Channel, max_points: int
+) -> dict[str, Any]:
+    """The channel's values over ``frames`` (ascending), decimated to ``max_points``."""
+    t = [float(f["t_s"]) for f in frames]
+    values = [_number(channel.read(f)) for f in frames]
+    keep = decimate(t, values, max_points)
+    return {
+        **channel.describe(),
+        "frames": len(frames),
+        "decimated": len(keep) < len(frames),
+        "t_s": [t[i] for i in keep],
+        "sol": [int(frames[i]["sol"]) for i in keep],
+        "lmst_h": [float(frames[i]["lmst_h"]) for i in keep],
+        "values": [values[i] for i in keep],
+    }
+
+
+NOT_FOUND: dict[int | str, dict[str, Any]] = {
+    404: {"description": "no such rover or channel (the answer names the known channels)"}
+}
+BAD_REQUEST: dict[int | str, dict[str, Any]] = {422: {"description": "the request's problems"}}
+
+
+def add_routes(api: FastAPI, server: Any) -> None:
+    """The channel routes, on the app ``api`` over ``server`` (``server.app.Server``)."""
+
+    def known(rover: str) -> dict[str, Channel]:
+        runtime = server.rover(rover)
+        return channels_of(runtime.last_frame)
+
+    @api.get("/api/rovers/{rover}/channels", responses=NOT_FOUND)
+    def list_channels(rover: str, _: Viewer) -> list[dict[str, Any]]:
+        """The numeric telemetry channels: name, unit, and whether it is scored against
+        the simulator's truth (a view no real operator has)."""
+        return [c.describe() for c in known(rover).values()]
+
+    @api.get("/api/rovers/{rover}/channels/{channel}", responses={**NOT_FOUND, **BAD_REQUEST})
+    def channel_values(
+        rover: str,
+        channel: str,
+        _: Viewer,
+        sol_from: Annotated[int | None, Query(ge=0, le=MAX_SOL)] = None,
+        sol_to: Annotated[int | None, Query(ge=0, le=MAX_SOL)] = None,
+        max_points: Annotated[int, Query(ge=MIN_POINTS, le=MAX_POINTS)] = DEFAULT_POINTS,
+    ) -> dict[str, Any]:
+        """One channel over sols ``sol_from``-``sol_to`` (default: the rover's sol now; at
+        most MAX_SOLS sols), as ``t_s``, ``sol``, ``lmst_h`` and ``values`` arrays (null:
+        no value), at most ``max_points`` long: decimated keeping each bucket's min and
+        max."""
+        runtime = server.rover(rover)
+        channels = known(rover)
+        if channel not in channels:
+            raise HTTPException(404, f"unknown channel {channel!r}; known: {', '.join(channels)}")
+        now = runtime.sol(runtime.t_s)
+        lo = now if sol_from is None else sol_from
+        hi = lo if sol_to is None else sol_to
+        if hi < lo:
+            raise request_error(("query", "sol_to"), "sol_to: must be >= sol_from", "range")
+        if hi - lo + 1 > MAX_SOLS:
+            raise request_error(
+                ("query", "sol_to"), f"at most {MAX_SOLS} sols at once, asked {hi - lo + 1}",
+                "range",
+            )  # fmt: skip
+        server.writer.flush()
+        mission = runtime.spec.mission
+        t0 = t_s_for_sol_lmst(mission, lo, 0.0)
+        t1 = t_s_for_sol_lmst(mission, hi + 1, 0.0)
+        frames = [f for f in server.store.frames(rover, t0, t1) if lo <= int(f["sol"]) <= hi]
+        return {"rover": rover, "sol_from": lo, "sol_to": hi,
+                **channel_series(frames, channels[channel], max_points)}  # fmt: skip

@@ -1,0 +1,182 @@
+"""The alarm engine (server.alarms) on made-up frames: one alarm per violation however long
+the value hovers at the limit, escalation, clear only past the hysteresis, listed until
+both acknowledged and cleared, a re-raise of an unacknowledged cleared alarm, truth-view
+channels marked, Earth below the horizon judged as no value, limits edited and judged at
+once, and everything as it was after a restart (a new engine on the same database)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from server.alarms import AlarmEngine, AlarmError
+from server.limits import LimitsError
+from server.storage import Store
+
+
+class Rig:
+    """An engine on a database, recording its notices."""
+
+    def __init__(self, url: str) -> None:
+        self.store = Store(url)
+        self.notices: list[dict[str, Any]] = []
+        self.engine = self.new_engine()
+
+    def new_engine(self) -> AlarmEngine:
+        def when(rover: str, t_s: float) -> dict[str, Any]:
+            return {"t_s": t_s, "utc": f"utc-{t_s:g}", "lmst_h": t_s / 3600.0, "sol": 7}
+
+        return AlarmEngine(self.store, when, lambda rover, n: self.notices.append(n))
+
+    def feed(self, t_s: float, **values: Any) -> None:
+        frame = {"t_s": t_s, "aqf": "Fine", "earth_up": True, "hga_margin_deg": 1.9,
+                 "hga_margin_predicted_deg": 0.5, **values}  # fmt: skip
+        self.engine.frames("spirit", [frame])
+
+    def alarms(self, **kwargs: Any) -> list[dict[str, Any]]:
+        return self.engine.listed("spirit", kwargs.get("listed"), 100)
+
+
+@pytest.fixture
+def rig(tmp_path: Path) -> Iterator[Rig]:
+    r = Rig(f"sqlite:///{tmp_path / 'alarms.db'}")
+    yield r
+    r.store.close()
+
+
+def test_a_value_hovering_at_the_limit_raises_one_alarm_and_clears_past_the_hysteresis(
+    rig: Rig,
+) -> None:
+    # imu_integration_s: warning above 8000 s, hysteresis 0 -> use tilt (hysteresis 1 deg)
+    for k, tilt in enumerate([24.0, 25.5, 24.6, 25.2, 24.5, 25.9, 24.1]):
+        rig.feed(100.0 + k, tilt_accel_deg=tilt)
+    alarms = rig.alarms()
+    assert len(alarms) == 1
+    (alarm,) = alarms
+    assert (alarm["channel"], alarm["level"], alarm["value"], alarm["limit"]) == (
+        "tilt_accel_deg", "warning", 25.5, 25.0,
+    )  # fmt: skip
+    assert alarm["raised"] == {"t_s": 101.0, "utc": "utc-101", "lmst_h": 101.0 / 3600, "sol": 7}
+    assert alarm["cleared"] is None  # 24.1 is not 1 deg inside 25
+    rig.feed(200.0, tilt_accel_deg=23.9)
+    cleared = rig.alarms()[0]["cleared"]
+    assert cleared == {"t_s": 200.0, "utc": "utc-200", "lmst_h": 200.0 / 3600}
+    assert [n["alarm"]["cleared"] is not None for n in rig.notices] == [False, True]
+    assert all(n["type"] == "alarm" for n in rig.notices)
+
+
+def test_a_warning_escalates_to_critical_and_keeps_its_worst_level(rig: Rig) -> None:
+    rig.feed(1.0, tilt_accel_deg=26.0)
+    rig.feed(2.0, tilt_accel_deg=31.0)
+    rig.feed(3.0, tilt_accel_deg=26.0)  # back to warning: still critical
+    (alarm,) = rig.alarms()
+    assert (alarm["level"], alarm["value"], alarm["limit"]) == ("critical", 31.0, 30.0)
+    assert "above the critical limit 30 deg" in alarm["message"]
+    assert alarm["raised"]["t_s"] == 1.0
+    assert [n["alarm"]["level"] for n in rig.notices] == ["warning", "critical"]
+
+
+def test_listed_until_acknowledged_and_cleared_in_either_order(rig: Rig) -> None:
+    rig.feed(1.0, tilt_accel_deg=26.0)
+    rig.feed(2.0, vo_failures_in_row=3)
+    tilt, vo = sorted(rig.alarms(), key=lambda a: a["channel"])
+    assert vo["level"] == "critical" and vo["channel"] == "vo_failures_in_row"
+    # tilt: acknowledged first, then cleared
+    acked = rig.engine.acknowledge(tilt["id"], "ada")
+    assert acked["acknowledged"]["by"] == "ada" and acked["cleared"] is None
+    assert {a["id"] for a in rig.alarms(listed=True)} == {tilt["id"], vo["id"]}
+    rig.feed(3.0, tilt_accel_deg=10.0, vo_failures_in_row=0)  # both clear
+    assert {a["id"] for a in rig.alarms(listed=True)} == {vo["id"]}  # vo unacknowledged
+    assert rig.engine.acknowledge(vo["id"], "bob")["cleared"]["t_s"] == 3.0
+    assert rig.alarms(listed=True) == []
+    assert {a["id"] for a in rig.alarms(listed=False)} == {tilt["id"], vo["id"]}
+    with pytest.raises(AlarmError) as twice:
+        rig.engine.acknowledge(vo["id"], "carl")
+    assert twice.value.status == 409 and "bob" in str(twice.value)
+    with pytest.raises(AlarmError) as unknown:
+        rig.engine.acknowledge(999, "carl")
+    assert unknown.value.status == 404
+    # a new violation after both: a new alarm
+    rig.feed(4.0, tilt_accel_deg=27.0)
+    assert len(rig.alarms()) == 3
+
+
+def test_a_cleared_unacknowledged_alarm_is_raised_again_not_doubled(rig: Rig) -> None:
+    rig.feed(1.0, tilt_accel_deg=26.0)
+    rig.feed(2.0, tilt_accel_deg=20.0)
+    rig.feed(3.0, tilt_accel_deg=31.0)
+    (alarm,) = rig.alarms()
+    assert alarm["cleared"] is None and alarm["violations"] == 2
+    assert (alarm["level"], alarm["value"]) == ("critical", 31.0)
+
+
+def test_truth_view_channels_are_marked_and_earth_below_the_horizon_is_no_value(
+    rig: Rig,
+) -> None:
+    rig.feed(1.0, hga_margin_deg=-1.0, earth_up=False)
+    assert rig.alarms() == []
+    rig.feed(2.0, hga_margin_deg=0.3, hga_margin_predicted_deg=0.05, aqf="TiltOnly")
+    by_channel = {a["channel"]: a for a in rig.alarms()}
+    assert set(by_channel) == {"hga_margin_deg", "hga_margin_predicted_deg", "aqf"}
+    truth = by_channel["hga_margin_deg"]
+    assert truth["truth"] and truth["message"].endswith("(truth view)")
+    assert not by_channel["hga_margin_predicted_deg"]["truth"]
+    assert not by_channel["aqf"]["truth"] and by_channel["aqf"]["level"] == "warning"
+    assert by_channel["aqf"]["value"] == "TiltOnly" and by_channel["aqf"]["limit"] == "TiltOnly"
+    rig.feed(3.0, hga_margin_deg=1.9, earth_up=False)  # no value: not a clear
+    assert {a["channel"]: a for a in rig.alarms()}["hga_margin_deg"]["cleared"] is None
+    rig.feed(4.0, hga_margin_deg=1.9)
+    assert {a["channel"]: a for a in rig.alarms()}["hga_margin_deg"]["cleared"]["t_s"] == 4.0
+
+
+def test_a_state_channel_alarms_only_where_an_operator_listed_states(rig: Rig) -> None:
+    rig.feed(1.0, nate_mode="Gyrocompass")
+    assert rig.alarms() == []  # no state alarms by default
+    rig.engine.set_limits("spirit", "nate_mode", {"warning": ["Gyrocompass"], "critical": []},
+                          "ada", {"t_s": 2.0, "nate_mode": "Gyrocompass"})  # fmt: skip
+    (alarm,) = rig.alarms()
+    assert (alarm["channel"], alarm["level"], alarm["limit"]) == (
+        "nate_mode", "warning", ["Gyrocompass"],
+    )  # fmt: skip
+
+
+def test_editing_a_limit_judges_the_latest_frame_at_once_and_survives_a_restart(
+    rig: Rig,
+) -> None:
+    latest = {"t_s": 5.0, "aqf": "Fine", "earth_up": True, "hga_margin_deg": 1.8}
+    rig.engine.frames("spirit", [latest])
+    assert rig.alarms() == []
+    rig.engine.set_limits("spirit", "hga_margin_deg", {"warning": 1.85, "critical": 0.0},
+                          "ada", latest)  # fmt: skip
+    (alarm,) = rig.alarms()
+    assert alarm["limit"] == 1.85 and alarm["truth"]
+    channels = {c["channel"]: c for c in rig.engine.limits("spirit")}
+    edited = channels["hga_margin_deg"]
+    assert (edited["warning"], edited["edited_by"], edited["default"]["warning"]) == (
+        1.85,
+        "ada",
+        0.5,
+    )
+    assert channels["aqf"]["edited_by"] is None
+    # bad levels: refused, nothing stored
+    with pytest.raises(LimitsError, match=r"critical .* must be at or below warning"):
+        rig.engine.set_limits(
+            "spirit", "hga_margin_deg", {"warning": 0.0, "critical": 1.0}, "x", None
+        )
+    with pytest.raises(KeyError):
+        rig.engine.set_limits("spirit", "warp_core", {"warning": 1, "critical": 2}, "x", None)
+    assert set(rig.store.stored_limits("spirit")) == {"hga_margin_deg"}
+    # restart: a new engine on the same database keeps the limit and the listed alarm
+    rig.engine = rig.new_engine()
+    rig.engine.frames("spirit", [{**latest, "t_s": 6.0, "hga_margin_deg": 1.7}])
+    assert len(rig.alarms()) == 1  # the same alarm, not a second one
+    after = {c["channel"]: c for c in rig.engine.limits("spirit")}["hga_margin_deg"]
+    assert after["warning"] == 1.85
+    # back to the default: judged at once, cleared
+    rig.engine.reset_limits("spirit", "hga_margin_deg", {**latest, "t_s": 7.0})
+    assert rig.alarms()[0]["cleared"]["t_s"] == 7.0
+    assert rig.store.stored_limits("spirit") == {}
+    assert rig.engine.limits("opportunity")[0]["edited_by"] is None  # per rover

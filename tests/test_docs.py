@@ -1,0 +1,91 @@
+"""The docs point only at what is in the repository (issue 14, item 10).
+
+The README pointed to a ``CONVENTIONS.md`` and the code to a ``DESIGN.md`` that were not in
+the repository. Here: every relative link of README.md and docs/*.md, and every backticked
+file name in them (``*.md`` anywhere; a path with a ``/`` and a source suffix), names a
+file that exists; the code's pointers to the design and the conventions name the files in
+docs/; and pyproject's licence is an SPDX string (a TOML table made setuptools print a
+deprecation banner on every install).
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+LINK = re.compile(r"\[[^\]]*\]\(([^)\s]+)\)")
+BACKTICKED = re.compile(r"`([^`\s]+)`")
+SOURCE = re.compile(r"^[\w.-]+(/[\w.-]+)+\.(py|md|seq|json|js|html|css|toml)$")
+
+
+def _targets(doc: Path) -> list[str]:
+    """What ``doc`` points at: relative links, backticked ``*.md`` names and paths."""
+    text = re.sub(r"```.*?```", "", doc.read_text(), flags=re.DOTALL)  # code blocks aside
+    found = [t.split("#")[0] for t in LINK.findall(text)]
+    found = [t for t in found if t and not re.match(r"^[a-z]+:", t)]  # http:, mailto:
+    for name in BACKTICKED.findall(text):
+        if name.endswith(".md") or SOURCE.match(name):
+            found.append(name)
+    return found
+
+
+def _exists(doc: Path, target: str) -> bool:
+    """A target is found beside the doc or from the repository's root."""
+    return (doc.parent / target).exists() or (ROOT / target).exists()
+
+
+def test_the_docs_are_found() -> None:
+    names = {d.name for d in DOCS}
+    assert {"README.md", "DESIGN.md", "CONVENTIONS.md", "sequences.md"} <= names
+    readme = _targets(ROOT / "README.md")
+    assert "docs/DESIGN.md" in readme and "docs/CONVENTIONS.md" in readme
+
+
+@pytest.mark.parametrize("doc", DOCS, ids=lambda d: d.name)
+def test_every_file_a_doc_names_exists(doc: Path) -> None:
+    missing = [t for t in _targets(doc) if not _exists(doc, t)]
+    assert missing == [], f"{doc.relative_to(ROOT)} names files not in the repository"
+
+
+def test_the_checker_sees_a_missing_file(tmp_path: Path) -> None:
+    doc = tmp_path / "README.md"
+    doc.write_text("See `CONVENTIONS.md`, [the design](docs/NOPE.md) and `server/nope.py`.\n")
+    assert [t for t in _targets(doc) if not _exists(doc, t)] == [
+        "docs/NOPE.md",
+        "CONVENTIONS.md",
+        "server/nope.py",
+    ]
+
+
+def test_the_docs_point_nowhere_outside_the_repository() -> None:
+    for doc in DOCS:
+        text = doc.read_text()
+        assert "../shared" not in text and "/work/" not in text, doc.name
+
+
+def test_the_codes_pointers_to_the_design_and_conventions_are_docs_files() -> None:
+    pointer = re.compile(r"(?<![\w/])([\w./]*)(DESIGN|CONVENTIONS)\.md")
+    wrong = []
+    for package in ("estimation", "sim", "server", "sequences", "tests", "web"):
+        for path in sorted((ROOT / package).rglob("*")):
+            if path.suffix not in (".py", ".js", ".html", ".seq") or path == Path(__file__):
+                continue
+            for prefix, name in pointer.findall(path.read_text()):
+                if prefix != "docs/":
+                    wrong.append(f"{path.relative_to(ROOT)}: {prefix}{name}.md")
+    assert wrong == []
+    assert (ROOT / "docs" / "DESIGN.md").is_file() and (ROOT / "docs" / "CONVENTIONS.md").is_file()
+
+
+def test_the_licence_is_an_spdx_string() -> None:
+    pyproject = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    assert isinstance(pyproject["project"]["license"], str)
+    assert pyproject["project"]["license"] == "MIT"
+    # an SPDX string needs setuptools 77 (PEP 639); an older one would refuse the build
+    requires = pyproject["build-system"]["requires"]
+    assert any(re.fullmatch(r"setuptools>=(7[7-9]|[89]\d|\d{3,})(\.\d+)*", r) for r in requires)
