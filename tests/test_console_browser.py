@@ -225,7 +225,8 @@ def _overlaps(page: Page) -> list[str]:
     """Pairs of the page's panels whose boxes intersect, a sideways scroll, a header on more
     than one line from 1280 px up, and anything over the 3D view's frame."""
     boxes = page.evaluate(
-        """() => [...document.querySelectorAll('header, main > section, #timeline-panel')]
+        """() => [...document.querySelectorAll(
+                    '#alarm-banner, header, main > section, body > section')]
               .map(e => { const r = e.getBoundingClientRect();
                           return [e.className || e.tagName, r.left, r.top, r.right, r.bottom]; })"""
     )
