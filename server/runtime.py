@@ -78,7 +78,7 @@ IDLE_CHUNK_S = SOL_S
 IDLE_STEP_S = 10.0  # at a finite speed the idle rover is simulated in steps this long
 # At max speed with nothing queued there is no next step to skip to. The clock does not stop
 # (a rover's time passes, and an operator reads a frozen LMST as a hung server): it runs in
-# real time until work arrives, and /state says so (``clock.effective_speed``). Faster would
+# real time until work arrives, and /state says so (``effective_speed``). Faster would
 # race through sols while an operator writes the next sequence (at 10,000x a sol takes 9 s
 # of wall time), moving the LMST its time tags were written against, and fill the database
 # with frames of an idle rover (an articulating one is propagated at 8 Hz); real time costs
@@ -432,11 +432,9 @@ class RoverRuntime:
                 "utc": t_s_to_utc(t).isoformat(),
                 "sol": self.sol(t),
                 "lmst_h": self.lmst_h(t),
-                "clock": {
-                    "running": self.clock.running,
-                    "speed": _speed_json(self.clock.speed),
-                    "effective_speed": _speed_json(self._effective_speed()),
-                },
+                "clock": {"running": self.clock.running, "speed": _speed_json(self.clock.speed)},
+                # what the clock runs at now (at max with nothing queued: real time)
+                "effective_speed": _speed_json(self._effective_speed()),
                 "executing": self.executing,
                 "queue": [
                     {

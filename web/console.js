@@ -122,8 +122,8 @@ function showPosition(f) {
 // The clock as the server runs it: at max with nothing queued it runs in real time
 // (server.runtime IDLE_SPEED_AT_MAX), and the header says so rather than "running at max".
 function speedLabel(v) { return v === "max" ? "max" : `${v}×`; }
-function showClock(c) {
-  const now = c.effective_speed === undefined ? c.speed : c.effective_speed;
+function showClock(c, effective) {
+  const now = effective === undefined ? c.speed : effective;
   const idleAtMax = c.speed === "max" && now !== "max";
   const text = `${c.running ? "running" : "paused"} at ${speedLabel(c.running ? now : c.speed)}`;
   $("speed-now").textContent = idleAtMax && c.running ? `${text} (max, idle)` : text;
@@ -154,7 +154,7 @@ async function refreshState() {
     : "empty";
   const head = s.queue[0];
   $("progress-bar").style.width = head ? `${(100 * head.next_step) / Math.max(1, head.steps)}%` : "0";
-  showClock(s.clock);
+  showClock(s.clock, s.effective_speed);
 }
 
 async function refreshSequences() {
