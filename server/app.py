@@ -444,6 +444,18 @@ def _diagnostics(result: ValidationResult) -> dict[str, Any]:
     return {"errors": as_list(result.errors), "warnings": as_list(result.warnings)}
 
 
+REJECTED_SHOWN = 3  # errors a rejected sequence's detail quotes (all are in its errors)
+
+
+def _rejected(errors: list[dict[str, Any]]) -> str:
+    """A rejected sequence's detail, as the sequences list shows it: how many errors, and
+    the first with their lines (``rejected: 2 errors: line 2: ...; line 4: ...``)."""
+    count = f"{len(errors)} error{'' if len(errors) == 1 else 's'}"
+    quoted = [f"line {e['line']}: {e['message']}" for e in errors[:REJECTED_SHOWN]]
+    more = [f"{len(errors) - REJECTED_SHOWN} more"] if len(errors) > REJECTED_SHOWN else []
+    return f"rejected: {count}: " + "; ".join(quoted + more) if errors else "rejected"
+
+
 def _request_errors(result: ValidationResult) -> list[dict[str, Any]]:
     """A sequence's errors as a 422 ``detail`` (``RequestErrors``): the diagnostic's code as
     ``type``, its message as ``msg``."""
@@ -598,11 +610,16 @@ def create_app(config: ServerConfig) -> FastAPI:
         name = checked.name
         result, diags = checked.result, _diagnostics(checked.result)
         if result.errors or result.sequence is None:
-            seq_id = await run_in_threadpool(
-                server.store.add_sequence,
-                rover, name, checked.text, checked.fmt, "rejected", diags["errors"],
-                diags["warnings"], [], who.name,
-            )  # fmt: skip
+
+            def store_rejected() -> int:
+                seq_id = server.store.add_sequence(
+                    rover, name, checked.text, checked.fmt, "rejected", diags["errors"],
+                    diags["warnings"], [], who.name,
+                )  # fmt: skip
+                server.store.set_sequence_status(seq_id, "rejected", _rejected(diags["errors"]))
+                return seq_id
+
+            seq_id = await run_in_threadpool(store_rejected)
             request.state.audit_action = f"upload sequence {name} (#{seq_id}): rejected"
             return JSONResponse({"id": seq_id, "status": "rejected", **diags}, status_code=422)
         steps = _steps_json(result.sequence)

@@ -9,8 +9,8 @@ its queue of accepted sequences, and a thread that runs the clock:
   LMST tag the next time the rover's LMST reads it, a sol-and-LMST tag at that moment, a
   relative tag that long after the previous command completed, no tag at once. Until then
   the rover waits: at a finite speed the wait is played out in wall time, at ``inf`` it is
-  skipped ("idle time is skipped"). With nothing queued the clock keeps running at a
-  finite speed and stands still at ``inf`` (there is nothing to skip to).
+  skipped ("idle time is skipped"). With nothing queued the clock keeps running: at a
+  finite speed at that speed, at ``inf`` at ``IDLE_SPEED_AT_MAX`` (below).
 - A command executes as a whole in the session (a drive takes a few seconds of wall time)
   and its frames are then *played out*: published (WebSocket subscribers, storage) as the
   clock reaches their time. So what is stored and shown never runs ahead of the clock.
@@ -76,6 +76,14 @@ MAX_TICK_S = 0.25  # wall seconds one tick may account for
 # Idle time skipped at max speed goes a sol at a time, so every sol has a frame to show.
 IDLE_CHUNK_S = SOL_S
 IDLE_STEP_S = 10.0  # at a finite speed the idle rover is simulated in steps this long
+# At max speed with nothing queued there is no next step to skip to. The clock does not stop
+# (a rover's time passes, and an operator reads a frozen LMST as a hung server): it runs in
+# real time until work arrives, and /state says so (``effective_speed``). Faster would
+# race through sols while an operator writes the next sequence (at 10,000x a sol takes 9 s
+# of wall time), moving the LMST its time tags were written against, and fill the database
+# with frames of an idle rover (an articulating one is propagated at 8 Hz); real time costs
+# one frame per IDLE_STEP_S.
+IDLE_SPEED_AT_MAX = 1.0
 FRAME_EVERY_S = 1.0  # 8 Hz activity is recorded at most once a simulated second
 CHECKPOINT_EVERY_S = 1.0  # wall seconds between checkpoints
 
@@ -425,6 +433,8 @@ class RoverRuntime:
                 "sol": self.sol(t),
                 "lmst_h": self.lmst_h(t),
                 "clock": {"running": self.clock.running, "speed": _speed_json(self.clock.speed)},
+                # what the clock runs at now (at max with nothing queued: real time)
+                "effective_speed": _speed_json(self._effective_speed()),
                 "executing": self.executing,
                 "queue": [
                     {
@@ -437,6 +447,13 @@ class RoverRuntime:
                 ],
                 "frame": self.last_frame,
             }
+
+    def _effective_speed(self) -> float:
+        """The speed the clock runs at now: ``speed``, except at max with nothing queued or
+        playing out (``IDLE_SPEED_AT_MAX``). The caller holds ``lock``."""
+        if math.isinf(self.clock.speed) and not self.queue and not self._playout:
+            return IDLE_SPEED_AT_MAX
+        return self.clock.speed
 
     # ---- the clock thread -------------------------------------------------------------
 
@@ -477,10 +494,12 @@ class RoverRuntime:
             assert step is not None
             self._execute(step[0])
             return
-        if math.isinf(speed):  # idle time is skipped: straight to the next step
-            if step is not None:
+        if math.isinf(speed):
+            if step is not None:  # idle time is skipped: straight to the next step
                 self._idle(min(target - sim_t, IDLE_CHUNK_S))
-            return
+                return
+            # nothing to skip to: the clock runs on in real time (IDLE_SPEED_AT_MAX)
+            budget = IDLE_SPEED_AT_MAX * min(dt_wall, MAX_TICK_S)
         # a finite speed: the clock moves on; the rover is simulated in IDLE_STEP_S steps
         self._clock_t_s = min(max(self._clock_t_s, sim_t) + budget, target)
         lag = self._clock_t_s - sim_t

@@ -69,6 +69,7 @@ TRACK_CHUNK = 200  # vertices per traverse node (10 m): a draw re-sends one chun
 HISTORY_EVERY_S = 5.0  # stored frames are read back at this spacing (traverses, slider)
 ARROW_LENGTH_M = 2.0
 CAMERA_OFFSET_W = np.array([-7.0, -5.0, -5.0])  # behind, to the left of and above the rover
+NARROW_VIEW_PX = 1000  # a 3D view narrower than this starts with its controls minimized
 
 SOIL_RGB = np.array([178.0, 118.0, 82.0])  # Gusev/Meridiani ochre at albedo 0.25
 TRUE_RGB = (230, 230, 225)
@@ -352,6 +353,19 @@ class Viewer:
         self.slider = gui.add_slider(SLIDER_LABEL, min=0.0, max=24.0, step=0.01, initial_value=0.0)
         self.follow.on_update(guarded("Follow live", self._on_follow))
         self.slider.on_update(guarded("the sol slider", self._on_slider))
+        self.placed = False  # the controls' placement, decided on the first camera report
+        client.camera.on_update(self._on_camera)
+
+    def _on_camera(self, camera: viser.CameraHandle) -> None:
+        """On the viewer's first camera report (it carries the view's size in pixels): a
+        narrow view, as the one embedded in the console is, gets its controls minimized to
+        their title bar (one click opens them) so that they do not cover the rover; a wide
+        view, as a tab of its own is on a desktop, keeps them open."""
+        if self.placed:
+            return
+        self.placed = True
+        if 0 < camera.image_width < NARROW_VIEW_PX:
+            self.client.gui.main_panel.minimize()
 
     # ---- what the viewer asks (viser's event loop) --------------------------------------
 

@@ -317,7 +317,11 @@ LIVE_EVENT_FRAME = """async () => {
 
 
 def _loaded(page: Page) -> None:
-    expect(page.get_by_test_id("timeline-status")).to_contain_text("frames plotted")
+    """The sol is drawn: its frames plotted, and maybe live frames added since (at max
+    speed with nothing queued the clock runs on in real time: server.runtime)."""
+    expect(page.get_by_test_id("timeline-status")).to_contain_text(
+        re.compile(r"frames plotted|live: \d+ frames? added")
+    )
 
 
 def _command(server: str, command: str, args: dict[str, Any] | None = None) -> int:

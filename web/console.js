@@ -13,11 +13,42 @@ function token() { return state.me && state.me.role ? sessionStorage.getItem("ro
 function authHeaders() { const t = token(); return t ? { Authorization: `Bearer ${t}` } : {}; }
 
 // Every call carries the signed-in token (GETs also have the cookie; a POST needs this).
+// A request that could not be sent (no network; a header the browser refuses) answers
+// status 0 with the browser's reason as its detail, so the caller says it like any refusal.
 async function api(path, options = {}) {
-  const response = await fetch(path, { ...options, headers: { ...authHeaders(), ...(options.headers || {}) } });
+  let response;
+  try {
+    response = await fetch(path, { ...options, headers: { ...authHeaders(), ...(options.headers || {}) } });
+  } catch (e) {
+    return { ok: false, status: 0, body: { detail: `not sent: ${e.message}` } };
+  }
   let body = null;
   try { body = await response.json(); } catch (_) { body = null; }
+  const refused = body && typeof body.detail === "string" && body.detail.startsWith("wrong token");
+  if (response.status === 403 && refused && token()) await tokenRefused(body.detail);
   return { ok: response.ok, status: response.status, body };
+}
+
+// The API refused this tab's token (revoked or expired since sign-in): every call with it
+// would be refused, reads too, so the tab forgets it and says so (a refused action says it
+// again in its own words), and reads on as whoever it is without it.
+async function tokenRefused(detail) {
+  sessionStorage.removeItem("roverops-token");
+  state.me = null;
+  applyRole(); // at once: no control acts with the forgotten token meanwhile
+  $("sequence-status").textContent = `Signed out: ${detail}`;
+  const r = await whoAmI("");
+  state.me = r.ok ? r.body : null;
+  applyRole();
+}
+
+// What the API said, as one line: its sentence (401 "token required ...", 403 "wrong
+// token: ..." or "... needs the operator role"), or the messages of a 422's list.
+function detailText(r) {
+  const detail = r.body && r.body.detail;
+  if (typeof detail === "string") return detail;
+  if (Array.isArray(detail)) return detail.map((e) => (e && e.msg) || JSON.stringify(e)).join("; ");
+  return `HTTP ${r.status}`;
 }
 
 // The other panels (alarms, queue, event log, plots: one script each) follow the console
@@ -61,11 +92,7 @@ function showFrame(f) {
     hga.textContent = "Earth below the horizon";
     hga.className = "warn";
   }
-  const e = f.p_s_est, t = f.p_s_true;
-  const diff = Math.hypot(e[0] - t[0], e[1] - t[1]);
-  $("position").textContent =
-    `Site ${f.site_index}: est (${e[0].toFixed(2)}, ${e[1].toFixed(2)}) m, ` +
-    `true (${t[0].toFixed(2)}, ${t[1].toFixed(2)}) m, diff ${diff.toFixed(2)} m`;
+  showPosition(f);
   roverops.emit("frame", f);
   // Each event at its own time: a message at max speed carries the events of the frames
   // the hub skipped, each stamped with its frame's lmst_h.
@@ -75,6 +102,42 @@ function showFrame(f) {
     li.className = `sev-${e.severity}`;
     $("events").prepend(li);
   }
+}
+
+// Two readouts, never one number for both: the rover's own estimate in its current Site
+// frame (a Site is planted where the rover believes it is, so the Site's own estimate and
+// truth agree right after PLANT_SITE), and the error accumulated over the whole mission,
+// scored against the simulator's truth (what no real ground system has: the truth view).
+const xy = (p) => `(${p[0].toFixed(2)}, ${p[1].toFixed(2)})`;
+const xyz = (p) => `(${p.map((v) => v.toFixed(2)).join(", ")})`;
+function showPosition(f) {
+  $("position").textContent = `Site ${f.site_index}: est ${xy(f.p_s_est)} m`;
+  const e = f.p_mission_est, t = f.p_mission_true;
+  const error = typeof f.position_error_m === "number" ? f.position_error_m
+    : e && t ? Math.hypot(e[0] - t[0], e[1] - t[1], e[2] - t[2]) : null;
+  $("position-error").textContent = error === null ? "—"
+    : `${error.toFixed(2)} m` + (e && t ? ` (mission frame, 3D: est ${xyz(e)}, true ${xyz(t)} m)` : "");
+}
+
+// The clock as the server runs it: at max with nothing queued it runs in real time
+// (server.runtime IDLE_SPEED_AT_MAX), and the header says so rather than "running at max".
+function speedLabel(v) { return v === "max" ? "max" : `${v}×`; }
+function showClock(c, effective) {
+  const now = effective === undefined ? c.speed : effective;
+  const idleAtMax = c.speed === "max" && now !== "max";
+  const text = `${c.running ? "running" : "paused"} at ${speedLabel(c.running ? now : c.speed)}`;
+  $("speed-now").textContent = idleAtMax && c.running ? `${text} (max, idle)` : text;
+  $("speed-now").title = idleAtMax
+    ? `speed max, nothing queued: the clock runs at ${speedLabel(now)} until work is queued` : "";
+  // The selector shows the server's speed, not the last choice made in it (a refused
+  // change goes back); it is left alone while a change is on its way.
+  const select = $("speed");
+  if (state.clockBusy) return;
+  const value = String(c.speed);
+  if (![...select.options].some((o) => o.value === value)) {
+    select.append(new Option(speedLabel(c.speed), value)); // a speed set over the API
+  }
+  select.value = value;
 }
 
 async function refreshState() {
@@ -91,7 +154,7 @@ async function refreshState() {
     : "empty";
   const head = s.queue[0];
   $("progress-bar").style.width = head ? `${(100 * head.next_step) / Math.max(1, head.steps)}%` : "0";
-  $("speed-now").textContent = `${s.clock.running ? "running" : "paused"} at ${s.clock.speed === "max" ? "max" : s.clock.speed + "×"}`;
+  showClock(s.clock, s.effective_speed);
 }
 
 async function refreshSequences() {
@@ -143,18 +206,20 @@ async function validateEditor() {
   if (r.body) showDiagnostics(r.body);
 }
 
+// The upload's answer replaces what the list showed: its diagnostics, or none when the
+// upload never reached validation (401/403, 413, 429, a body that is not a sequence).
 function uploaded(r) {
   const status = $("sequence-status");
-  if (r.status === 401 || r.status === 403) {
-    status.textContent = `Not uploaded: ${r.body && r.body.detail}`;
-  } else if (r.body && r.body.status === "queued") {
+  if (r.body && r.body.status === "queued") {
     status.textContent = `Sequence #${r.body.id} queued`;
     showDiagnostics(r.body);
   } else if (r.body && r.body.errors) {
     status.textContent = `Rejected: ${r.body.errors.length} error(s), nothing queued`;
     showDiagnostics(r.body);
   } else {
-    status.textContent = `Upload failed (${r.status}): ${JSON.stringify(r.body && r.body.detail)}`;
+    $("validation").replaceChildren();
+    status.textContent = r.status === 401 || r.status === 403
+      ? `Not uploaded: ${detailText(r)}` : `Upload failed (${r.status}): ${detailText(r)}`;
   }
   refreshSequences();
 }
@@ -176,11 +241,17 @@ async function uploadFile() {
 }
 
 async function clock(body) {
-  const r = await api(`/api/rovers/${state.rover}/clock`, {
-    method: "POST", headers: { ...authHeaders(), "Content-Type": "application/json" }, body: JSON.stringify(body),
-  });
-  if (!r.ok) $("sequence-status").textContent = r.status === 422 ? "Bad clock setting" : `Clock not changed: ${r.body && r.body.detail}`;
-  refreshState();
+  state.clockBusy = true;
+  let r;
+  try {
+    r = await api(`/api/rovers/${state.rover}/clock`, {
+      method: "POST", headers: { ...authHeaders(), "Content-Type": "application/json" }, body: JSON.stringify(body),
+    });
+  } finally {
+    state.clockBusy = false;
+  }
+  if (!r.ok) $("sequence-status").textContent = `Clock not changed: ${detailText(r)}`;
+  await refreshState(); // the selector back to the server's speed if the change was refused
 }
 
 // The immediate-command form, built from the command dictionary the server publishes: each
@@ -286,12 +357,12 @@ async function sendCommand() {
     method: "POST", headers: { ...authHeaders(), "Content-Type": "application/json" },
     body: JSON.stringify({ command: entry.command, args }),
   });
-  if (r.status === 401 || r.status === 403) status.textContent = `Not sent: ${r.body && r.body.detail}`;
+  if (r.status === 401 || r.status === 403 || r.status === 0) status.textContent = `Not sent: ${detailText(r)}`;
   else if (r.ok) status.textContent = `Command ${entry.command} queued (#${r.body.id})`;
   else {
     const detail = r.body && r.body.detail;
     // every 422's detail is a list of {loc, msg, type}; other errors carry a sentence
-    const messages = Array.isArray(detail) ? detail.map((e) => e.msg) : [JSON.stringify(detail)];
+    const messages = Array.isArray(detail) ? detail.map((e) => e.msg) : [detailText(r)];
     status.textContent = `Command refused: ${messages.join("; ")}`;
     // a rule across arguments the form cannot check: mark the field the server names
     for (const input of $("args").querySelectorAll("[name]")) {
@@ -303,8 +374,12 @@ async function sendCommand() {
 
 // ---- signing in: who is at this console, and what their role lets them do ----------------
 
+// A role above viewer acts with the token this tab holds: a tab that reads with the
+// browser's sign-in cookie alone (another tab signed in) would be answered 401 "token
+// required", so it may not act until it is signed in itself.
 function mayAct(role) {
   const mine = state.me && state.me.role ? ROLES.indexOf(state.me.role) : -1;
+  if (ROLES.indexOf(role) > 0 && !token()) return false;
   return mine >= ROLES.indexOf(role);
 }
 
@@ -314,18 +389,25 @@ function applyRole() {
   for (const el of document.querySelectorAll("[data-role]")) {
     const needed = el.dataset.role;
     el.disabled = !mayAct(needed);
-    el.title = el.disabled ? `needs the ${needed} role: sign in with a ${needed}'s token` : "";
+    el.title = !el.disabled ? ""
+      : cookieOnly() ? `needs the ${needed} role: sign in in this tab (the token is kept per tab)`
+      : `needs the ${needed} role: sign in with a ${needed}'s token`;
   }
   const me = state.me;
-  const signedIn = Boolean(me && me.role);
+  const signedIn = Boolean(me && me.role) && !cookieOnly();
   $("who").textContent = signedIn ? `${me.name} · ${me.role}`
-    : me ? "not signed in (reading only)" : "sign in to view";
+    : cookieOnly() ? `${me.name} · reading (sign in to act)`
+    : me ? "reading only" : "sign in to view";
+  $("who").title = signedIn || cookieOnly() ? $("who").textContent
+    : me ? "not signed in: this server lets anyone read; sign in to act" : "this server needs a token to read";
   $("who").dataset.role = signedIn ? me.role : "";
-  $("sign-out").hidden = !signedIn;
+  $("sign-out").hidden = !(me && me.role);
   $("sign-in").hidden = signedIn;
   $("token").hidden = signedIn;
   roverops.emit("me", me);
 }
+
+function cookieOnly() { return Boolean(state.me && state.me.role) && !token(); }
 
 async function whoAmI(t) {
   return api("/api/me", { headers: t ? { Authorization: `Bearer ${t}` } : {} });
@@ -335,14 +417,15 @@ async function signIn() {
   const t = $("token").value.trim();
   const status = $("sequence-status");
   if (!t) { status.textContent = "Paste your API token, then Sign in."; return; }
-  const r = await whoAmI(t);
-  if (!r.ok) {
-    status.textContent = `Not signed in: ${r.body && r.body.detail ? r.body.detail : r.status}`;
-    return;
-  }
-  await api("/api/session", {
+  // The token goes in the body (any character a token may hold; a header takes Latin-1
+  // only), is checked, and sets the reading cookie; 403 says why it is refused.
+  const r = await api("/api/session", {
     method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify({ token: t }),
   });
+  if (!r.ok) {
+    status.textContent = `Not signed in: ${detailText(r)}`;
+    return;
+  }
   sessionStorage.setItem("roverops-token", t);
   $("token").value = "";
   state.me = r.body;
@@ -366,7 +449,11 @@ async function init() {
   $("sign-out").addEventListener("click", signOut);
   const kept = sessionStorage.getItem("roverops-token") || "";
   let r = await whoAmI(kept);
-  if (!r.ok && kept) { sessionStorage.removeItem("roverops-token"); r = await whoAmI(""); }
+  if (!r.ok && kept) { // a token revoked or expired since this tab signed in
+    sessionStorage.removeItem("roverops-token");
+    $("sequence-status").textContent = `Signed out: ${detailText(r)}`;
+    r = await whoAmI("");
+  }
   state.me = r.ok ? r.body : null;
   applyRole();
   if (state.me) await start();

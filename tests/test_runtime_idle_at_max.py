@@ -1,0 +1,58 @@
+"""At max speed with nothing queued the clock runs on in real time, and /state says so
+(issue 14, item 1: the clock stood still while the header said "running at max"). The
+clock thread's ticks are run by the test with a given wall time, so nothing here reads a
+wall clock."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from sequences.validate import validate
+from server.runtime import IDLE_SPEED_AT_MAX, IDLE_STEP_S, ROVERS, RoverRuntime
+
+
+@pytest.fixture(scope="module")
+def runtime() -> RoverRuntime:
+    rover = RoverRuntime(ROVERS["spirit"])
+    rover.set_clock(speed=math.inf)
+    return rover
+
+
+def test_an_empty_queue_at_max_keeps_the_clock_running_in_real_time(
+    runtime: RoverRuntime,
+) -> None:
+    frames: list[float] = []
+    runtime.listeners.append(lambda _rover, batch: frames.extend(f["t_s"] for f in batch))
+    start = runtime.t_s
+    for _ in range(200):  # 10 s of wall time in 0.05 s ticks
+        runtime._tick(0.05)
+    assert runtime.t_s == pytest.approx(start + 200 * 0.05 * IDLE_SPEED_AT_MAX, abs=1e-3)
+    # the idle rover is simulated in IDLE_STEP_S steps: one frame each, not one per tick
+    assert 1 <= len(frames) <= 200 * 0.05 * IDLE_SPEED_AT_MAX / IDLE_STEP_S + 1
+    state = runtime.state()
+    assert state["clock"] == {"running": True, "speed": "max"}
+    assert state["effective_speed"] == IDLE_SPEED_AT_MAX
+
+
+def test_a_late_tick_does_not_burst(runtime: RoverRuntime) -> None:
+    start = runtime.t_s
+    runtime._tick(60.0)  # a tick a minute late accounts for MAX_TICK_S at most
+    assert start < runtime.t_s <= start + 0.25 * IDLE_SPEED_AT_MAX + 1e-6
+
+
+def test_a_time_tag_at_max_is_still_skipped_to_at_once(runtime: RoverRuntime) -> None:
+    """Work queued: idle time is skipped (a sol at most per tick), /state says max."""
+    result = validate("SEQUENCE later\n@ +02:00:00 NADIR_UPDATE\n")
+    assert result.sequence is not None, result.errors
+    runtime.enqueue(1, result.sequence)
+    assert runtime.state()["effective_speed"] == "max"
+    start = runtime.t_s
+    for _ in range(20):
+        runtime._tick(0.05)
+        if not runtime.queue:
+            break
+    assert not runtime.queue  # it ran, two hours on, after at most twenty ticks
+    assert runtime.t_s > start + 3600.0
+    assert runtime.state()["effective_speed"] == IDLE_SPEED_AT_MAX
