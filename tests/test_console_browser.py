@@ -134,6 +134,9 @@ def test_fine_attitude_then_drive_runs_and_the_readouts_follow(page: Page, serve
         re.compile(r"est \((?:[1-9]|-?\d\.\d*[1-9])"), timeout=60_000
     )
     expect(page.get_by_test_id("hga-margin")).to_contain_text(re.compile(r"°|horizon"))
+    # the rover's own prediction beside the truth: at Fine it is a margin, not the -178°
+    # of a rover that knows nothing of its heading
+    expect(page.get_by_test_id("hga-margin-predicted")).to_have_text(re.compile(r"^\d+\.\d\d°$"))
     _wait(lambda: httpx.get(f"{server}/api/rovers/spirit/state").json()["queue"] == [])
     seen: list[float] = page.evaluate("window.__imuSeen")
     peak = seen.index(max(seen[: len(seen) // 2 + 1]))

@@ -84,6 +84,10 @@ function showFrame(f) {
   const imu = $("imu-time");
   imu.textContent = `${Math.round(f.imu_integration_s)} s`;
   imu.className = f.imu_integration_s > IMU_WARN_S ? "warn" : "";
+  const predicted = $("hga-margin-predicted");
+  const own = f.hga_margin_predicted_deg;
+  predicted.textContent = own === null || own === undefined ? "—" : `${own.toFixed(2)}°`;
+  predicted.className = own === null || own === undefined ? "" : own < 0 ? "bad" : "good";
   const hga = $("hga-margin");
   if (f.earth_up && f.hga_margin_deg !== null) {
     hga.textContent = `${f.hga_margin_deg.toFixed(2)}° (error ${f.hga_error_deg.toFixed(2)}°)`;
