@@ -168,7 +168,7 @@ def test_after_plant_site_the_site_estimate_and_the_mission_error_are_apart(
     assert frame["position_error_m"] >= 0.005, frame  # a drive leaves an error to show
     error = page.get_by_test_id("position-error")
     expect(error).to_have_text(re.compile(rf"^{frame['position_error_m']:.2f} m \(mission frame"))
-    expect(page.locator("dt.truth-view")).to_contain_text("truth")
+    expect(page.locator("dt.truth-view", has_text="Position error")).to_contain_text("truth")
     # at max with nothing queued the clock runs in real time, and the header says so
     expect(page.get_by_test_id("clock-speed")).to_have_text("running at 1× (max, idle)")
     expect(page.locator("#speed")).to_have_value("max")

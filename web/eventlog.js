@@ -88,12 +88,15 @@
     tr.dataset.severity = e.severity;
     tr.dataset.sol = String(e.sol);
     tr.dataset.tS = String(e.t_s);
+    tr.dataset.key = key(e);
+    if (view.selected === tr.dataset.key) tr.classList.add("selected"); // kept across reloads
     return tr;
   }
 
   function focusRow(tr) {
     for (const other of ui.rows.querySelectorAll(".selected")) other.classList.remove("selected");
     tr.classList.add("selected");
+    view.selected = tr.dataset.key;
     ro.emit("focus", { sol: Number(tr.dataset.sol), t_s: Number(tr.dataset.tS) });
   }
 
@@ -194,7 +197,14 @@
   ui.older.addEventListener("click", () => load({ more: true }));
 
   ro.on("rover", pickRover);
-  ro.on("me", () => { if (view.rover) load(); });
+  // reload when who reads changes (a sign-in may open a server that needs a token), not on
+  // every role refresh the console makes
+  ro.on("me", (me) => {
+    const who = me ? `${me.name}|${me.role}` : "";
+    if (who === view.who) return;
+    view.who = who;
+    if (view.rover) load();
+  });
   ro.on("frame", live);
   if (ro.state.rover) pickRover(ro.state.rover);
 })();
