@@ -139,3 +139,11 @@ def test_a_row_focuses_the_timeline_on_its_sol(page: Page, server: str) -> None:
         assert panel.evaluate(fits), f"the event log is wider than the page at {width} px"
         panel.screenshot(path=str(ARTIFACTS / f"eventlog-panel-{width}.png"))
     page.set_viewport_size({"width": 1280, "height": 800})
+
+
+def test_panels_opened_before_any_telemetry_follow_it_when_it_comes(page: Page) -> None:
+    """The page opened on a rover with no telemetry yet ("No telemetry yet"): once frames
+    come, the telemetry panel finds the sol and plots without a reload."""
+    plot = page.get_by_test_id("channel-plot")
+    expect(plot).to_have_attribute("data-channel", "hga_margin_deg")
+    expect(plot).not_to_have_attribute("data-points", "0")

@@ -66,6 +66,7 @@
   // ---- the controls -----------------------------------------------------------------
 
   async function loadRover(rover) {
+    if (rover !== view.rover) view.latestSol = null;
     view.rover = rover;
     const generation = ++view.generation;
     try {
@@ -175,6 +176,12 @@
   // A live frame inside the plotted range: one more point, drawn at the next frame.
   function onFrame(f) {
     if (view.latestSol !== null && f.sol > view.latestSol) view.latestSol = f.sol;
+    if (view.latestSol === null && view.rover && roverops.state.rover === view.rover) {
+      // the rover had no telemetry when the panel loaded: now it has (asked at most every 2 s)
+      const now = Date.now();
+      if (!(now - (view.emptyRetry || 0) < 2000)) { view.emptyRetry = now; loadRover(view.rover); }
+      return;
+    }
     const q = view.query;
     if (!q || !view.plot || roverops.state.rover !== view.rover) return;
     if (f.sol < q.from || f.sol > q.to || f.t_s <= view.lastT) return;
