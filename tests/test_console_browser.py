@@ -19,7 +19,7 @@ from pathlib import Path
 import httpx
 import pytest
 
-from tests.test_server_restart import _free_port, _start, _wait
+from tests.test_server_restart import _wait, serving
 
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 ROOT = Path(__file__).resolve().parent.parent
@@ -42,15 +42,8 @@ from playwright.sync_api import Frame, Page, expect, sync_playwright  # noqa: E4
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    port = _free_port()
-    proc = _start(tmp_path_factory.mktemp("console"), port, TOKEN)
-    base = f"http://127.0.0.1:{port}"
-    try:
-        _wait(lambda: httpx.get(f"{base}/api/rovers").status_code == 200)
+    with serving(tmp_path_factory.mktemp("console"), TOKEN) as base:
         yield base
-    finally:
-        proc.kill()
-        proc.wait(timeout=10)
 
 
 @contextlib.contextmanager

@@ -17,7 +17,7 @@ import pytest
 
 # first: it skips the module without Chromium (and brings Playwright's names)
 from tests.test_console_browser import ARTIFACTS, Page, console_page, expect
-from tests.test_server_restart import _free_port, _start, _wait
+from tests.test_server_restart import serving
 
 TOKEN = "eventlog-browser-token"
 AUTH = {"Authorization": f"Bearer {TOKEN}"}
@@ -34,15 +34,8 @@ def _sequence(sol: int) -> str:
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    port = _free_port()
-    proc = _start(tmp_path_factory.mktemp("eventlog"), port, TOKEN, three_d=False)
-    base = f"http://127.0.0.1:{port}"
-    try:
-        _wait(lambda: httpx.get(f"{base}/api/rovers").status_code == 200)
+    with serving(tmp_path_factory.mktemp("eventlog"), TOKEN, three_d=False) as base:
         yield base
-    finally:
-        proc.kill()
-        proc.wait(timeout=10)
 
 
 @pytest.fixture(scope="module")

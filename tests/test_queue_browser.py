@@ -15,7 +15,7 @@ import pytest
 from playwright.sync_api import Page, expect
 
 from tests.test_console_browser import ARTIFACTS, TOKEN, console_page, sign_in
-from tests.test_server_restart import _free_port, _start, _wait
+from tests.test_server_restart import serving
 
 AUTH = {"Authorization": f"Bearer {TOKEN}"}
 SEQ = "SEQUENCE {name}\nNADIR_UPDATE\nWAIT duration_s=60\n"
@@ -24,15 +24,8 @@ SEQ = "SEQUENCE {name}\nNADIR_UPDATE\nWAIT duration_s=60\n"
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     """The real server, without the 3D view (this page does not need it)."""
-    port = _free_port()
-    proc = _start(tmp_path_factory.mktemp("queue"), port, TOKEN, three_d=False)
-    base = f"http://127.0.0.1:{port}"
-    try:
-        _wait(lambda: httpx.get(f"{base}/api/rovers").status_code == 200)
+    with serving(tmp_path_factory.mktemp("queue"), TOKEN, three_d=False) as base:
         yield base
-    finally:
-        proc.kill()
-        proc.wait(timeout=10)
 
 
 def _clock(base: str, body: dict[str, Any]) -> None:

@@ -9,6 +9,7 @@ graceful stop checkpoints each rover where its clock stopped, so the rover resum
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import socket
@@ -65,6 +66,24 @@ def _start(
     ]
     with open(data_dir / "server.log", "ab") as log:
         return subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT)
+
+
+@contextlib.contextmanager
+def serving(
+    data_dir: Path, token: str = TOKEN, ready: str = "/api/rovers", **start: Any
+) -> Iterator[str]:
+    """A real server (``_start``'s options) on a free port, its base URL once ``ready``
+    answers 200 (with the token); killed when the block ends. The browser tests' server."""
+    port = _free_port()
+    proc = _start(data_dir, port, token, **start)
+    base = f"http://127.0.0.1:{port}"
+    auth = {"Authorization": f"Bearer {token}"}
+    try:
+        _wait(lambda: httpx.get(f"{base}{ready}", headers=auth).status_code == 200)
+        yield base
+    finally:
+        proc.kill()
+        proc.wait(timeout=10)
 
 
 def _wait(predicate: Any, timeout_s: float = 60.0) -> Any:

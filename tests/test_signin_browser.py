@@ -14,7 +14,7 @@ import httpx
 import pytest
 
 from tests.test_console_browser import ARTIFACTS, CHROMIUM, console_page
-from tests.test_server_restart import _free_port, _start, _wait
+from tests.test_server_restart import serving
 
 if not Path(CHROMIUM).exists():
     pytest.skip("Chromium not installed (make test installs it)", allow_module_level=True)
@@ -27,21 +27,14 @@ BOOTSTRAP = "signin-bootstrap-token"
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, dict[str, str]]]:
     data = tmp_path_factory.mktemp("signin")
-    port = _free_port()
-    proc = _start(data, port, BOOTSTRAP, env_extra={"ROVEROPS_PUBLIC_READ": "off"})
-    base = f"http://127.0.0.1:{port}"
     admin = {"Authorization": f"Bearer {BOOTSTRAP}"}
-    try:
-        _wait(lambda: httpx.get(f"{base}/api/rovers", headers=admin).status_code == 200)
+    with serving(data, BOOTSTRAP, env_extra={"ROVEROPS_PUBLIC_READ": "off"}) as base:
         tokens = {
             role: httpx.post(f"{base}/api/users", json={"name": f"{role}1", "role": role},
                              headers=admin).json()["token"]
             for role in ("viewer", "operator")
         }  # fmt: skip
         yield base, tokens
-    finally:
-        proc.kill()
-        proc.wait(timeout=10)
 
 
 @pytest.fixture(scope="module")

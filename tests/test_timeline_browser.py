@@ -17,7 +17,7 @@ import pytest
 from playwright.sync_api import Browser, Page, expect, sync_playwright
 
 from tests.test_console_browser import ARTIFACTS, CHROMIUM, LAUNCH_ARGS, ROOT
-from tests.test_server_restart import _free_port, _start, _wait
+from tests.test_server_restart import _wait, serving
 
 TOKEN = "timeline-test-token"
 AUTH = {"Authorization": f"Bearer {TOKEN}"}
@@ -45,22 +45,17 @@ COUNT_COLOUR = """(canvas, rgb) => {
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     """The real server, both fusion filters beside SAPP, with the example sequence run to
     completion on spirit."""
-    port = _free_port()
-    proc = _start(tmp_path_factory.mktemp("timeline"), port, TOKEN, SIDE_ESTIMATORS)
-    base = f"http://127.0.0.1:{port}"
-    try:
-        _wait(lambda: httpx.get(f"{base}/api/rovers").status_code == 200)
-        with httpx.Client(base_url=base, timeout=10.0) as c:
-            r = c.post("/api/rovers/spirit/sequences", content=EXAMPLE.read_text(), headers=AUTH)
-            assert r.status_code == 201, r.text
-            seq_id = r.json()["id"]
-            c.post("/api/rovers/spirit/clock", json={"speed": "max"}, headers=AUTH)
-            _wait(lambda: c.get(f"/api/sequences/{seq_id}").json()["status"] == "completed")
-            _wait(lambda: not c.get("/api/rovers/spirit/state").json()["executing"])
+    with (
+        serving(tmp_path_factory.mktemp("timeline"), TOKEN, estimators=SIDE_ESTIMATORS) as base,
+        httpx.Client(base_url=base, timeout=10.0) as c,
+    ):
+        r = c.post("/api/rovers/spirit/sequences", content=EXAMPLE.read_text(), headers=AUTH)
+        assert r.status_code == 201, r.text
+        seq_id = r.json()["id"]
+        c.post("/api/rovers/spirit/clock", json={"speed": "max"}, headers=AUTH)
+        _wait(lambda: c.get(f"/api/sequences/{seq_id}").json()["status"] == "completed")
+        _wait(lambda: not c.get("/api/rovers/spirit/state").json()["executing"])
         yield base
-    finally:
-        proc.kill()
-        proc.wait(timeout=10)
 
 
 @pytest.fixture(scope="module")

@@ -15,7 +15,7 @@ import httpx
 import pytest
 
 from tests.test_console_browser import ARTIFACTS, CHROMIUM, LAUNCH_ARGS
-from tests.test_server_restart import _free_port, _start, _wait
+from tests.test_server_restart import serving
 
 from playwright.sync_api import Locator, Page, expect, sync_playwright  # isort: skip
 
@@ -37,15 +37,10 @@ MOVED_FROM = (
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    port = _free_port()
-    proc = _start(tmp_path_factory.mktemp("view3d"), port, TOKEN)
-    base = f"http://127.0.0.1:{port}"
-    try:
-        _wait(lambda: httpx.get(f"{base}/api/rovers/spirit/scene").status_code == 200)
+    with serving(
+        tmp_path_factory.mktemp("view3d"), TOKEN, ready="/api/rovers/spirit/scene"
+    ) as base:
         yield base
-    finally:
-        proc.kill()
-        proc.wait(timeout=10)
 
 
 def _position(page: Page) -> list[float]:
