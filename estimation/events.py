@@ -12,7 +12,10 @@ Kinds, by who makes them:
   attitude acquisition command, e.g. GetFineAttitude, done or aborted);
 - the rover session (``sim.session``): ``command`` (a command refused), ``site`` (a Site
   planted), ``parameter`` (a NATE parameter set), ``hga`` (an HGA pass), ``vo`` (a visual
-  odometry step) and ``estimator`` (a comparison estimator stopped).
+  odometry step) and ``estimator`` (a comparison estimator stopped);
+- the ground server (``server``): ``sequence`` (a sequence started, completed or failed)
+  and ``alarm`` (an alarm raised, escalated, cleared or acknowledged: ``error`` when
+  critical, ``warning`` when a warning, ``info`` for a clear or an acknowledgement).
 
 Severities, one rule for all kinds:
 
@@ -39,7 +42,8 @@ SEVERITIES: tuple[Severity, ...] = ("info", "warning", "error")  # in increasing
 
 FLIGHT_KINDS = ("nadir", "sunfind", "sungaze", "suncheck", "gyrocompass", "acquisition")
 SESSION_KINDS = ("command", "site", "parameter", "hga", "vo", "estimator")
-KINDS: tuple[str, ...] = FLIGHT_KINDS + SESSION_KINDS
+SERVER_KINDS = ("sequence", "alarm")
+KINDS: tuple[str, ...] = FLIGHT_KINDS + SESSION_KINDS + SERVER_KINDS
 
 
 @dataclass(frozen=True)

@@ -39,6 +39,8 @@ RANK = {"warning": 1, "critical": 2}
 
 When = Callable[[str, float], dict[str, Any]]  # (rover, t_s) -> {t_s, utc, lmst_h, sol}
 Notify = Callable[[str, dict[str, Any]], None]
+# (rover, t_s or None for "the rover's clock now", event {text, kind, severity})
+OnEvent = Callable[[str, float | None, dict[str, str]], None]
 
 
 class AlarmError(Exception):
@@ -86,9 +88,12 @@ def _message(limits: ChannelLimits, level: str, value: Any) -> str:
 
 class AlarmEngine:
     """Limits and listed alarms of every rover (module docstring). ``when`` gives a time's
-    ``{t_s, utc, lmst_h, sol}`` for a rover; ``notify`` sends a WebSocket notice."""
+    ``{t_s, utc, lmst_h, sol}`` for a rover; ``notify`` sends a WebSocket notice;
+    ``on_event`` (if set) hears each raise, escalation, clear and acknowledgement as an
+    event of kind ``alarm`` for the event log."""
 
     def __init__(self, store: Store, when: When, notify: Notify) -> None:
+        self.on_event: OnEvent | None = None
         self.store = store
         self.defaults = load_defaults()
         self._when = when
@@ -203,9 +208,9 @@ class AlarmEngine:
                     "cleared_t_s": None, "cleared_utc": None, "cleared_lmst_h": None,
                     "violations": row["violations"] + 1,
                     **(self._crossing(limits, level, value) if worse else {}),
-                })  # fmt: skip
+                }, t_s)  # fmt: skip
             elif RANK[level] > RANK[row["level"]]:
-                self._change(rover, row, self._crossing(limits, level, value))
+                self._change(rover, row, self._crossing(limits, level, value), t_s)
         elif row is not None and row["cleared_t_s"] is None and limits.inside(value):
             when = self._when(rover, t_s)
             self._change(rover, row, {"cleared_t_s": t_s, "cleared_utc": when["utc"],
@@ -229,13 +234,36 @@ class AlarmEngine:
         row["id"] = self.store.add_alarm(row)
         self._listed[rover][limits.channel] = row
         self._notify(rover, {"type": "alarm", "alarm": alarm_json(row)})
+        self._event(rover, t_s, row, "raised")
 
-    def _change(self, rover: str, row: dict[str, Any], values: dict[str, Any]) -> None:
+    def _change(
+        self, rover: str, row: dict[str, Any], values: dict[str, Any], t_s: float | None = None
+    ) -> None:
+        """Store and send a change of a listed alarm (``t_s``: the frame that made it)."""
         self.store.update_alarm(row["id"], values)
         row.update({k: v.isoformat() if isinstance(v, datetime) else v for k, v in values.items()})
         if row["cleared_t_s"] is not None and row["acknowledged_by"] is not None:
             self._listed[rover].pop(row["channel"], None)  # done: no longer listed
         self._notify(rover, {"type": "alarm", "alarm": alarm_json(row)})
+        if values.get("acknowledged_by") is not None:  # then the event log's line
+            self._event(rover, None, row, f"acknowledged by {values['acknowledged_by']}")
+        elif values.get("cleared_t_s") is not None:
+            self._event(rover, values["cleared_t_s"], row, "cleared", cleared=True)
+        elif "violations" in values:
+            self._event(rover, t_s, row, "raised again")
+        elif "level" in values:
+            self._event(rover, t_s, row, "escalated")
+
+    def _event(
+        self, rover: str, t_s: float | None, row: dict[str, Any], what: str, cleared: bool = False
+    ) -> None:
+        if self.on_event is None:
+            return
+        truth = " (truth view)" if row["truth"] else ""
+        severity = "info" if cleared or what.startswith("acknowledged") else (
+            "error" if row["level"] == "critical" else "warning")  # fmt: skip
+        text = f"alarm {row['channel']}{truth} {what}: {row['message']}"
+        self.on_event(rover, t_s, {"text": text, "kind": "alarm", "severity": severity})
 
     # ---- operators ------------------------------------------------------------------
 

@@ -340,6 +340,7 @@ class Server:
             runtime.on_queue = self.queue_notices.changed
             self.rovers[name] = runtime
         self.alarms = AlarmEngine(self.store, self._when, self.hub.notify)
+        self.alarms.on_event = self._server_event
         self.scenes: dict[str, RoverScene] = {}
         if config.viewer_3d:
             self.scenes = {name: RoverScene(rt, self.store) for name, rt in self.rovers.items()}
@@ -393,7 +394,28 @@ class Server:
 
     def _sequence(self, sequence_id: int, status: str, detail: str | None) -> None:
         self.writer.flush()
+        before = self.store.get_sequence(sequence_id)
         self.store.set_sequence_status(sequence_id, status, detail)
+        if before is None or before["status"] == status:  # e.g. resumed after a restart
+            return
+        said = {"running": "started", "completed": "completed", "failed": "failed"}
+        severity = "error" if status == "failed" else "warning" if detail else "info"
+        text = f"sequence #{sequence_id} {before['name']} {said.get(status, status)}"
+        self._server_event(
+            before["rover"], None,
+            {"text": text + (f": {detail}" if detail else ""), "kind": "sequence",
+             "severity": severity},
+        )  # fmt: skip
+
+    def _server_event(self, rover: str, t_s: float | None, event: dict[str, str]) -> None:
+        """An event the server makes (``estimation.events``: kinds ``sequence``, ``alarm``),
+        at ``t_s`` or the rover's clock now: stored for the event log and sent as an
+        ``event`` notice (it is in no frame)."""
+        t = self.rovers[rover].t_s if t_s is None else t_s
+        when = self._when(rover, t)
+        self.writer.events(rover, [(t, event)])
+        self.hub.notify(rover, {"type": "event", "event": {
+            **event, "t_s": t, "sol": when["sol"], "lmst_h": when["lmst_h"]}})  # fmt: skip
 
     def _queue_notice(self, rover: str) -> dict[str, Any]:
         return {

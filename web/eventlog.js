@@ -206,5 +206,7 @@
     if (view.rover) load();
   });
   ro.on("frame", live);
+  // the server's own events (a sequence started or done, an alarm) are in no frame
+  ro.on("notice", (n) => { if (n.type === "event" && ro.state.rover === view.rover) live({ events: [n.event] }); });
   if (ro.state.rover) pickRover(ro.state.rover);
 })();
