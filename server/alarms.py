@@ -259,10 +259,9 @@ class AlarmEngine:
     ) -> None:
         if self.on_event is None:
             return
-        truth = " (truth view)" if row["truth"] else ""
         severity = "info" if cleared or what.startswith("acknowledged") else (
             "error" if row["level"] == "critical" else "warning")  # fmt: skip
-        text = f"alarm {row['channel']}{truth} {what}: {row['message']}"
+        text = f"alarm {what}: {row['message']}"  # the message names the channel, truth view
         self.on_event(rover, t_s, {"text": text, "kind": "alarm", "severity": severity})
 
     # ---- operators ------------------------------------------------------------------

@@ -99,8 +99,8 @@ def test_events_have_kinds_and_severities(run: tuple[TestClient, list[Any]]) -> 
     ended = next(e for e in events if e["kind"] == "sequence" and "failed" in e["text"])
     assert ended["severity"] == "error" and "#1 eventlog failed" in ended["text"]
     assert any(e["text"].startswith("sequence #1 eventlog started") for e in events)
-    aqf = [(e["text"].split(":")[0], e["severity"]) for e in events if e["kind"] == "alarm"]
-    assert ("alarm aqf raised", "error") in aqf and ("alarm aqf cleared", "info") in aqf
+    aqf = [(e["text"].split(" Unknown")[0], e["severity"]) for e in events if e["kind"] == "alarm"]
+    assert ("alarm raised: aqf", "error") in aqf and ("alarm cleared: aqf", "info") in aqf
     assert [e["t_s"] for e in events] == sorted((e["t_s"] for e in events), reverse=True)
 
 
