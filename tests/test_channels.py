@@ -7,7 +7,6 @@ client is told of each command as the sol timeline lists it."""
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Iterator
 from typing import Any
 
@@ -16,20 +15,11 @@ from fastapi.testclient import TestClient
 
 from server.app import CSV_COLUMNS, CSV_VECTORS, ServerConfig, create_app, data_dir_url
 from server.channels import MAX_POINTS, MAX_SOLS, decimate, frame_channels, side_channels
+from tests.test_server_restart import _wait
 
 TOKEN = "channels-test-token"
 AUTH = {"Authorization": f"Bearer {TOKEN}"}
 SEQ = "SEQUENCE channels\nNADIR_UPDATE\nDRIVE_STRAIGHT distance_m=2\n"
-
-
-def _wait(predicate: Any, timeout_s: float = 60.0) -> Any:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(0.05)
-    raise AssertionError("timed out")
 
 
 @pytest.fixture(scope="module")
