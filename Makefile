@@ -25,7 +25,7 @@ lint: $(STAMP)
 	$(BIN)/ruff format --check .
 
 typecheck: $(STAMP)
-	$(BIN)/mypy estimation sim server sequences
+	$(BIN)/mypy estimation sim server sequences bench cli
 
 pytest: $(STAMP) pg chromium
 	$(BIN)/pytest

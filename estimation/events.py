@@ -7,10 +7,10 @@ never changes shape for the sake of a filter.
 
 Kinds, by who makes them:
 
-- flight software (``estimation.nate``): ``nadir`` (Nadir Update, Nadir Check),
+- flight software (``estimation.sapp.nate``): ``nadir`` (Nadir Update, Nadir Check),
   ``sunfind``, ``sungaze``, ``suncheck``, ``gyrocompass``, and ``acquisition`` (an
   attitude acquisition command, e.g. GetFineAttitude, done or aborted);
-- the rover session (``sim.session``): ``command`` (a command refused), ``site`` (a Site
+- the rover session (``sim.loop.session``): ``command`` (a command refused), ``site`` (a Site
   planted), ``parameter`` (a NATE parameter set), ``hga`` (an HGA pass), ``vo`` (a visual
   odometry step) and ``estimator`` (a comparison estimator stopped);
 - the ground server (``server``): ``sequence`` (a sequence started, completed or failed)

@@ -34,10 +34,10 @@ from collections.abc import Mapping
 from dataclasses import MISSING, dataclass, fields
 from typing import ClassVar, Literal
 
-MAX_DRIVE_M = 100.0  # one drive command; matches sim.drive.MAX_PATH_M
+MAX_DRIVE_M = 100.0  # one drive command; matches sim.rover.drive.MAX_PATH_M
 MAX_WAIT_S = 2 * 88775.244  # two sols
 MAX_HGA_PASS_MIN = 120.0
-MIN_ARC_RADIUS_M = 0.6  # half the track; sim.drive refuses a tighter arc
+MIN_ARC_RADIUS_M = 0.6  # half the track; sim.rover.drive refuses a tighter arc
 
 
 ArgKind = Literal["number", "boolean", "string", "number_or_boolean"]

@@ -3,7 +3,7 @@
 ``validate(source, context)`` parses the source (``sequences.language``: syntax, commands,
 arguments, time tags) and then checks what spans lines: time tags going backwards and the
 Articulate state (NATE accepts only ARTICULATE_STOP, WAIT and HGA_PASS while
-articulating; Ali et al. 2005, seed 000, sec. 2.4.1, as ``estimation.nate`` implements it).
+articulating; Ali et al. 2005, seed 000, sec. 2.4.1, as ``estimation.sapp.nate`` implements it).
 
 With a ``ValidationContext`` (the rover's clock and state at the start, which the server fills
 from ``sim``) it also walks the sequence predicting when each command starts and what SAPP's
@@ -11,7 +11,7 @@ Attitude Quality Flag (seed 000 sec. 2.1) and IMU integration time (sec. 4) will
 warns where the plan is risky. The predictions are estimates, made without the simulator:
 
 - Durations: drives at 0.0375 m/s along the path and turns at 2.1 deg/s (seed 000 sec. 2.4.2
-  and 2.5, ``sim.drive``); NADIR_UPDATE/NADIR_CHECK their window (10 s by default); SUNFIND
+  and 2.5, ``sim.rover.drive``); NADIR_UPDATE/NADIR_CHECK their window (10 s by default); SUNFIND
   5 min (its upper bound); SUNCHECK 1 min; SUNGAZE 10 min (its timer); GET_TILT_ATTITUDE
   10 s; GET_COARSE_ATTITUDE 10 s + 5 min; GET_FINE_ATTITUDE 15 min; SUNCHECK_SUNGAZE
   11 min; GYROCOMPASS, HGA_PASS and WAIT their duration; the others take no time.
@@ -32,7 +32,7 @@ warns where the plan is risky. The predictions are estimates, made without the s
   ``SET_PARAM param=min_sun_elevation_rad``.
 - SUNCHECK_SUNGAZE is meant for an AQF of Coarse or better (Ali et al. 2005 sec. 4: the
   propagated attitude points the camera at the sun): below that it warns
-  (``suncheck-not-coarse``); NATE runs it anyway (``estimation.nate``).
+  (``suncheck-not-coarse``); NATE runs it anyway (``estimation.sapp.nate``).
 
 >>> result = validate("DRIVE_STRAIGHT distance_m=0\\nWAIT duration=5")
 >>> [(d.line, d.code) for d in result.errors]
@@ -105,8 +105,8 @@ CODES: dict[str, str] = {
 AqfName = Literal["Unknown", "TiltOnly", "Coarse", "Fine"]
 AQF_RANK: dict[str, int] = {"Unknown": 0, "TiltOnly": 1, "Coarse": 2, "Fine": 3}
 
-DRIVE_SPEED_M_S = 0.0375  # seed 000 sec. 2.5, sim.drive.DEFAULT_SPEED_M_S
-TURN_RATE_DEG_S = 2.1  # seed 000 sec. 2.4.2, sim.drive.DEFAULT_TURN_RATE_RAD_S
+DRIVE_SPEED_M_S = 0.0375  # seed 000 sec. 2.5, sim.rover.drive.DEFAULT_SPEED_M_S
+TURN_RATE_DEG_S = 2.1  # seed 000 sec. 2.4.2, sim.rover.drive.DEFAULT_TURN_RATE_RAD_S
 NADIR_WINDOW_S = 10.0  # seed 000 sec. 2.2.1, NATE's default window
 SUNFIND_S = 300.0  # upper bound of a Sunfind search (estimate)
 SUNCHECK_S = 60.0  # one pointed image (estimate)
@@ -127,7 +127,7 @@ tests/test_validation_context.py ties it to the ephemeris and both missions' clo
 
 _DRIVES = (cmd.DriveStraight, cmd.DriveArc, cmd.TurnInPlace, cmd.DriveTo)
 _ALLOWED_IN_ARTICULATE = (cmd.ArticulateStop, cmd.Wait, cmd.HgaPass)
-_NEEDS_SUN = (  # NATE checks the sun's elevation when these start (estimation.nate)
+_NEEDS_SUN = (  # NATE checks the sun's elevation when these start (estimation.sapp.nate)
     cmd.Sunfind,
     cmd.Sungaze,
     cmd.Suncheck,
@@ -328,7 +328,7 @@ def _check_articulate(
     sequence: Sequence, context: ValidationContext | None, result: ValidationResult
 ) -> None:
     """NATE refuses most commands in Articulate and ARTICULATE_STOP outside it
-    (``estimation.nate``: commands are accepted in Idle only, ``stop`` in Articulate)."""
+    (``estimation.sapp.nate``: commands are accepted in Idle only, ``stop`` in Articulate)."""
     articulating = context.articulating if context is not None else False
     opened: SequenceStep | None = None
     for step in sequence.steps:

@@ -33,7 +33,7 @@ from typing import Any
 from server.limits import ChannelLimits, LimitsError, check_levels, load_defaults
 from server.storage import Store
 
-# Channels that mean nothing while Earth is below the horizon (sim.session's HGA figures).
+# Channels that mean nothing while Earth is below the horizon (sim.loop.session's HGA figures).
 EARTH_CHANNELS = ("hga_margin_deg", "hga_error_deg")
 RANK = {"warning": 1, "critical": 2}
 

@@ -83,8 +83,8 @@ from server.uploads import ValidationSlots, read_body, request_error
 from server.validation_context import rover_site, validation_context
 from server.validation_pool import Checked, ValidationPool
 from server.viser_proxy import fetch, relay
-from sim.marsclock import t_s_to_utc
-from sim.side_estimators import ESTIMATORS
+from sim.loop.side.kinematic import ESTIMATORS
+from sim.world.marsclock import t_s_to_utc
 
 MAX_UPLOAD_BYTES = 1_000_000
 MAX_CONCURRENT_VALIDATIONS = 2  # per client address, and per token
@@ -112,7 +112,7 @@ class ServerConfig:
     start_clocks: bool = True
     initial_speed: float = 1.0
     viewer_3d: bool = False  # a viser 3D view per rover under /viser/{rover}/
-    # what runs beside SAPP on a new rover (sim.side_estimators); a rover restored from a
+    # what runs beside SAPP on a new rover (sim.loop.side.kinematic); a rover restored from a
     # checkpoint keeps the estimators it was started with
     estimators: tuple[str, ...] = ("sapp",)
 
@@ -1247,7 +1247,7 @@ CSV_VECTORS = {
     "p_mission_true": 3, "bogie_deg": 2, "steer_deg": 4, "sun_ll_true": 3,
     "earth_ll_true": 3, "hga_boresight_ll_true": 3,
 }  # fmt: skip
-# Each estimator that can run beside SAPP (sim.side_estimators) has its columns in every
+# Each estimator that can run beside SAPP (sim.loop.side.kinematic) has its columns in every
 # CSV, empty where it did not run: columns never depend on the rover's configuration.
 CSV_SIDE_ESTIMATORS = tuple(e for e in ESTIMATORS if e != "sapp")
 CSV_SIDE_FIELDS = ("position_error_m", "attitude_error_deg")

@@ -21,7 +21,7 @@ from typing import Any
 from estimation.events import KINDS, SEVERITIES
 from server.runtime import RoverRuntime
 from server.storage import LEGACY_KIND, Store
-from sim.marsclock import t_s_for_sol_lmst, t_s_to_utc
+from sim.world.marsclock import t_s_for_sol_lmst, t_s_to_utc
 
 LOG_KINDS: tuple[str, ...] = (*KINDS, LEGACY_KIND)  # what the kind filter accepts
 MAX_LIMIT = 1000

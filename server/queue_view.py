@@ -28,7 +28,7 @@ from sqlalchemy import select
 from sequences.language import SequenceStep, TimeTag
 from server.runtime import QueueEntry, RoverRuntime
 from server.storage import Store, commands
-from sim.marsclock import t_s_to_utc
+from sim.world.marsclock import t_s_to_utc
 
 log = logging.getLogger(__name__)
 

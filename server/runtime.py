@@ -1,6 +1,6 @@
 """The rovers the server hosts: each a ``RoverSession`` on its own simulation clock.
 
-A ``RoverRuntime`` owns one rover's session (flight software in the loop, ``sim.session``),
+A ``RoverRuntime`` owns one rover's session (flight software in the loop, ``sim.loop.session``),
 its queue of accepted sequences, and a thread that runs the clock:
 
 - The clock runs at ``speed`` simulated seconds per wall second (1 to ``MAX_SPEED``), or
@@ -58,7 +58,8 @@ from typing import Any
 
 from sequences import commands as cmd
 from sequences.language import Sequence, TimeTag
-from sim.marsclock import (
+from sim.loop.session import RoverSession
+from sim.world.marsclock import (
     SOL_S,
     get_mission,
     lmst_h_from_t_s,
@@ -66,7 +67,6 @@ from sim.marsclock import (
     t_s_for_sol_lmst,
     t_s_to_utc,
 )
-from sim.session import RoverSession
 
 log = logging.getLogger(__name__)
 

@@ -52,9 +52,9 @@ from scipy.spatial.transform import Rotation
 
 from server.runtime import RoverRuntime
 from server.storage import Store
-from sim.rover_geometry import MER_GEOMETRY, STEERED_INDEX, wheel_kinematics
-from sim.sites import make_terrain
-from sim.terrain import Terrain
+from sim.rover.geometry import MER_GEOMETRY, STEERED_INDEX, wheel_kinematics
+from sim.world.sites import make_terrain
+from sim.world.terrain import Terrain
 
 FloatArray = NDArray[np.float64]
 log = logging.getLogger(__name__)
@@ -77,7 +77,7 @@ GHOST_RGB = (90, 170, 255)
 SUN_RGB = (255, 205, 60)
 EARTH_RGB = (80, 160, 255)
 HGA_RGB = (90, 230, 120)
-SIDE_RGB = (217, 140, 255)  # an estimator run beside SAPP (sim.side_estimators) ...
+SIDE_RGB = (217, 140, 255)  # an estimator run beside SAPP (sim.loop.side.kinematic) ...
 TRACK_RGB = {  # ... with its own colour where it has one (the timeline's too: web/timeline.js)
     "true": TRUE_RGB,
     "est": GHOST_RGB,
@@ -134,7 +134,7 @@ def wheel_poses_b(pose: RoverPose) -> list[tuple[FloatArray, FloatArray]]:
     axle (viser's cylinders are along z), pitched with its link and steered.
 
     R_b_wheel = Ry(link) Rz(steer) Rx(-90°): Rx(-90°) takes z to y (the axle at rest),
-    Rz steers it about Down, Ry pitches it with the rocker or bogie (``sim.rover_geometry``).
+    Rz steers it about Down, Ry pitches it with the rocker or bogie (``sim.rover.geometry``).
     """
     kin = wheel_kinematics(MER_GEOMETRY, pose.rocker_rad, pose.bogie_rad, pose.steer_rad)
     steer = np.zeros(6)

@@ -18,7 +18,7 @@ from server.alarms import alarm_json
 from server.eventlog import rest_event
 from server.runtime import RoverRuntime
 from server.storage import Store
-from sim.marsclock import t_s_to_utc
+from sim.world.marsclock import t_s_to_utc
 
 
 def _when(runtime: RoverRuntime, t_s: float) -> dict[str, Any]:

@@ -5,7 +5,7 @@ elevation there (HGA passes: at the start and end of each). One DE421 evaluation
 question made a 40,000-line upload cost minutes of CPU. Here the ephemeris is sampled
 coarsely, and only what changes slowly is interpolated:
 
-- ``sim.mars_frames.body_ll_truth`` is ``R_ll_mf (Rz(W) Q p + parallax, aberration)``:
+- ``sim.world.mars_frames.body_ll_truth`` is ``R_ll_mf (Rz(W) Q p + parallax, aberration)``:
   the light-time corrected position ``p`` of the body from Mars (J2000) and Mars' velocity
   come from DE421; ``Q`` is Mars' pole orientation (IAU: a tenth of a degree per century);
   ``W``, the prime meridian, turns 351 deg a day, exactly linearly (IAU 2009).
@@ -31,12 +31,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from estimation.nate import NateParams
+from estimation.sapp.nate import NateParams
 from sequences.validate import AqfName, ValidationContext
-from sim.ephemeris import C_KM_S, Body, astrometric_from_mars_j2000_km, coverage_t_s
-from sim.ephemeris import mars_velocity_j2000_km_s as mars_velocity
-from sim.mars_frames import R_ll_mf, R_mf_j2000, iau_mars_angles_rad, site_mf_m
-from sim.marsclock import (
+from sim.world.ephemeris import C_KM_S, Body, astrometric_from_mars_j2000_km, coverage_t_s
+from sim.world.ephemeris import mars_velocity_j2000_km_s as mars_velocity
+from sim.world.mars_frames import R_ll_mf, R_mf_j2000, iau_mars_angles_rad, site_mf_m
+from sim.world.marsclock import (
     SOL_S,
     get_mission,
     lmst_h_from_t_s,

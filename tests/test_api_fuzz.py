@@ -10,8 +10,8 @@ from typing import Any
 
 import pytest
 
-from server.bench_fuzz import EXCLUDED_CHECKS, TARGETS, bench_fuzz
-from server.cli import main
+from bench.fuzz import EXCLUDED_CHECKS, TARGETS, bench_fuzz
+from cli.main import main
 
 
 @pytest.fixture(scope="module")

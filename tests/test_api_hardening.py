@@ -23,8 +23,8 @@ import pytest
 from fastapi.testclient import TestClient
 
 import server.validation_pool as pool_module
+from bench.fuzz import live_server
 from server.app import MAX_ID, MAX_SOL, ServerConfig, create_app, data_dir_url
-from server.bench_fuzz import live_server
 from server.uploads import MAX_JSON_DEPTH
 
 TOKEN = "hardening-token"

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 
-from sim.bench_fusion import bench_fusion
+from bench.fusion import bench_fusion
 
 KEYS = (
     "eq22_straight_odometry_err_pct",

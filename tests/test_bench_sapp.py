@@ -10,14 +10,14 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from server.cli import main
-from sim.bench_sapp import (
+from bench.sapp import (
     _p997_deg,
     _three_sigma_deg,
     acquisition_run,
     earth_pointing_error_deg,
 )
-from sim.session import RoverSession
+from cli.main import main
+from sim.loop.session import RoverSession
 from tests.test_session_helpers import START
 
 

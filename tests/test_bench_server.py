@@ -10,9 +10,9 @@ from typing import Any
 
 import pytest
 
+from bench.server import TARGETS, bench_server, example_blocks, validation_text
+from cli.main import main
 from sequences.validate import validate
-from server.bench_server import TARGETS, bench_server, example_blocks, validation_text
-from server.cli import main
 
 UNITS = ("_s", "_ms", "_m", "_x", "_per_s")  # units a float metric's key ends with
 

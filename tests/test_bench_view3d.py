@@ -13,8 +13,8 @@ from typing import Any
 
 import pytest
 
-from server.bench_view3d import TARGETS, bench_view3d, by_span, window_stamp
-from server.cli import main
+from bench.view3d import TARGETS, bench_view3d, by_span, window_stamp
+from cli.main import main
 from sim.errors import InputError
 
 UNIT = re.compile(r"_(ms|s|m|ratio)(_|$)")  # a float metric names its unit

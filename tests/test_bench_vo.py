@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from sim.bench import BENCHES
-from sim.bench_vo import bench_vo
+from bench.sim import BENCHES
+from bench.vo import bench_vo
+from bench.vo_baseline import body_motion_from_camera
 from sim.errors import InputError
-from sim.vo_baseline import body_motion_from_camera
-from sim.vo_drive import VO_RIG
+from sim.loop.vo_drive import VO_RIG
 
 
 @pytest.fixture(scope="module")

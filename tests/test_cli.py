@@ -6,7 +6,7 @@ import sys
 
 import pytest
 
-from server.cli import main
+from cli.main import main
 
 
 def _run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
@@ -94,7 +94,7 @@ def test_bad_input_names_the_parameter_and_exits_non_zero(
 
 def test_console_script_reports_errors_without_traceback() -> None:
     proc = subprocess.run(
-        [sys.executable, "-m", "server.cli", "run", "--scenario", "nowhere"],
+        [sys.executable, "-m", "cli.main", "run", "--scenario", "nowhere"],
         capture_output=True,
         text=True,
         check=False,

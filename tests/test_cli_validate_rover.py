@@ -20,7 +20,7 @@ from typing import Any
 import httpx
 import pytest
 
-from server.cli import NO_ROVER_NOTE
+from cli.main import NO_ROVER_NOTE
 from server.storage import Store
 from tests.test_cli import _run
 from tests.test_server_restart import AUTH, TOKEN, _free_port, _start, _wait
@@ -156,7 +156,7 @@ def test_bad_rover_server_token_or_database_is_one_line_and_exit_2(
 
 def test_the_console_script_prints_no_traceback_when_the_server_is_unreachable() -> None:
     proc = subprocess.run(
-        [sys.executable, "-m", "server.cli", "validate", str(FALLBACK), "--rover", "spirit",
+        [sys.executable, "-m", "cli.main", "validate", str(FALLBACK), "--rover", "spirit",
          "--server", f"http://127.0.0.1:{_free_port()}", "--token", TOKEN],
         capture_output=True, text=True, check=False, cwd=ROOT,
     )  # fmt: skip

@@ -81,7 +81,7 @@ def test_body_correction_on_left_llcorrection_on_right() -> None:
 def test_settled_heading_follows_the_convention() -> None:
     # The simulator's own attitude: yaw 90 deg (facing East) maps body forward to Site East,
     # and body right to Site South; a nose-up pitch lifts body forward (Down < 0).
-    from sim.settle import rotation_s_b
+    from sim.rover.settle import rotation_s_b
 
     R_s_b = rotation_s_b(np.zeros(1), np.zeros(1), np.array([np.pi / 2]))[0][0]
     np.testing.assert_allclose(R_s_b @ [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], atol=1e-15)

@@ -11,13 +11,13 @@ import pytest
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from sim import drive
 from sim.errors import InputError
-from sim.rover_geometry import MER_GEOMETRY, STEERED_INDEX
-from sim.sites import make_terrain
-from sim.slip import SlipModel, slip_curve
-from sim.terrain import MERIDIANI_SAND, Eq22Terrain, FlatTerrain, PlaneTerrain
-from sim.truth import CONTROL_DT_S, TruthTrajectory
+from sim.rover import drive
+from sim.rover.geometry import MER_GEOMETRY, STEERED_INDEX
+from sim.rover.slip import SlipModel, slip_curve
+from sim.rover.truth import CONTROL_DT_S, TruthTrajectory
+from sim.world.sites import make_terrain
+from sim.world.terrain import MERIDIANI_SAND, Eq22Terrain, FlatTerrain, PlaneTerrain
 
 FloatArray = NDArray[np.float64]
 G = MER_GEOMETRY

@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from estimation.aqf import AttitudeQuality
+from estimation.sapp.aqf import AttitudeQuality
 from sequences import commands as cmd
 from sequences.language import parse
-from sim.imu import Ln200Params
-from sim.session import RoverSession
+from sim.loop.session import RoverSession
+from sim.sensors.imu import Ln200Params
 from tests.test_session_helpers import START
 
 

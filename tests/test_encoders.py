@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from sim.encoders import EncoderParams, MobilityEncoders
 from sim.errors import InputError
-from sim.truth import CONTROL_DT_S, TruthTrajectory
+from sim.rover.truth import CONTROL_DT_S, TruthTrajectory
+from sim.sensors.encoders import EncoderParams, MobilityEncoders
 
 WHEEL_RADIUS_M = 0.13  # MER wheel, 26 cm diameter (REFERENCES.md)
 

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from sim.ephem_report import ephem_report, parse_utc
+from cli.ephem_report import ephem_report, parse_utc
 from sim.errors import InputError
 
 EXAMPLE = ("2004-01-03T13:46:31", -14.64, 184.702)  # GISS Mars24 worked example 2

@@ -15,7 +15,8 @@ import pytest
 from jplephem.spk import SPK
 
 from estimation.mars_constants import MARS_ROTATION_RATE_RAD_S
-from sim.ephemeris import (
+from sim.errors import InputError
+from sim.world.ephemeris import (
     AU_KM,
     C_KM_S,
     apparent_dir_from_mars_j2000,
@@ -25,8 +26,7 @@ from sim.ephemeris import (
     mars_heliocentric_distance_au,
     mars_velocity_j2000_km_s,
 )
-from sim.errors import InputError
-from sim.mars_frames import (
+from sim.world.mars_frames import (
     R_ll_mf,
     R_mf_j2000,
     azimuth_rad,
@@ -39,7 +39,7 @@ from sim.mars_frames import (
     planetographic_from_planetocentric,
     sun_ll_truth,
 )
-from sim.marsclock import mars24_at_t_s, utc_to_t_s
+from sim.world.marsclock import mars24_at_t_s, utc_to_t_s
 
 T_2004 = utc_to_t_s(datetime(2004, 1, 1, tzinfo=UTC))
 T_2030 = utc_to_t_s(datetime(2030, 1, 1, tzinfo=UTC))

@@ -1,4 +1,4 @@
-"""The sequence-language fuzzer (``server.fuzz_language``): a short deterministic run finds
+"""The sequence-language fuzzer (``bench.fuzz_language``): a short deterministic run finds
 no crash and no diagnostic without a line; and it does notice both when they happen."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ from typing import Any
 
 import pytest
 
-import server.fuzz_language as fuzz
+import bench.fuzz_language as fuzz
 from sequences.language import Diagnostic
 from sequences.validate import ValidationResult, validate
 

@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from estimation.gyro_propagation import propagate_gyro
 from estimation.ivp import mars_rotation_ll
-from sim.drive import initial_state, turn_in_place
-from sim.imu import Ln200Imu, Ln200Params
-from sim.slip import SlipModel
-from sim.terrain import Eq22Terrain
+from estimation.sapp.gyro_propagation import propagate_gyro
+from sim.rover.drive import initial_state, turn_in_place
+from sim.rover.slip import SlipModel
+from sim.sensors.imu import Ln200Imu, Ln200Params
+from sim.world.terrain import Eq22Terrain
 
 LAT = math.radians(-14.57)
 OMEGA_LL = mars_rotation_ll(LAT)

@@ -1,6 +1,6 @@
-"""Gyrocompassing at rest (seed 000 sec. 5 lessons learned; ``estimation.gyrocompass``).
+"""Gyrocompassing at rest (seed 000 sec. 5 lessons learned; ``estimation.sapp.gyrocompass``).
 
-References from outside the module: the simulator's LN-200 model (``sim.imu``) senses the
+References from outside the module: the simulator's LN-200 model (``sim.sensors.imu``) senses the
 truth attitude of a tilted rover at rest; truth headings come from scipy's Euler angles; the
 error spread is compared with a hand-derived budget (chi-square bounds on the sample
 spread); the tilt coupling is checked against the hand-derived ``tan φ · ε``.
@@ -15,20 +15,20 @@ import pytest
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from estimation.gyrocompass import (
+from estimation.ivp import mars_rotation_ll
+from estimation.quaternion import quat_multiply
+from estimation.sapp.gyrocompass import (
     GyrocompassParams,
     gyrocompass,
     gyrocompass_samples,
     heading_sigma_rad,
     min_duration_s,
 )
-from estimation.ivp import mars_rotation_ll
-from estimation.quaternion import quat_multiply
-from sim.imu import DEG_PER_H_TO_RAD_S, Ln200Imu, Ln200Params
+from sim.sensors.imu import DEG_PER_H_TO_RAD_S, Ln200Imu, Ln200Params
 
 FloatArray = NDArray[np.float64]
 
-GUSEV_LAT_RAD = math.radians(-14.57)  # Spirit's landing site (sim/sites.py), planetographic
+GUSEV_LAT_RAD = math.radians(-14.57)  # Spirit's landing site (sim/world/sites.py), planetographic
 HOUR_S = 3600.0
 
 

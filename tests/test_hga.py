@@ -8,10 +8,10 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from estimation import ivp
-from estimation.hga_pointing import hga_boresight_b, point_hga
-from sim.hga import hga_pointing_truth
-from sim.mars_frames import earth_ll_truth, elevation_rad
-from sim.marsclock import utc_to_t_s
+from estimation.sapp.hga_pointing import hga_boresight_b, point_hga
+from sim.rover.hga import hga_pointing_truth
+from sim.world.mars_frames import earth_ll_truth, elevation_rad
+from sim.world.marsclock import utc_to_t_s
 
 LAT, LON = math.radians(-14.57), math.radians(175.48)
 

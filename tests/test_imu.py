@@ -11,14 +11,14 @@ from scipy.spatial.transform import Rotation
 
 from estimation.mars_constants import MARS_GRAVITY_M_S2, MARS_ROTATION_RATE_RAD_S
 from sim.errors import InputError
-from sim.imu import (
+from sim.rover.truth import CONTROL_DT_S
+from sim.sensors.imu import (
     DEG_PER_H_TO_RAD_S,
     DEG_PER_SQRT_H_TO_RAD_PER_SQRT_S,
     STANDARD_GRAVITY_M_S2,
     Ln200Imu,
     Ln200Params,
 )
-from sim.truth import CONTROL_DT_S
 
 GUSEV_LAT_RAD = math.radians(-14.57)  # Spirit's landing site (planetographic)
 YAW_PITCH_ROLL_DEG = (123.0, 7.0, -11.0)  # a tilted rover on a slope

@@ -10,9 +10,9 @@ import pytest
 from scipy.optimize import brentq
 
 from estimation import ivp
-from sim import mars_frames
-from sim.ephemeris import astrometric_from_mars_j2000_km
-from sim.marsclock import utc_to_t_s
+from sim.world import mars_frames
+from sim.world.ephemeris import astrometric_from_mars_j2000_km
+from sim.world.marsclock import utc_to_t_s
 
 T_2004 = utc_to_t_s(datetime(2004, 1, 1, tzinfo=UTC))
 T_2030 = utc_to_t_s(datetime(2030, 1, 1, tzinfo=UTC))

@@ -9,14 +9,14 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from estimation.fusion.attitude_sensors import (
+from estimation.fusion.kinematic.attitude_sensors import (
     HEADING_GYRO,
     THREE_AXIS_GYRO,
     gyro_measurement,
     sun_measurement,
 )
-from estimation.fusion.kinematic_process import Layout, ProcessParams, dynamics, jacobian
-from estimation.fusion.slip_constraint import JointRates, slip_constraint
+from estimation.fusion.kinematic.process import Layout, ProcessParams, dynamics, jacobian
+from estimation.fusion.kinematic.slip_constraint import JointRates, slip_constraint
 
 EPS = 1e-6
 

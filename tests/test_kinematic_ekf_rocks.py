@@ -11,13 +11,13 @@ from datetime import UTC, datetime
 import numpy as np
 import pytest
 
-from estimation.aqf import AttitudeQuality
-from estimation.fusion.kinematic_ekf import CONTACT_ANGLE_LIMIT_RAD, KinematicEkf
-from estimation.fusion.slip_constraint import JointRates, slip_constraint
+from estimation.fusion.kinematic.ekf import CONTACT_ANGLE_LIMIT_RAD, KinematicEkf
+from estimation.fusion.kinematic.slip_constraint import JointRates, slip_constraint
+from estimation.sapp.aqf import AttitudeQuality
 from sequences import commands as cmd
-from sim.rover_sim import RoverSim
-from sim.session import RoverSession
-from sim.side_estimators import commanded_rates, starts_with_steering
+from sim.loop.rover_sim import RoverSim
+from sim.loop.session import RoverSession
+from sim.loop.side.kinematic import commanded_rates, starts_with_steering
 
 START = datetime(2004, 4, 14, 15, 0, tzinfo=UTC)
 SPEED_M_S = 0.0375
@@ -58,7 +58,7 @@ def test_contact_angles_stay_on_the_lower_half_of_the_wheels() -> None:
 
 def test_commands_start_when_the_wheels_start_rolling() -> None:
     # An arc steers first; the straight after it straightens the wheels first; the next
-    # straight starts at once (sim.rover_sim). The command must start with the rolling.
+    # straight starts at once (sim.loop.rover_sim). The command must start with the rolling.
     sim = RoverSim("flat", 3, START, slip=False)
     legs = [
         ("arc", (5.0, math.radians(10.0)), sim.drive_arc(5.0, math.radians(10.0))),

@@ -9,20 +9,20 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from estimation.fusion.attitude_sensors import (
+from estimation.fusion.kinematic.attitude_sensors import (
     R_WASS_B,
     sun_sensor_model,
     sun_vector_from_measurement,
 )
-from estimation.fusion.encoder_rates import interval_rates
-from estimation.fusion.rover_kinematics import FLIGHT_GEOMETRY, suspension
-from sim.compliant_wheels import compliant_wheel_angles
-from sim.drive import drive_straight, initial_state
-from sim.joint_encoders import JointEncoderParams, JointEncoders
-from sim.rover_geometry import MER_GEOMETRY, wheel_kinematics
-from sim.slip import SlipModel
-from sim.sun_sensor import SunSensorParams, WassSunSensor, wass_output
-from sim.terrain import FlatTerrain
+from estimation.fusion.kinematic.encoder_rates import interval_rates
+from estimation.fusion.kinematic.rover_kinematics import FLIGHT_GEOMETRY, suspension
+from sim.rover.compliant_wheels import compliant_wheel_angles
+from sim.rover.drive import drive_straight, initial_state
+from sim.rover.geometry import MER_GEOMETRY, wheel_kinematics
+from sim.rover.slip import SlipModel
+from sim.sensors.joint_encoders import JointEncoderParams, JointEncoders
+from sim.sensors.sun_sensor import SunSensorParams, WassSunSensor, wass_output
+from sim.world.terrain import FlatTerrain
 
 
 def test_flight_geometry_equals_the_simulated_rover() -> None:

@@ -8,11 +8,15 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from estimation.fusion.kinematic_ekf import KinematicEkf
-from estimation.fusion.rover_kinematics import steer_per_wheel
-from estimation.fusion.slip_constraint import JointRates, deterministic_slip, slip_constraint
-from sim.bench_fusion_kinematic import run_once
-from sim.rover_sim import RoverSim
+from bench.fusion_kinematic import run_once
+from estimation.fusion.kinematic.ekf import KinematicEkf
+from estimation.fusion.kinematic.rover_kinematics import steer_per_wheel
+from estimation.fusion.kinematic.slip_constraint import (
+    JointRates,
+    deterministic_slip,
+    slip_constraint,
+)
+from sim.loop.rover_sim import RoverSim
 
 START = datetime(2004, 4, 14, 12, 0, 0, tzinfo=UTC)
 

@@ -1,4 +1,4 @@
-"""The Site-to-Local-Level rotation against the Mars-fixed geometry of sim.mars_frames."""
+"""The Site-to-Local-Level rotation against the Mars-fixed geometry of sim.world.mars_frames."""
 
 import math
 
@@ -6,8 +6,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from estimation.mars_constants import MARS_EQUATORIAL_RADIUS_M
-from sim.local_level import R_ll_s, q_ll_b_from_site
-from sim.mars_frames import R_ll_mf, site_mf_m
+from sim.world.local_level import R_ll_s, q_ll_b_from_site
+from sim.world.mars_frames import R_ll_mf, site_mf_m
 
 LAT = math.radians(-14.57)
 LON = math.radians(175.48)

@@ -1,6 +1,6 @@
 """The Mars rotation vector in Local-Level, checked independently of its closed form.
 
-``sim.mars_frames.mars_rotation_ll`` and ``estimation.ivp.mars_rotation_ll`` write
+``sim.world.mars_frames.mars_rotation_ll`` and ``estimation.ivp.mars_rotation_ll`` write
 ``Ω (cos φ, 0, -sin φ)``; here the rate is differentiated numerically from the IAU 2009
 rotation of the Mars-fixed frame, with its sign, so the gyros' truth is not circular.
 """
@@ -13,8 +13,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from estimation import ivp
-from sim.mars_frames import R_ll_mf, R_mf_j2000, mars_rotation_ll
-from sim.marsclock import utc_to_t_s
+from sim.world.mars_frames import R_ll_mf, R_mf_j2000, mars_rotation_ll
+from sim.world.marsclock import utc_to_t_s
 
 
 @pytest.mark.parametrize(("lat_deg", "lon_east_deg"), [(-14.57, 175.48), (-1.95, 354.47), (60, 30)])

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from sim.errors import InputError
-from sim.marsclock import (
+from sim.world.marsclock import (
     MISSIONS,
     SOL_S,
     lmst_h_from_t_s,

@@ -2,7 +2,7 @@
 
 References from outside the module: hand-derived tilt and heading formulas, scipy's
 ``Rotation.align_vectors`` as an independent minimal-rotation solver, the LN-200 IMU model
-of ``sim.imu`` for noisy samples with a known bias.
+of ``sim.sensors.imu`` for noisy samples with a known bias.
 """
 
 from __future__ import annotations
@@ -14,9 +14,9 @@ import pytest
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from estimation.aqf import AttitudeQuality
 from estimation.mars_constants import MARS_GRAVITY_M_S2
-from estimation.nadir import (
+from estimation.sapp.aqf import AttitudeQuality
+from estimation.sapp.nadir import (
     AccelAverager,
     NadirCheckOutcome,
     NadirFailure,
@@ -29,7 +29,7 @@ from estimation.nadir import (
     tilt_from_specific_force_rad,
     tilt_of_estimate_rad,
 )
-from sim.imu import Ln200Imu, Ln200Params
+from sim.sensors.imu import Ln200Imu, Ln200Params
 
 F = NDArray[np.float64]
 DT_S = 0.125  # 8 Hz

@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from estimation.aqf import AttitudeQuality as Aqf
-from estimation.gyro_propagation import propagate_gyro
-from estimation.nate import DriveCommand, EncoderSample, ImuSample, Nate, NateMode
-from estimation.wheel_odometry import DriveKind, steer_six
-from sim.imu import Ln200Imu, Ln200Params
-from sim.rover_sim import RoverSim
+from estimation.sapp.aqf import AttitudeQuality as Aqf
+from estimation.sapp.gyro_propagation import propagate_gyro
+from estimation.sapp.nate import DriveCommand, EncoderSample, ImuSample, Nate, NateMode
+from estimation.sapp.wheel_odometry import DriveKind, steer_six
+from sim.loop.rover_sim import RoverSim
+from sim.sensors.imu import Ln200Imu, Ln200Params
 
 LAT = math.radians(-14.57)
 LON = math.radians(175.47)

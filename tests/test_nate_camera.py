@@ -1,7 +1,7 @@
 """NATE's camera modes on real Pancam images (seed 000 sec. 2.2.2, 2.2.3, 2.2.4, 2.3.2, 5).
 
-The simulated rover (``sim.rover_sim.RoverSim``) renders the Pancam sun frame at the mast
-pointing NATE asks for, from the truth, as ``sim.session`` does; NATE runs the sun finder
+The simulated rover (``sim.loop.rover_sim.RoverSim``) renders the Pancam sun frame at the mast
+pointing NATE asks for, from the truth, as ``sim.loop.session`` does; NATE runs the sun finder
 on it. One test per Attitude Quality Flag transition of the camera modes and of the
 Attitude Acquisition Machine, then gyrocompassing, parameters and refused commands.
 Truth comes from the simulator (``RoverSim.q_ll_b``) and angles from scipy ``Rotation``.
@@ -19,14 +19,21 @@ import pytest
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from estimation.aqf import AttitudeQuality as Aqf
 from estimation.camera_model import R_b_pancam
-from estimation.gyrocompass import DEG_PER_H_TO_RAD_S
-from estimation.nadir import NadirUpdateResult
-from estimation.nate import CONTROL_DT_S, GyrocompassOutcome, ImuSample, Nate, NateMode, NateOutput
-from estimation.sun_modes import SunOutcome, SunResult
-from sim.imu import ImuSamples, Ln200Params
-from sim.rover_sim import RoverSim
+from estimation.sapp.aqf import AttitudeQuality as Aqf
+from estimation.sapp.gyrocompass import DEG_PER_H_TO_RAD_S
+from estimation.sapp.nadir import NadirUpdateResult
+from estimation.sapp.nate import (
+    CONTROL_DT_S,
+    GyrocompassOutcome,
+    ImuSample,
+    Nate,
+    NateMode,
+    NateOutput,
+)
+from estimation.sapp.sun_modes import SunOutcome, SunResult
+from sim.loop.rover_sim import RoverSim
+from sim.sensors.imu import ImuSamples, Ln200Params
 
 F = NDArray[np.float64]
 DAY = datetime(2004, 4, 14, 16, 30, tzinfo=UTC)  # sun 47 deg up at Gusev
@@ -85,7 +92,7 @@ def imu(samples: ImuSamples, k: int = 0, valid: bool = True) -> ImuSample:
 
 
 def run(nate: Nate, sim: RoverSim, valid: bool = True) -> list[NateOutput]:
-    """Feed NATE until its mode ends by itself, as ``sim.session`` does: 8 Hz samples in
+    """Feed NATE until its mode ends by itself, as ``sim.loop.session`` does: 8 Hz samples in
     the 8 Hz modes (flagged ``valid``), a jump to the image time and the rendered Pancam
     frame in the camera modes, one jump over a gyrocompassing span."""
     outs: list[NateOutput] = []

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from estimation.aqf import AttitudeQuality as Aqf
-from estimation.nate import DriveCommand, ImuSample, NateMode
-from estimation.wheel_odometry import DriveKind
+from estimation.sapp.aqf import AttitudeQuality as Aqf
+from estimation.sapp.nate import DriveCommand, ImuSample, NateMode
+from estimation.sapp.wheel_odometry import DriveKind
 from sequences import commands as cmd
 from sim.errors import InputError
-from sim.imu import Ln200Params
-from sim.session import RoverSession
+from sim.loop.session import RoverSession
+from sim.sensors.imu import Ln200Params
 from tests.test_nate_camera import DAY, q_true, rover, run
 
 

@@ -1,5 +1,5 @@
-"""Navcam stereo rendering (sim.navcam): geometry against the rig's pinhole model, shading,
-shadows, noise statistics, bad inputs, and the simulator's call."""
+"""Navcam stereo rendering (sim.sensors.navcam.camera): geometry against the rig's pinhole
+model, shading, shadows, noise statistics, bad inputs, and the simulator's call."""
 
 from __future__ import annotations
 
@@ -14,16 +14,16 @@ from scipy.spatial.transform import Rotation
 
 from estimation.vo.stereo_rig import NAVCAM
 from sim.errors import InputError
-from sim.navcam import (
+from sim.loop.rover_sim import RoverSim
+from sim.sensors.navcam.camera import (
     MARS_LIGHT,
     NAVCAM_DETECTOR,
     NavcamPair,
     render_navcam_pair,
 )
-from sim.navcam_texture import band_limited_albedo
-from sim.rover_sim import RoverSim
-from sim.sites import make_terrain
-from sim.terrain import BEDROCK, FlatTerrain, PlaneTerrain
+from sim.sensors.navcam.texture import band_limited_albedo
+from sim.world.sites import make_terrain
+from sim.world.terrain import BEDROCK, FlatTerrain, PlaneTerrain
 
 FloatArray = NDArray[np.float64]
 
@@ -192,7 +192,7 @@ def test_a_right_row_is_the_left_row_shifted_by_f_b_over_z(site: str) -> None:
         error, spread = row_mismatch(pair, row, disparity)
         if site == "smooth":  # nothing finer than the pixels: the rows agree exactly
             assert error < 1e-4 * spread
-        else:  # the procedural texture's finest grains alias a little (sim.navcam)
+        else:  # the procedural texture's finest grains alias a little (sim.sensors.navcam.camera)
             assert error < 0.2 * spread
         assert row_mismatch(pair, row, disparity + 1.0)[0] > 1.5 * error
 

@@ -9,13 +9,13 @@ import pytest
 from numpy.typing import NDArray
 
 from estimation.camera_model import PANCAM, PinholeCamera, R_b_pancam, mast_az_el_for
-from estimation.sunfind import (
+from estimation.sapp.sunfind import (
     SUN_ANGULAR_RADIUS_MAX_RAD,
     SUN_ANGULAR_RADIUS_MIN_RAD,
     find_sun,
 )
 from sim.errors import InputError
-from sim.pancam import (
+from sim.sensors.pancam import (
     PancamDetector,
     SolarFilter,
     render_sun_image,

@@ -1,4 +1,4 @@
-"""QUEST (estimation/quest.py) against scipy's SVD Wahba solver, hand-computed covariances,
+"""QUEST (estimation/sapp/quest.py) against scipy's SVD Wahba solver, hand-computed covariances,
 Monte Carlo consistency (NEES) and a Sungaze-like sun arc."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from estimation.quest import QuestAccumulator, quest
+from estimation.sapp.quest import QuestAccumulator, quest
 
 
 def _unit_rows(v: np.ndarray) -> np.ndarray:

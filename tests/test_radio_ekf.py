@@ -10,9 +10,9 @@ import pytest
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from estimation.fusion import radio_models as rm
 from estimation.fusion.joseph import joseph_update
-from estimation.fusion.radio_ekf import RadioEkf, RadioEkfTuning
+from estimation.fusion.radio import models as rm
+from estimation.fusion.radio.ekf import RadioEkf, RadioEkfTuning
 from estimation.fusion.rk4 import rk4_step
 
 FloatArray = NDArray[np.float64]

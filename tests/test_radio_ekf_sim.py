@@ -9,10 +9,10 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from estimation.fusion import radio_models as rm
-from estimation.fusion.radio_beacon import OrbitingBeacon
+from estimation.fusion.radio import models as rm
+from estimation.fusion.radio.beacon import OrbitingBeacon
 from estimation.mars_constants import MARS_GM_M3_S2
-from sim.landmarks import (
+from sim.sensors.landmarks import (
     NAVCAM_FOCAL_PX,
     NAVCAM_OFFSET_B_M,
     LandmarkMap,
@@ -20,9 +20,9 @@ from sim.landmarks import (
     choose_pair,
     navcam_pixels,
 )
-from sim.mars_frames import R_ll_mf, site_mf_m
-from sim.relay_orbiter import KeplerOrbit, RelayOrbiter
-from sim.sites import make_terrain
+from sim.sensors.orbiter import KeplerOrbit, RelayOrbiter
+from sim.world.mars_frames import R_ll_mf, site_mf_m
+from sim.world.sites import make_terrain
 
 EPOCH_T_S = 131_000_000.0  # March 2004
 LAT, LON = math.radians(-1.95), math.radians(354.47)
@@ -152,9 +152,9 @@ def test_bad_inputs_raise_value_error_naming_them(call: Callable[[], object], na
 
 def test_short_filter_run_tracks_the_rover() -> None:
     """100 s of case 4 on one drive: the estimate converges from its 10 m start."""
-    from sim.bench_fusion_radio import ORBIT_EPOCH, TUNINGS, run_case
-    from sim.marsclock import utc_to_t_s
-    from sim.radio_scenario import build_scenario, drive_starts_t_s
+    from bench.fusion_radio import ORBIT_EPOCH, TUNINGS, run_case
+    from sim.scenarios.radio import build_scenario, drive_starts_t_s
+    from sim.world.marsclock import utc_to_t_s
 
     orbiter = RelayOrbiter(KeplerOrbit(epoch_t_s=utc_to_t_s(ORBIT_EPOCH)))
     scenario = build_scenario(1, orbiter, float(drive_starts_t_s(orbiter, 2)[1]))

@@ -1,5 +1,6 @@
 """The radio + terrain-matching EKF beside SAPP in a rover session (the fusion issue,
-item 3; ``sim.radio_runner``), and the onboard orbital maps it uses (``sim.landmarks``)."""
+item 3; ``sim.loop.side.radio``), and the onboard orbital maps it uses
+(``sim.sensors.landmarks``)."""
 
 from __future__ import annotations
 
@@ -9,16 +10,16 @@ from datetime import UTC, datetime
 import numpy as np
 import pytest
 
-from estimation.aqf import AttitudeQuality
+from estimation.sapp.aqf import AttitudeQuality
 from sequences import commands as cmd
 from sim.errors import InputError
-from sim.landmarks import LandmarkTiles, OrbitalDem, ground_height_m, matching_band
-from sim.radio_runner import RadioEkfRunner
-from sim.radio_scenario import metres_per_radian
-from sim.session import RoverSession
-from sim.sites import make_terrain
+from sim.loop.session import RoverSession
+from sim.loop.side.radio import RadioEkfRunner
+from sim.scenarios.radio import metres_per_radian
+from sim.sensors.landmarks import LandmarkTiles, OrbitalDem, ground_height_m, matching_band
+from sim.world.sites import make_terrain
 
-# The relay orbiter (sim.relay_orbiter, ORBIT_EPOCH) culminates at 51° over Gusev 7 min
+# The relay orbiter (sim.sensors.orbiter, ORBIT_EPOCH) culminates at 51° over Gusev 7 min
 # after this; its next pass there is 12.6 h later.
 START = datetime(2004, 4, 14, 15, 0, tzinfo=UTC)
 

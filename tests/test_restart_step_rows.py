@@ -5,7 +5,7 @@ restarts from the older checkpoint and runs the step again: its row is updated a
 the re-run, never doubled. First the rule in process, the kill played out exactly (the
 writer flushed by hand, the clock ticked by hand); then the real server (``roverops
 serve``) killed with SIGKILL at seeded random moments of a sequence
-(``server.bench_restart``, which ``roverops bench restart`` runs twenty times).
+(``bench.restart``, which ``roverops bench restart`` runs twenty times).
 """
 
 from __future__ import annotations
@@ -17,9 +17,9 @@ from typing import Any
 
 import pytest
 
+from bench.restart import expected_steps, measure_kills
 from sequences.validate import validate
 from server.app import Server, ServerConfig
-from server.bench_restart import expected_steps, measure_kills
 from server.runtime import RoverRuntime
 from server.timeline import sol_timeline
 

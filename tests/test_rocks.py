@@ -1,4 +1,4 @@
-"""Rock size-frequency model and rock placement (sim.rocks)."""
+"""Rock size-frequency model and rock placement (sim.world.rocks)."""
 
 from __future__ import annotations
 
@@ -7,10 +7,10 @@ import pytest
 from numpy.typing import ArrayLike
 from scipy import integrate, stats
 
-from sim.albedo import AlbedoStyle, AlbedoTexture
-from sim.heightmap import FloatArray, HeightmapTerrain
-from sim.noise import FractalNoise
-from sim.rocks import (
+from sim.world.albedo import AlbedoStyle, AlbedoTexture
+from sim.world.heightmap import FloatArray, HeightmapTerrain
+from sim.world.noise import FractalNoise
+from sim.world.rocks import (
     HEIGHT_TO_DIAMETER,
     RockField,
     RockPopulation,
@@ -21,7 +21,7 @@ from sim.rocks import (
     sample_rocks,
     stamp_rocks,
 )
-from sim.terrain import BEDROCK
+from sim.world.terrain import BEDROCK
 
 
 class _Level:

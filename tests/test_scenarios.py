@@ -8,9 +8,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from estimation.mars_constants import MARS_ROTATION_RATE_RAD_S
-from sim.imu import Ln200Params
-from sim.rover_sim import RoverSim
-from sim.scenarios import run_scenario
+from sim.loop.rover_sim import RoverSim
+from sim.scenarios.headless import run_scenario
+from sim.sensors.imu import Ln200Params
 
 START = datetime(2004, 4, 14, 16, 30, tzinfo=UTC)
 

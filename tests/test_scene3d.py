@@ -43,8 +43,8 @@ from server.scene3d import (
 )
 from server.storage import Store
 from server.viser_proxy import MAX_VIEWER_MESSAGE_BYTES, refusal
-from sim.rover_geometry import MER_GEOMETRY, wheel_kinematics
-from sim.sites import make_terrain
+from sim.rover.geometry import MER_GEOMETRY, wheel_kinematics
+from sim.world.sites import make_terrain
 from tests.test_server_restart import _free_port
 from tests.viser_wire import WireViewer
 

@@ -19,6 +19,7 @@ from typing import Any
 
 import pytest
 
+from cli.main import NO_ROVER_NOTE
 from sequences import commands as cmd
 from sequences.language import (
     NO_TAG,
@@ -39,7 +40,6 @@ from sequences.validate import (
     estimate_duration_s,
     validate,
 )
-from server.cli import NO_ROVER_NOTE
 from tests.test_cli import _run as run_cli
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -655,7 +655,7 @@ def test_cli_reads_standard_input(
 
 def test_console_script_missing_file_has_no_traceback(tmp_path: Path) -> None:
     proc = subprocess.run(
-        [sys.executable, "-m", "server.cli", "validate", str(tmp_path / "absent.seq")],
+        [sys.executable, "-m", "cli.main", "validate", str(tmp_path / "absent.seq")],
         capture_output=True,
         text=True,
         check=False,

@@ -2,7 +2,7 @@
 the sun below what NATE accepts (issue 14, item 8): a sequence queued at 23:41 LMST failed
 at run time with "the sun is -76.5 deg high" and the validator had said nothing.
 
-The predicted elevation is checked against Mars24 (the GISS algorithm, ``sim.marsclock``:
+The predicted elevation is checked against Mars24 (the GISS algorithm, ``sim.world.marsclock``:
 an outside reference, not the DE421 samples the validator uses) and against the refusal of
 the flight software itself in a rover session at the same moment.
 """
@@ -14,14 +14,14 @@ import re
 
 import pytest
 
-from estimation.nate import NateParams
+from estimation.sapp.nate import NateParams
 from sequences.commands import SetParam, Sunfind, Wait
 from sequences.validate import CODES, ValidationContext, ValidationResult, validate
 from server.runtime import ROVERS, RoverRuntime
 from server.validation_context import rover_site, site_context
-from sim.marsclock import get_mission, mars24, t_s_for_sol_lmst, t_s_to_utc, utc_to_t_s
-from sim.session import RoverSession
-from sim.sites import site
+from sim.loop.session import RoverSession
+from sim.world.marsclock import get_mission, mars24, t_s_for_sol_lmst, t_s_to_utc, utc_to_t_s
+from sim.world.sites import site
 
 SPIRIT = site("gusev")
 SOL = 100

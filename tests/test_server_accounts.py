@@ -29,7 +29,7 @@ def _free_port() -> int:
 
 def _serve(data_dir: Path, port: int, log_name: str, *flags: str) -> subprocess.Popen[bytes]:
     env = {k: v for k, v in os.environ.items() if not k.startswith("ROVEROPS_")}
-    cmd = [sys.executable, "-m", "server.cli", "serve", "--port", str(port),
+    cmd = [sys.executable, "-m", "cli.main", "serve", "--port", str(port),
            "--data-dir", str(data_dir), "--no-3d", *flags]  # fmt: skip
     with open(data_dir.parent / log_name, "wb") as log:
         return subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT)

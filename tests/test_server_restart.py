@@ -54,7 +54,7 @@ def _start(
     cmd = [
         sys.executable,
         "-m",
-        "server.cli",
+        "cli.main",
         "serve",
         "--port",
         str(port),

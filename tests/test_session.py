@@ -18,10 +18,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from estimation.aqf import AttitudeQuality as Aqf
 from estimation.events import Event
+from estimation.sapp.aqf import AttitudeQuality as Aqf
 from sequences import commands as cmd
-from sim.session import CommandReport, RoverSession
+from sim.loop.session import CommandReport, RoverSession
 
 DAY = datetime(2004, 4, 14, 16, 30, tzinfo=UTC)
 NIGHT = datetime(2004, 4, 14, 4, 0, tzinfo=UTC)

@@ -3,7 +3,7 @@
 On a fresh rover (AQF Unknown, the estimate level and facing North) the command
 "completed" and reached Fine although its Suncheck failed (the sun 4.5 deg from where the
 estimate put it), and nothing in its result said so. The rule now (Ali et al. 2005 sec. 4
-for the practice, sec. 5 for the wish for one command; ``estimation.nate``'s docstring and
+for the practice, sec. 5 for the wish for one command; ``estimation.sapp.nate``'s docstring and
 docs/sequences.md): Sungaze follows a Suncheck that saw the sun, passed or not; one that saw
 no sun fails the command. The command is meant for Coarse or better: the validator warns
 below, the rover does not refuse.
@@ -15,11 +15,11 @@ import math
 
 from scipy.spatial.transform import Rotation
 
-from estimation.aqf import AttitudeQuality
+from estimation.sapp.aqf import AttitudeQuality
 from sequences import commands as cmd
 from sequences.validate import validate
 from server.runtime import ROVERS
-from sim.session import RoverSession
+from sim.loop.session import RoverSession
 from tests.test_sequences import _context
 
 

@@ -16,10 +16,10 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from sim.errors import InputError
-from sim.rover_geometry import MER_GEOMETRY, RoverGeometry, wheel_kinematics
-from sim.settle import Settled, settle
-from sim.sites import make_terrain
-from sim.terrain import BEDROCK, GUSEV_SOIL, Eq22Terrain, FlatTerrain, PlaneTerrain, Soil
+from sim.rover.geometry import MER_GEOMETRY, RoverGeometry, wheel_kinematics
+from sim.rover.settle import Settled, settle
+from sim.world.sites import make_terrain
+from sim.world.terrain import BEDROCK, GUSEV_SOIL, Eq22Terrain, FlatTerrain, PlaneTerrain, Soil
 
 FloatArray = NDArray[np.float64]
 G = MER_GEOMETRY

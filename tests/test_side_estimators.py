@@ -12,11 +12,11 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from estimation.aqf import AttitudeQuality
+from estimation.sapp.aqf import AttitudeQuality
 from sequences import commands as cmd
 from server.app import ServerConfig, create_app, data_dir_url
 from sim.errors import InputError
-from sim.session import RoverSession
+from sim.loop.session import RoverSession
 
 START = datetime(2004, 4, 14, 15, 0, tzinfo=UTC)
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from estimation.site_frames import SiteChain
+from estimation.sapp.site_frames import SiteChain
 
 
 def test_planting_moves_the_origin_to_the_rover_and_counts_up() -> None:

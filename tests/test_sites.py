@@ -1,4 +1,4 @@
-"""The named sites (sim.sites): registry, input checks, and each site's terrain character."""
+"""The named sites (sim.world.sites): registry, input checks, and each site's terrain character."""
 
 from __future__ import annotations
 
@@ -6,15 +6,15 @@ import numpy as np
 import pytest
 
 from sim.errors import InputError
-from sim.heightmap import HeightmapTerrain
-from sim.sites import (
+from sim.world.heightmap import HeightmapTerrain
+from sim.world.sites import (
     SITE_NAMES,
     ColumbiaHillsGround,
     RipplePlainsGround,
     make_terrain,
     site,
 )
-from sim.terrain import BEDROCK, GUSEV_SOIL, MERIDIANI_SAND, normal_up_s
+from sim.world.terrain import BEDROCK, GUSEV_SOIL, MERIDIANI_SAND, normal_up_s
 
 
 def _slope_deg(h: np.ndarray, spacing_m: float) -> np.ndarray:
@@ -148,7 +148,7 @@ def test_eq22_is_balarams_surface() -> None:
     t = make_terrain("eq22", 0)
     x = np.array([0.0, 0.5, 0.5, 1.0, -0.7])
     y = np.array([0.0, 0.2, -0.2, 1.0, 0.4])
-    # Equation 22 of seed 001, written out independently of sim.terrain.
+    # Equation 22 of seed 001, written out independently of sim.world.terrain.
     bump = 0.25 * np.exp(-5 * (6.25 * (x - 0.5) ** 2 + 6.25 * (y - 0.2) ** 2))
     dip = 0.25 * np.exp(-4 * (6.25 * (x - 0.5) ** 2 + 6.25 * (y + 0.2) ** 2))
     expected = 0.2 * (bump - dip + 0.5 * np.sin(0.75 * x * y))

@@ -11,9 +11,9 @@ from scipy.optimize import brentq
 
 from estimation.mars_constants import MARS_GRAVITY_M_S2
 from sim.errors import InputError
-from sim.rover_geometry import MER_GEOMETRY
-from sim.slip import SlipModel, SlipParams, slip_curve, turn_slip_curve
-from sim.terrain import BEDROCK, GUSEV_SOIL, MERIDIANI_SAND, Soil
+from sim.rover.geometry import MER_GEOMETRY
+from sim.rover.slip import SlipModel, SlipParams, slip_curve, turn_slip_curve
+from sim.world.terrain import BEDROCK, GUSEV_SOIL, MERIDIANI_SAND, Soil
 
 DEG = math.pi / 180.0
 

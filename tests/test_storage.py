@@ -33,7 +33,7 @@ SOL_S = 88775.244  # a Mars solar day in seconds
 def real_frames() -> list[dict[str, Any]]:
     """The frames of one Nadir Update (about 10 s at 8 Hz; the last one has its event)."""
     from sequences import commands
-    from sim.session import RoverSession
+    from sim.loop.session import RoverSession
 
     session = RoverSession("flat", 0, datetime(2004, 4, 14, 16, 30, tzinfo=UTC))
     report = session.execute(commands.NadirUpdate())

@@ -21,7 +21,7 @@ from scipy.spatial.transform import Rotation
 
 from estimation.camera_model import PANCAM, R_b_pancam
 from estimation.ivp import sun_ll as ivp_sun_ll
-from estimation.sun_modes import (
+from estimation.sapp.sun_modes import (
     PancamRequest,
     Suncheck,
     SuncheckParams,
@@ -32,7 +32,7 @@ from estimation.sun_modes import (
     SunOutcome,
     SunResult,
 )
-from estimation.sunfind import SunFix
+from estimation.sapp.sunfind import SunFix
 
 F = NDArray[np.float64]
 LAT = math.radians(-14.57)

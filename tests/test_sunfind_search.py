@@ -17,7 +17,7 @@ from scipy.spatial.transform import Rotation
 from estimation.camera_model import PANCAM, PANCAM_FOV_RAD, R_b_pancam
 from estimation.ivp import sun_ll as ivp_sun_ll
 from estimation.quaternion import quat_multiply
-from estimation.sunfind_search import (
+from estimation.sapp.sunfind_search import (
     SunfindSearchParams,
     elevation_check,
     elevation_rad,

@@ -16,7 +16,7 @@ from server.app import (
     CSV_VECTORS,
     _csv,
 )
-from sim.session import RoverSession
+from sim.loop.session import RoverSession
 
 
 def test_rows_keep_their_columns_with_old_and_new_frames() -> None:

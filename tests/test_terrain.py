@@ -1,4 +1,5 @@
-"""Lattice noise (sim.noise), heightmap tiles (sim.heightmap), albedo texture (sim.albedo)."""
+"""Lattice noise (sim.world.noise), heightmap tiles (sim.world.heightmap), albedo texture
+(sim.world.albedo)."""
 
 from __future__ import annotations
 
@@ -6,12 +7,12 @@ import numpy as np
 import pytest
 from scipy import integrate, stats
 
-from sim.albedo import AlbedoStyle, AlbedoTexture, GrainLayer
 from sim.errors import InputError
-from sim.heightmap import RESOLUTION_M, HeightmapTerrain
-from sim.noise import FractalNoise, derive_key, lattice_uniform
-from sim.sites import GUSEV_ALBEDO, MERIDIANI_ALBEDO, make_terrain
-from sim.terrain import BEDROCK
+from sim.world.albedo import AlbedoStyle, AlbedoTexture, GrainLayer
+from sim.world.heightmap import RESOLUTION_M, HeightmapTerrain
+from sim.world.noise import FractalNoise, derive_key, lattice_uniform
+from sim.world.sites import GUSEV_ALBEDO, MERIDIANI_ALBEDO, make_terrain
+from sim.world.terrain import BEDROCK
 
 
 def _texture() -> AlbedoTexture:

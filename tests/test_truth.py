@@ -6,10 +6,10 @@ from datetime import UTC, datetime
 import numpy as np
 import pytest
 
-from sim.drive import initial_state, turn_in_place
-from sim.rover_sim import RoverSim
-from sim.slip import SlipModel
-from sim.terrain import FlatTerrain
+from sim.loop.rover_sim import RoverSim
+from sim.rover.drive import initial_state, turn_in_place
+from sim.rover.slip import SlipModel
+from sim.world.terrain import FlatTerrain
 
 START = datetime(2004, 4, 14, 16, 30, tzinfo=UTC)
 

@@ -1,7 +1,7 @@
 """The rover's validation context (``server.validation_context``): sampled elevations and
 the ephemeris' end (issue 13, defects 3 and 5).
 
-Reference: the direct DE421 functions of ``sim.mars_frames``; the interpolated elevations
+Reference: the direct DE421 functions of ``sim.world.mars_frames``; the interpolated elevations
 agree within 0.05 deg over a sol at both landing sites, and the direct function is called
 once per sol the sequence reaches, not once per HGA pass.
 """
@@ -21,9 +21,13 @@ import server.validation_context as vc
 from sequences.validate import MAX_EPHEMERIS_SOL, validate
 from server.app import ServerConfig, create_app, data_dir_url
 from server.validation_context import SampledElevation, site_context
-from sim.ephemeris import astrometric_from_mars_j2000_km, coverage_t_s, mars_velocity_j2000_km_s
-from sim.mars_frames import earth_ll_truth, elevation_rad, sun_ll_truth
-from sim.marsclock import MISSIONS, SOL_S, sol_number_t_s, t_s_for_sol_lmst
+from sim.world.ephemeris import (
+    astrometric_from_mars_j2000_km,
+    coverage_t_s,
+    mars_velocity_j2000_km_s,
+)
+from sim.world.mars_frames import earth_ll_truth, elevation_rad, sun_ll_truth
+from sim.world.marsclock import MISSIONS, SOL_S, sol_number_t_s, t_s_for_sol_lmst
 
 
 def _site(mission: str) -> tuple[float, float]:

@@ -15,8 +15,8 @@ from scipy.spatial.transform import Rotation
 from estimation.vo.odometry import VoMotion
 from sequences import commands as cmd
 from sequences.validate import estimate_duration_s, validate
-from sim.session import RoverSession
-from sim.vo_drive import EstimatedPose, corrected_pose, predicted_motion, split_drive
+from sim.loop.session import RoverSession
+from sim.loop.vo_drive import EstimatedPose, corrected_pose, predicted_motion, split_drive
 
 START = datetime(2004, 4, 14, 15, 0, tzinfo=UTC)
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from estimation import wheel_odometry as wo
-from estimation.wheel_odometry import DriveKind
+from estimation.sapp import wheel_odometry as wo
+from estimation.sapp.wheel_odometry import DriveKind
 
 XY = wo.MER_WHEEL_GEOMETRY.wheel_xy_b()
 RADIUS = wo.MER_WHEEL_GEOMETRY.wheel_radius_m
@@ -36,7 +36,7 @@ def _arc_inputs(centre: np.ndarray, psi: float) -> tuple[np.ndarray, np.ndarray]
 
 
 def test_default_geometry_matches_the_simulator() -> None:
-    from sim.rover_geometry import MER_GEOMETRY
+    from sim.rover.geometry import MER_GEOMETRY
 
     np.testing.assert_array_equal(XY, MER_GEOMETRY.wheel_xy_b())
     assert MER_GEOMETRY.wheel_radius_m == RADIUS
@@ -64,7 +64,7 @@ def test_quarter_circle_in_one_step_by_hand() -> None:
     # C = (0, 3): |r| LF = LR = sqrt(0.7² + 3.6²) = sqrt(13.45), LM = 3.6,
     # RF = RR = sqrt(0.7² + 2.4²) = 2.5, RM = 2.4; each wheel rolls |r_i| π/2.
     r_hand = np.array([math.sqrt(13.45), 3.6, math.sqrt(13.45), 2.5, 2.4, 2.5])
-    steer = np.array([math.atan2(x, 3.0 - y) for x, y in XY])  # as sim.drive: atan(x/(R-y))
+    steer = np.array([math.atan2(x, 3.0 - y) for x, y in XY])  # as sim.rover.drive: atan(x/(R-y))
     a = r_hand * math.pi / 2
     c = wo.arc_centre_b(3.0)
     dp, psi_ave, psi, used = wo.arc_step(a, steer, c)
@@ -178,7 +178,7 @@ def test_wheel_at_the_arc_centre_is_excluded() -> None:
 
 
 def test_turn_in_place_with_the_simulator_steering_convention() -> None:
-    # sim.drive.turn_in_place keeps |σ| < 90°: the right wheels face forward, roll backward.
+    # sim.rover.drive.turn_in_place keeps |σ| < 90°: the right wheels face forward, roll backward.
     sigma = np.arctan(-XY[:, 0] / XY[:, 1])
     lever = -XY[:, 1] * np.cos(sigma) + XY[:, 0] * np.sin(sigma)  # signed roll per radian
     psi = 0.05
@@ -212,9 +212,9 @@ def test_heading_propagation_turns_about_body_down() -> None:
 def test_odometry_follows_a_simulated_arc_within_the_bound() -> None:
     """sim.drive_arc on flat ground, no slip: encoders, steering and the truth attitude
     (a perfect gyro) in, position out; the error stays under |D| ψ_step / 2."""
-    from sim.drive import drive_arc, initial_state
-    from sim.slip import SlipModel
-    from sim.terrain import FlatTerrain
+    from sim.rover.drive import drive_arc, initial_state
+    from sim.rover.slip import SlipModel
+    from sim.world.terrain import FlatTerrain
 
     flat = FlatTerrain()
     R, total = -3.0, math.pi / 2  # a left turn

@@ -1,5 +1,5 @@
 """A viser viewer without a browser, for tests: a WebSocket speaking viser's wire format
-(``server.bench_view3d`` describes it) that keeps the GUI state the server sent it, by
+(``bench.view3d`` describes it) that keeps the GUI state the server sent it, by
 element label, and sends whatever message a test crafts."""
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import ClientConnection, connect
 from websockets.typing import Subprotocol
 
-from server.bench_view3d import CAMERA_REPORT
+from bench.view3d import CAMERA_REPORT
 
 PROTOCOL = Subprotocol(f"viser-v{viser.__version__}")
 HEADER_BYTES = 16

@@ -31,7 +31,7 @@ NAVCAM_WIDTH_PX = 1024
 NAVCAM_FOV_RAD = math.radians(45.0)
 NAVCAM_BASELINE_M = 0.20
 # The point midway between the eyes, body frame (x forward, y right, z down; the body
-# origin is 0.30 m above level ground, sim.rover_geometry): 1.52 m above the ground, on
+# origin is 0.30 m above level ground, sim.rover.geometry): 1.52 m above the ground, on
 # the left front of the deck as on MER. Approximate, not a flight drawing.
 NAVCAM_HEAD_B = (0.45, -0.30, -1.22)
 

@@ -1,0 +1,617 @@
+"""``roverops bench server``: the operations server's speed figures (issue 4, item 7).
+
+Everything runs through the real server: ``roverops serve`` in a subprocess on a free port
+of 127.0.0.1, a new SQLite database in a temporary directory, its storage writer, its rover
+threads and uvicorn's real sockets. The bench process is the client (REST over
+``urllib``, WebSocket with the ``websockets`` package), so clients and server do not share
+an interpreter lock and the figures include the network stack.
+
+- ``sol_sim_wall_s``: a sol's work (GET_FINE_ATTITUDE, a 100 m DRIVE_STRAIGHT, a 15 min
+  HGA_PASS) on Spirit at speed ``max``: wall time from the upload request to the sequence
+  reading ``completed`` through the API (polled every ``POLL_S``; at that moment its frames,
+  commands and events are committed: the runtime flushes the writer first).
+- ``ws_clients``, ``ws_p99_latency_ms``, ``ws_msgs_per_client_per_s``: Spirit articulating
+  (NATE at 8 Hz, one frame kept per simulated second) at speed 8, so it should publish 8
+  frames per wall second (``ws_rover_speed_seen_x``: the speed its frames show). The WAIT
+  is only as long as the measurement needs: the runtime computes a command whole before
+  playing it out. ``ws_clients`` WebSocket clients (permessage-deflate, as a browser)
+  collect for ``ws_window_s``; a message's latency is its receive wall time minus the
+  ``published_wall`` stamp the hub put on it (``server.hub``); the p99 is over every
+  message of every client in the window. ``ws_clients`` counts the clients held all
+  through the window (never a second without a message).
+- ``validate_10k_lines_s``: ``sequences.validate.validate`` of a 10,000-line sequence
+  made of the example files' commands (median of ``repeats``), without a rover context as
+  ``roverops validate`` runs it; ``validate_10k_lines_with_rover_s`` the same with Spirit's
+  ``ValidationContext`` (the upload route's warnings walk), reported without a target.
+- ``validate_100k_blank_lines_s``: wall time of ``POST /api/sequences/validate`` (through
+  the server) of 100,000 blank lines then one command (issue 13, defect 4);
+  ``upload_100k_blank_lines_s`` the same text uploaded to a paused rover (the upload also
+  finds the sequence's declared name), reported without a target.
+- ``event_loop_stall_ms_during_upload``: p99 latency of ``GET /api/rovers`` polled every
+  ``STALL_POLL_S`` from another thread while a 1 MB sequence (the examples' commands, as
+  ``validate_10k_lines_s``) is validated against Spirit (``/validate?rover=spirit``, the
+  heaviest validation a client can ask for); ``upload_1mb_validate_s`` how long that took
+  and ``event_loop_stall_samples`` how many polls it covered; ``event_loop_idle_p99_ms``
+  the p99 of ``STALL_IDLE_POLLS`` polls just before, with nothing validating (on a shared
+  machine, the part of the stall that is not the server's).
+
+Output contract: ``bench.sim._result`` (docs/DESIGN.md "Benchmarks").
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import math
+import os
+import re
+import secrets
+import signal
+import socket
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+import urllib.error
+import urllib.request
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench.sim import _result
+from sequences.validate import validate
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "sequences" / "examples"
+ROVER = "spirit"
+POLL_S = 0.05  # wall seconds between status polls
+WS_SPEED = 8.0  # x: with one frame per simulated second, 8 frames per wall second
+WS_WARMUP_S = 20.0  # simulated WAIT beyond the window, in wall seconds at WS_SPEED
+START_TIMEOUT_S = 60.0
+
+SOL_SEQUENCE = (
+    "SEQUENCE bench_sol\n"
+    "GET_FINE_ATTITUDE\n"
+    "DRIVE_STRAIGHT distance_m={drive_m:g}\n"
+    "HGA_PASS duration_min={hga_min:g}\n"
+)
+WS_SEQUENCE = "SEQUENCE bench_ws\nARTICULATE_START\nWAIT duration_s={wait_s:g}\nARTICULATE_STOP\n"
+
+TARGETS: dict[str, dict[str, float]] = {
+    "sol_sim_wall_s": {"le": 30.0},
+    "ws_clients": {"ge": 50},
+    "ws_p99_latency_ms": {"le": 100.0},
+    "validate_10k_lines_s": {"le": 0.5},
+    "validate_100k_blank_lines_s": {"le": 1.0},
+    "event_loop_stall_ms_during_upload": {"le": 100.0},
+}
+BLANK_LINES = 100_000
+UPLOAD_BYTES = 990_000  # under the server's 1,000,000-byte limit
+STALL_POLL_S = 0.01
+STALL_IDLE_POLLS = 200
+
+
+# ---- a real server in a subprocess ---------------------------------------------------------
+
+
+def free_port() -> int:
+    """A TCP port of 127.0.0.1 free right now."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port: int = s.getsockname()[1]
+        return port
+
+
+@dataclass
+class RunningServer:
+    """A ``roverops serve`` subprocess: its URLs, operator token and process."""
+
+    port: int
+    token: str
+    process: subprocess.Popen[bytes]
+    log_path: Path
+    _opener: urllib.request.OpenerDirector = field(
+        default_factory=lambda: urllib.request.build_opener(urllib.request.ProxyHandler({}))
+    )
+
+    @property
+    def base_url(self) -> str:
+        return f"http://127.0.0.1:{self.port}"
+
+    def ws_url(self, rover: str) -> str:
+        """The live telemetry WebSocket of ``rover``."""
+        return f"ws://127.0.0.1:{self.port}/ws/rovers/{rover}/telemetry"
+
+    def request(
+        self,
+        method: str,
+        path: str,
+        body: str | dict[str, Any] | None = None,
+        timeout_s: float = 30.0,
+    ) -> tuple[int, Any]:
+        """One REST call (with the operator token); ``(status, parsed JSON body)``. A dict
+        body goes as JSON, a string as a text sequence."""
+        headers = {"Authorization": f"Bearer {self.token}"}
+        data: bytes | None = None
+        if isinstance(body, dict):
+            data = json.dumps(body).encode()
+            headers["Content-Type"] = "application/json"
+        elif body is not None:
+            data = body.encode()
+            headers["Content-Type"] = "text/plain"
+        req = urllib.request.Request(self.base_url + path, data, headers, method=method)
+        try:
+            with self._opener.open(req, timeout=timeout_s) as response:
+                return int(response.status), json.loads(response.read() or b"null")
+        except urllib.error.HTTPError as error:
+            text = error.read()
+            try:
+                return int(error.code), json.loads(text)
+            except json.JSONDecodeError:
+                return int(error.code), text.decode(errors="replace")
+
+    def ok(self, method: str, path: str, body: str | dict[str, Any] | None = None) -> Any:
+        """``request`` that must answer 2xx; RuntimeError naming the answer otherwise."""
+        status, answer = self.request(method, path, body)
+        if not 200 <= status < 300:
+            raise RuntimeError(f"{method} {path}: HTTP {status}: {answer}")
+        return answer
+
+    def log_tail(self, chars: int = 3000) -> str:
+        """The end of the server's stderr."""
+        try:
+            return self.log_path.read_text(errors="replace")[-chars:]
+        except OSError:
+            return ""
+
+
+@contextlib.contextmanager
+def running_server(
+    data_dir: Path,
+    token: str | None = None,
+    buffer_bytes: int = 0,
+    env: Mapping[str, str] | None = None,
+) -> Iterator[RunningServer]:
+    """``roverops serve`` on a free port with its SQLite database in ``data_dir``, ready
+    (``GET /api/rovers`` answers) when entered; stopped (SIGTERM, then SIGKILL) on exit.
+    ``buffer_bytes``: run it instead through ``serve_with_small_buffers`` (the same app
+    and uvicorn, each WebSocket's send buffers that small). ``env``: environment variables
+    for the server over this process's own, e.g. ``{"ROVEROPS_NO_3D": "1"}``."""
+    token = token or secrets.token_urlsafe(18)
+    port = free_port()
+    log_path = data_dir / "server.log"
+    process_env = {**os.environ, **(env or {}), "ROVEROPS_OPERATOR_TOKEN": token}
+    command = [
+        sys.executable, "-m", "cli.main", "serve", "--host", "127.0.0.1",
+        "--port", str(port), "--data-dir", str(data_dir),
+    ]  # fmt: skip
+    if buffer_bytes:
+        command = [
+            sys.executable, "-m", "bench.server", "--port", str(port),
+            "--data-dir", str(data_dir), "--buffer-bytes", str(buffer_bytes),
+        ]  # fmt: skip
+    with log_path.open("wb") as log:
+        process = subprocess.Popen(command, env=process_env, stdout=subprocess.DEVNULL, stderr=log)
+    server = RunningServer(port, token, process, log_path)
+    try:
+        deadline = time.monotonic() + START_TIMEOUT_S
+        while True:
+            if process.poll() is not None:
+                raise RuntimeError(
+                    f"the server exited ({process.returncode}):\n{server.log_tail()}"
+                )
+            with contextlib.suppress(OSError):
+                if server.request("GET", "/api/rovers")[0] == 200:
+                    break
+            if time.monotonic() > deadline:
+                raise RuntimeError(f"the server did not start:\n{server.log_tail()}")
+            time.sleep(0.05)
+        yield server
+    finally:
+        if process.poll() is None:
+            process.send_signal(signal.SIGTERM)
+            try:
+                process.wait(timeout=15.0)
+            except subprocess.TimeoutExpired:
+                process.kill()
+                process.wait(timeout=10.0)
+
+
+def wait_for(predicate: Callable[[], Any], timeout_s: float, what: str) -> Any:
+    """Poll ``predicate`` every ``POLL_S`` until it is truthy; RuntimeError after
+    ``timeout_s``."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        value = predicate()
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            raise RuntimeError(f"timed out after {timeout_s:g} s waiting for {what}")
+        time.sleep(POLL_S)
+
+
+def upload(server: RunningServer, rover: str, text: str) -> int:
+    """Upload a text sequence; its id (RuntimeError if it was not accepted)."""
+    answer = server.ok("POST", f"/api/rovers/{rover}/sequences", text)
+    sequence_id: int = answer["id"]
+    return sequence_id
+
+
+# ---- the sol --------------------------------------------------------------------------------
+
+
+def measure_sol(
+    server: RunningServer, drive_m: float = 100.0, hga_min: float = 15.0, timeout_s: float = 300.0
+) -> dict[str, Any]:
+    """The sol's sequence at speed ``max``: wall time from upload to ``completed``, and
+    what the rover did (simulated span, distance, commands not completed)."""
+    server.ok("POST", f"/api/rovers/{ROVER}/clock", {"speed": "max"})
+    before = server.ok("GET", f"/api/rovers/{ROVER}/state")
+    text = SOL_SEQUENCE.format(drive_m=drive_m, hga_min=hga_min)
+    start = time.perf_counter()
+    sequence_id = upload(server, ROVER, text)
+
+    def finished() -> str | None:
+        status: str = server.ok("GET", f"/api/sequences/{sequence_id}")["status"]
+        return status if status in ("completed", "failed", "cancelled") else None
+
+    status = wait_for(finished, timeout_s, "the sol's sequence")
+    wall_s = time.perf_counter() - start
+    if status != "completed":
+        raise RuntimeError(f"the sol's sequence ended {status}:\n{server.log_tail()}")
+    state = wait_for(
+        lambda: (s := server.ok("GET", f"/api/rovers/{ROVER}/state"))["executing"] == "" and s,
+        30.0,
+        "the play-out",
+    )
+    frame = state["frame"] or {}
+    p_s = frame.get("p_s_est") or [math.nan, math.nan]
+    commands = failed = 0
+    for sol in server.ok("GET", f"/api/rovers/{ROVER}/sols"):
+        summary = server.ok("GET", f"/api/rovers/{ROVER}/sols/{sol}/timeline")["summary"]
+        commands += summary["commands"]
+        failed += summary["commands_failed"]
+    return {
+        "sol_sim_wall_s": wall_s,
+        "sol_sim_simulated_s": float(state["t_s"]) - float(before["t_s"]),
+        "sol_sim_distance_m": math.hypot(float(p_s[0]), float(p_s[1])),
+        "sol_sim_commands": commands,
+        "sol_sim_commands_not_completed": failed,
+    }
+
+
+# ---- live telemetry ------------------------------------------------------------------------
+
+
+@dataclass
+class Received:
+    """What one WebSocket client received: per message its receive wall time, latency,
+    frame time and command; the last ``dropped`` it was told."""
+
+    wall: list[float] = field(default_factory=list)
+    latency_s: list[float] = field(default_factory=list)
+    t_s: list[float] = field(default_factory=list)
+    commands: list[str] = field(default_factory=list)
+    dropped: int = 0
+
+    def add(self, message: str | bytes) -> dict[str, Any]:
+        """Record one frame (a notice is returned, not recorded); the message."""
+        now = time.time()
+        frame: dict[str, Any] = json.loads(message)
+        if "type" in frame:  # a notice (server.hub: an alarm, ...), not a frame
+            return frame
+        self.wall.append(now)
+        self.latency_s.append(now - float(frame["published_wall"]))
+        self.t_s.append(float(frame["t_s"]))
+        self.commands.append(str(frame.get("command", "")))
+        self.dropped = int(frame.get("dropped", 0))
+        return frame
+
+    def between(self, lo: float, hi: float) -> list[int]:
+        """Indices of the messages received from ``lo`` to ``hi`` (wall clock)."""
+        return [i for i, w in enumerate(self.wall) if lo <= w <= hi]
+
+    def sim_speed_x(self, lo: float, hi: float) -> float:
+        """Simulated seconds per wall second of the frames received from ``lo`` to ``hi``."""
+        idx = self.between(lo, hi)
+        if len(idx) < 2:
+            return math.nan
+        first, last = idx[0], idx[-1]
+        return (self.t_s[last] - self.t_s[first]) / (self.wall[last] - self.wall[first])
+
+
+async def listen(ws: Any, into: Received) -> None:
+    """Record every message of ``ws`` until it closes (or the task is cancelled)."""
+    async for message in ws:
+        into.add(message)
+
+
+async def _fan_out(url: str, n_clients: int, window_s: float) -> tuple[list[Received], float]:
+    from websockets.asyncio.client import connect
+
+    received = [Received() for _ in range(n_clients)]
+    async with contextlib.AsyncExitStack() as stack:
+        sockets = []
+        for _ in range(n_clients):
+            ws = await stack.enter_async_context(connect(url, proxy=None, open_timeout=30.0))
+            sockets.append(ws)
+        tasks = [
+            asyncio.create_task(listen(ws, r)) for ws, r in zip(sockets, received, strict=True)
+        ]
+        # the window opens once every client receives the WAIT's frames (the play-out runs)
+        deadline = time.monotonic() + 60.0
+        while not all(r.commands and r.commands[-1].startswith("WAIT") for r in received):
+            if time.monotonic() > deadline or any(t.done() for t in tasks):
+                raise RuntimeError("the clients did not receive the WAIT's frames")
+            await asyncio.sleep(POLL_S)
+        await asyncio.sleep(1.0)
+        opened = time.time()
+        await asyncio.sleep(window_s)
+        for task in tasks:
+            task.cancel()
+        await asyncio.gather(*tasks, return_exceptions=True)
+    return received, opened
+
+
+def measure_ws(
+    server: RunningServer, n_clients: int = 50, window_s: float = 10.0
+) -> dict[str, Any]:
+    """``n_clients`` WebSocket clients on Spirit articulating at speed 8 for ``window_s``."""
+    server.ok("POST", f"/api/rovers/{ROVER}/clock", {"speed": WS_SPEED})
+    wait_s = math.ceil(WS_SPEED * (window_s + WS_WARMUP_S + n_clients * 0.05))
+    upload(server, ROVER, WS_SEQUENCE.format(wait_s=wait_s))
+    received, opened = asyncio.run(_fan_out(server.ws_url(ROVER), n_clients, window_s))
+    closed = opened + window_s
+    latencies: list[float] = []
+    rates: list[float] = []
+    speeds: list[float] = []
+    held = 0
+    for r in received:
+        idx = r.between(opened, closed)
+        latencies += [r.latency_s[i] for i in idx]
+        rates.append(len(idx) / window_s)
+        speeds.append(r.sim_speed_x(opened, closed))
+        # held: messages all through the window, never a second without one
+        walls = [opened, *(r.wall[i] for i in idx), closed]
+        held += bool(len(idx) > 0 and np.max(np.diff(walls)) < 1.0)
+    lat_ms = np.asarray(latencies) * 1000.0
+    have = lat_ms.size > 0
+    return {
+        "ws_clients": held,
+        "ws_clients_connected": n_clients,
+        "ws_p99_latency_ms": float(np.percentile(lat_ms, 99)) if have else math.nan,
+        "ws_p50_latency_ms": float(np.percentile(lat_ms, 50)) if have else math.nan,
+        "ws_max_latency_ms": float(lat_ms.max()) if have else math.nan,
+        "ws_msgs_per_client_per_s": statistics.median(rates),
+        "ws_messages": int(lat_ms.size),
+        "ws_dropped_frames": sum(r.dropped for r in received),
+        "ws_window_s": window_s,
+        "ws_rover_speed_set_x": WS_SPEED,
+        # the clock as the frames show it (simulated s per wall s over the window)
+        "ws_rover_speed_seen_x": statistics.median(speeds),
+    }
+
+
+# ---- validation ---------------------------------------------------------------------------
+
+
+def example_blocks() -> list[list[str]]:
+    """The command lines of each text example sequence, comments and headers stripped."""
+    blocks = []
+    for path in sorted(EXAMPLES.glob("*.seq")):
+        lines = []
+        for raw in path.read_text(encoding="utf-8").splitlines():
+            line = raw.split("#", 1)[0].strip()
+            if line and not line.upper().startswith("SEQUENCE"):
+                lines.append(line)
+        blocks.append(lines)
+    return blocks
+
+
+_LMST_TAG = re.compile(r"^@\s*(?:sol\s+\d+\s+)?(\d{1,2}:\d{2}(?::\d{2})?\s+LMST)", re.I)
+
+
+def validation_text(n_lines: int, first_sol: int = 100) -> str:
+    """A sequence of exactly ``n_lines`` lines: a header and the examples' commands over
+    and over, each repetition of an example on a sol of its own (its LMST tags made
+    ``@ sol N``), so the time tags never run backwards and the whole sequence is valid."""
+    blocks = example_blocks()
+    out = ["SEQUENCE validate_bench"]
+    k = 0
+    while len(out) < n_lines:
+        sol = first_sol + k
+        for line in blocks[k % len(blocks)]:
+            out.append(_LMST_TAG.sub(rf"@ sol {sol} \1", line))
+        k += 1
+    return "\n".join(out[:n_lines]) + "\n"
+
+
+def _rover_context() -> Any:
+    """Spirit's ``ValidationContext`` as the upload route builds it (a server of its own on
+    an in-memory database, clocks not started)."""
+    from server.app import Server, ServerConfig
+
+    server = Server(ServerConfig(database_url="sqlite://", start_clocks=False))
+    try:
+        return server.context(server.rovers[ROVER])
+    finally:
+        server.stop()
+
+
+def measure_validation(n_lines: int = 10_000, repeats: int = 3) -> dict[str, Any]:
+    """Median wall time of ``validate`` on ``n_lines`` lines, without and with a rover."""
+    text = validation_text(n_lines)
+    context = _rover_context()
+    walls: list[float] = []
+    walls_rover: list[float] = []
+    errors = warnings = steps = 0
+    for _ in range(repeats):
+        start = time.perf_counter()
+        result = validate(text)
+        walls.append(time.perf_counter() - start)
+        start = time.perf_counter()
+        with_rover = validate(text, context)
+        walls_rover.append(time.perf_counter() - start)
+        errors, steps = len(result.errors), len(result.sequence.steps) if result.sequence else 0
+        warnings = len(with_rover.warnings)
+    return {
+        "validate_10k_lines_s": statistics.median(walls),
+        "validate_10k_lines_with_rover_s": statistics.median(walls_rover),
+        "validate_lines": n_lines,
+        "validate_steps": steps,
+        "validate_errors": errors,
+        "validate_warnings_with_rover": warnings,
+        "validate_repeats": repeats,
+    }
+
+
+def measure_blank_lines(server: RunningServer, n_lines: int = BLANK_LINES) -> dict[str, Any]:
+    """``n_lines`` blank lines then one command: validated, then uploaded to a paused rover
+    (and cancelled), each timed from request to answer."""
+    text = "\n" * n_lines + "NADIR_UPDATE\n"
+    start = time.perf_counter()
+    status, answer = server.request("POST", "/api/sequences/validate", text, timeout_s=300.0)
+    validate_s = time.perf_counter() - start
+    if status != 200 or not answer["valid"]:
+        raise RuntimeError(f"blank lines: HTTP {status}: {str(answer)[:300]}")
+    server.ok("POST", "/api/rovers/opportunity/clock", {"action": "pause"})
+    start = time.perf_counter()
+    status, answer = server.request(
+        "POST", "/api/rovers/opportunity/sequences", text, timeout_s=300.0
+    )
+    upload_s = time.perf_counter() - start
+    if status != 201:
+        raise RuntimeError(f"blank lines upload: HTTP {status}: {str(answer)[:300]}")
+    server.ok("DELETE", f"/api/sequences/{answer['id']}")
+    return {
+        "validate_100k_blank_lines_s": validate_s,
+        "upload_100k_blank_lines_s": upload_s,
+        "blank_lines": n_lines,
+    }
+
+
+def measure_stall(server: RunningServer, size_bytes: int = UPLOAD_BYTES) -> dict[str, Any]:
+    """``GET /api/rovers`` polled from another thread while a ``size_bytes`` sequence is
+    validated against Spirit: the p99 and max of its latency (module docstring)."""
+    import threading
+
+    per_line = len(validation_text(1000)) / 1000
+    text = validation_text(int(size_bytes / per_line))
+    while len(text.encode()) > size_bytes:
+        text = validation_text(len(text.splitlines()) - 100)
+    idle: list[float] = []  # the same polls with nothing validating: the machine's own noise
+    for _ in range(STALL_IDLE_POLLS):
+        t0 = time.perf_counter()
+        server.ok("GET", "/api/rovers")
+        idle.append(time.perf_counter() - t0)
+        time.sleep(STALL_POLL_S)
+    answer: list[tuple[int, Any]] = []
+
+    def upload() -> None:
+        answer.append(server.request("POST", f"/api/sequences/validate?rover={ROVER}", text, 600.0))
+
+    latencies: list[float] = []
+    thread = threading.Thread(target=upload)
+    start = time.perf_counter()
+    thread.start()
+    time.sleep(0.02)  # the body on its way (a small one validates in a fraction of a second)
+    while thread.is_alive():
+        t0 = time.perf_counter()
+        server.ok("GET", "/api/rovers")
+        if thread.is_alive():  # only polls that overlapped the validation count
+            latencies.append(time.perf_counter() - t0)
+        time.sleep(STALL_POLL_S)
+    thread.join()
+    elapsed = time.perf_counter() - start
+    status, body = answer[0]
+    if status != 200:
+        raise RuntimeError(f"1 MB validation: HTTP {status}: {str(body)[:300]}")
+    lat_ms = np.asarray(latencies) * 1000.0
+    have = lat_ms.size > 0
+    return {
+        "event_loop_stall_ms_during_upload": float(np.percentile(lat_ms, 99)) if have else math.nan,
+        "event_loop_stall_max_ms": float(lat_ms.max()) if have else math.nan,
+        "event_loop_stall_samples": int(lat_ms.size),
+        "event_loop_idle_p99_ms": float(np.percentile(np.asarray(idle) * 1000.0, 99)),
+        "upload_1mb_validate_s": elapsed,
+        "upload_1mb_bytes": len(text.encode()),
+    }
+
+
+# ---- the bench ------------------------------------------------------------------------------
+
+
+def bench_server(
+    ws_clients: int = 50,
+    ws_window_s: float = 10.0,
+    validate_lines: int = 10_000,
+    validate_repeats: int = 3,
+    drive_m: float = 100.0,
+    hga_min: float = 15.0,
+    blank_lines: int = BLANK_LINES,
+    upload_bytes: int = UPLOAD_BYTES,
+) -> dict[str, Any]:
+    """The server bench (module docstring); the defaults are the issue's figures, smaller
+    ones make a quick run (the targets stay the issue's)."""
+    metrics: dict[str, Any] = {}
+    with tempfile.TemporaryDirectory(prefix="roverops-bench-") as tmp:
+        started = time.perf_counter()
+        with running_server(Path(tmp)) as server:
+            metrics["server_start_s"] = time.perf_counter() - started
+            metrics.update(measure_sol(server, drive_m, hga_min))
+            metrics.update(measure_ws(server, ws_clients, ws_window_s))
+            metrics.update(measure_blank_lines(server, blank_lines))
+            metrics.update(measure_stall(server, upload_bytes))
+    metrics.update(measure_validation(validate_lines, validate_repeats))
+    return _result("server", metrics, TARGETS)
+
+
+# ---- a server with small socket buffers (tests) ---------------------------------------------
+
+
+def serve_with_small_buffers(port: int, data_dir: Path, token: str, buffer_bytes: int) -> None:
+    """The app of ``roverops serve`` under uvicorn on 127.0.0.1:``port``, with the buffers
+    between a WebSocket sender and the network made small, as on a slow link: the kernel's
+    send buffer of each connection (``SO_SNDBUF`` on the listening socket, which accepted
+    connections inherit; it also stops autotuning) and the asyncio transport's write
+    buffer of each WebSocket (its high-water mark, 64 KiB by default). On loopback a client
+    that stops reading otherwise has a few hundred kB of buffers before its sender in the
+    server blocks: a minute of frames at 10 a second."""
+    import uvicorn
+    from uvicorn.protocols.websockets.websockets_sansio_impl import WebSocketsSansIOProtocol
+
+    from server.app import ServerConfig, create_app, data_dir_url
+
+    class SmallWriteBuffer(WebSocketsSansIOProtocol):
+        def connection_made(self, transport: asyncio.BaseTransport) -> None:
+            if isinstance(transport, asyncio.WriteTransport):
+                transport.set_write_buffer_limits(high=buffer_bytes)
+            super().connection_made(transport)
+
+    app = create_app(ServerConfig(database_url=data_dir_url(data_dir), operator_token=token))
+    sock = socket.socket()
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, buffer_bytes)
+    sock.bind(("127.0.0.1", port))
+    config = uvicorn.Config(app, ws=SmallWriteBuffer, log_level="warning")
+    uvicorn.Server(config).run(sockets=[sock])
+
+
+def _main(argv: list[str]) -> None:
+    import argparse
+
+    parser = argparse.ArgumentParser(description=serve_with_small_buffers.__doc__)
+    parser.add_argument("--port", type=int, required=True)
+    parser.add_argument("--data-dir", type=Path, required=True)
+    parser.add_argument("--buffer-bytes", type=int, required=True)
+    args = parser.parse_args(argv)
+    token = os.environ.get("ROVEROPS_OPERATOR_TOKEN") or secrets.token_urlsafe(18)
+    serve_with_small_buffers(args.port, args.data_dir, token, args.buffer_bytes)
+
+
+if __name__ == "__main__":
+    _main(sys.argv[1:])

@@ -1,0 +1,159 @@
+"""The flight software's own rocker-bogie geometry and the kinematics its filter needs.
+
+Seed 001 (Balaram) builds its slip constraints (eqs. 17-20) on the forward kinematics of
+the suspension: wheel centres and axles as functions of the internal angles ``γ`` and the
+steering angles ``λ``, and the contact frame ``l_f`` at contact angle ``ξ`` on each wheel's
+equator (sec. 2.2.4). The flight software may not import the simulator, so it keeps its
+own copy of the rover's dimensions; ``tests/test_kinematic_ekf_sensors.py`` checks that
+they equal the simulated rover's.
+
+Frames (docs/CONVENTIONS.md): body ``b`` x forward, y right, z down. A wheel frame ``w`` is
+``R_b_w = Ry(link) Rz(σ)``: ``link`` the pitch of the link that carries the wheel (rocker,
+or rocker + bogie), ``σ`` the steering angle (positive turns the front to the right; zero
+on the middle wheels). In ``w`` the axle is +y, forward +x, down +z. The contact frame is
+``R_b_c = R_b_w Ry(ξ)``: its z axis ``d`` points from the centre to the contact point
+``c + r d``, its x axis ``t`` is the rolling direction and its y axis the axle, so
+``ξ > 0`` puts the contact ahead of the wheel's bottom (a wheel climbing).
+
+Joint angles ``γ = (rocker, bogie_left, bogie_right)``: right-handed about body +y, the
+right rocker the negative of the left (the differential), bogies relative to their
+rockers. Wheel order LF, LM, LR, RF, RM, RR; steered wheels LF, LR, RF, RR.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+FloatArray = NDArray[np.float64]
+
+N_WHEELS = 6
+STEERED_INDEX = (0, 2, 3, 5)  # LF, LR, RF, RR in the wheel order
+_SIDES = ((1.0, (0, 1, 2)), (-1.0, (3, 4, 5)))  # (rocker sign, wheel indices) left, right
+
+
+@dataclass(frozen=True)
+class FlightGeometry:
+    """Rover dimensions the flight software uses (metres), body frame at zero joint angles.
+
+    The same values as the simulated MER-like rover (``sim.rover.geometry``; approximate
+    MER dimensions, Lindemann and Voorhees 2005).
+    """
+
+    wheel_radius_m: float = 0.13
+    track_m: float = 1.2
+    x_front_m: float = 0.70
+    x_middle_m: float = 0.0
+    x_rear_m: float = -0.70
+    wheel_centre_z_m: float = 0.17
+    rocker_pivot_x_m: float = 0.10
+    rocker_pivot_z_m: float = -0.05
+    bogie_pivot_x_m: float = -0.35
+    bogie_pivot_z_m: float = 0.02
+
+    def __post_init__(self) -> None:
+        for name, value in self.__dict__.items():
+            if not np.isfinite(value):
+                raise ValueError(f"{name} must be finite, got {value}")
+        if self.wheel_radius_m <= 0.0 or self.track_m <= 0.0:
+            raise ValueError("wheel_radius_m and track_m must be positive")
+
+
+FLIGHT_GEOMETRY = FlightGeometry()
+
+
+def _ry(angle: float) -> FloatArray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def _rz(angle: float) -> FloatArray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _d_ry_y(v: FloatArray) -> FloatArray:
+    """d/dα of Ry(α) v at the rotated vector: ŷ × v = (z, 0, -x)."""
+    return np.array([v[2], 0.0, -v[0]])
+
+
+@dataclass(frozen=True)
+class Suspension:
+    """Wheel centres and link pitches at one set of joint angles (body frame).
+
+    ``centre_b`` (6, 3) m; ``dcentre_dgamma`` (6, 3, 3), the last axis over ``γ``;
+    ``link_rad`` (6,); ``dlink_dgamma`` (6, 3).
+    """
+
+    centre_b: FloatArray
+    dcentre_dgamma: FloatArray
+    link_rad: FloatArray
+    dlink_dgamma: FloatArray
+
+
+def suspension(gamma_rad: ArrayLike, geometry: FlightGeometry = FLIGHT_GEOMETRY) -> Suspension:
+    """Forward kinematics of the rocker-bogie at ``γ = (rocker, bogie_l, bogie_r)`` (rad).
+
+    >>> s = suspension([0.0, 0.0, 0.0])
+    >>> np.round(s.centre_b[0], 12).tolist(), np.round(s.centre_b[5], 12).tolist()
+    ([0.7, -0.6, 0.17], [-0.7, 0.6, 0.17])
+    """
+    gamma = np.asarray(gamma_rad, dtype=float)
+    if gamma.shape != (3,) or not np.all(np.isfinite(gamma)):
+        raise ValueError(f"gamma_rad must be 3 finite angles, got {gamma_rad!r}")
+    g = geometry
+    pivot = np.array([g.rocker_pivot_x_m, 0.0, g.rocker_pivot_z_m])
+    bogie = np.array([g.bogie_pivot_x_m, 0.0, g.bogie_pivot_z_m])
+    zc = g.wheel_centre_z_m
+    front = np.array([g.x_front_m, 0.0, zc])
+    middle = np.array([g.x_middle_m, 0.0, zc])
+    rear = np.array([g.x_rear_m, 0.0, zc])
+    centre = np.zeros((N_WHEELS, 3))
+    dcentre = np.zeros((N_WHEELS, 3, 3))
+    link = np.zeros(N_WHEELS)
+    dlink = np.zeros((N_WHEELS, 3))
+    for side, (sign, (i_f, i_m, i_r)) in enumerate(_SIDES):
+        rho = sign * gamma[0]
+        beta = gamma[1 + side]
+        R_rocker, R_bogie = _ry(rho), _ry(rho + beta)
+        bogie_pivot = pivot + R_rocker @ (bogie - pivot)
+        y = (-0.5 if side == 0 else 0.5) * g.track_m
+        centre[i_f] = pivot + R_rocker @ (front - pivot)
+        centre[i_m] = bogie_pivot + R_bogie @ (middle - bogie)
+        centre[i_r] = bogie_pivot + R_bogie @ (rear - bogie)
+        for i in (i_f, i_m, i_r):
+            # The whole side turns about the rocker pivot with the rocker (times the
+            # differential's sign); the bogie wheels also turn about the bogie pivot.
+            dcentre[i, :, 0] = sign * _d_ry_y(centre[i] - pivot)
+            link[i] = rho
+            dlink[i, 0] = sign
+        for i in (i_m, i_r):
+            dcentre[i, :, 1 + side] = _d_ry_y(centre[i] - bogie_pivot)
+            link[i] = rho + beta
+            dlink[i, 1 + side] = 1.0
+        centre[(i_f, i_m, i_r), 1] = y
+    return Suspension(centre, dcentre, link, dlink)
+
+
+def steer_per_wheel(steer_rad: ArrayLike) -> FloatArray:
+    """The four corner steering angles (LF, LR, RF, RR) spread over the six wheels (6,)."""
+    steer = np.asarray(steer_rad, dtype=float)
+    if steer.shape != (4,) or not np.all(np.isfinite(steer)):
+        raise ValueError(f"steer_rad must be 4 finite angles, got {steer_rad!r}")
+    out = np.zeros(N_WHEELS)
+    out[list(STEERED_INDEX)] = steer
+    return out
+
+
+def wheel_rotation_b(link_rad: float, sigma_rad: float) -> FloatArray:
+    """``R_b_w = Ry(link) Rz(σ)`` of one wheel frame (3, 3)."""
+    out: FloatArray = _ry(link_rad) @ _rz(sigma_rad)
+    return out
+
+
+def contact_rotation_b(link_rad: float, sigma_rad: float, xi_rad: float) -> FloatArray:
+    """``R_b_c = Ry(link) Rz(σ) Ry(ξ)`` of one wheel's contact frame (3, 3) (eq. 17's l_f)."""
+    out: FloatArray = wheel_rotation_b(link_rad, sigma_rad) @ _ry(xi_rad)
+    return out

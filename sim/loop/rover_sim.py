@@ -1,0 +1,282 @@
+"""The simulated rover in its world: truth and sensors, a command at a time.
+
+``RoverSim`` owns the terrain of a named site, the Mars clock, the rover's truth state and
+its sensors (IMU, wheel and steering encoders). Each motion command produces its truth as
+a batch at the 8 Hz control rate (docs/DESIGN.md, "One control cycle") and the sensor samples
+for that batch; an idle span is jumped over in one step, with one aggregated IMU sample
+that is distributed exactly as the sum of its 8 Hz samples (``sim.sensors.imu``).
+
+``RoverSim`` gives what the flight software receives (``ImuSamples``, ``EncoderSamples``,
+Pancam sun images at a commanded mast pointing) and keeps running figures an operator
+reads in a scenario summary; ``sim.loop.session`` puts the flight software in the loop.
+
+The Pancam mast points where it is commanded plus a fixed per-rover bias in azimuth and
+elevation (``mast_bias_sigma_deg``, 1σ per axis, default 0.05 deg: approximate, a
+calibrated pan/tilt actuator's absolute knowledge), which the flight software does not
+know: it enters every sun vector as an unmodelled systematic error.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field, fields
+from datetime import datetime
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
+
+from sim.errors import InputError
+from sim.rover import drive
+from sim.rover.geometry import MER_GEOMETRY
+from sim.rover.slip import SlipModel
+from sim.rover.truth import CONTROL_DT_S, TruthTrajectory
+from sim.sensors.encoders import EncoderParams, EncoderSamples, MobilityEncoders
+from sim.sensors.imu import ImuSamples, Ln200Imu, Ln200Params
+from sim.sensors.pancam import SunImage, render_sun_image
+from sim.world.local_level import q_ll_b_from_site
+from sim.world.mars_frames import earth_ll_truth, mars_rotation_ll, sun_ll_truth
+from sim.world.marsclock import utc_to_t_s
+from sim.world.sites import Site, make_terrain, site
+
+if TYPE_CHECKING:  # sim.sensors.navcam.camera (numba) is imported when a pair is first rendered
+    from sim.sensors.navcam.camera import NavcamPair
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One motion command's truth and what the sensors made of it, sample for sample."""
+
+    truth: TruthTrajectory
+    imu: ImuSamples
+    encoders: EncoderSamples
+
+
+@dataclass
+class RunningTotals:
+    """Figures accumulated over a run (truth and sensors side by side)."""
+
+    cycles_simulated: int = 0
+    idle_s_jumped: float = 0.0
+    distance_truth_m: float = 0.0
+    distance_odometry_m: float = 0.0
+    rest_s: float = 0.0
+    gyro_rest_angle_b: FloatArray = field(default_factory=lambda: np.zeros(3))
+    truth_rest_angle_b: FloatArray = field(default_factory=lambda: np.zeros(3))
+    heading_change_rad: float = 0.0
+    max_wheel_gap_m: float = 0.0
+    unsettled_poses: int = 0
+
+
+class RoverSim:
+    """A rover at a named site, from a UTC start, reproducible from ``seed``.
+
+    ``slip=False`` makes the wheels roll ideally (no slip, creep or sinkage).
+    """
+
+    def __init__(
+        self,
+        site_name: str,
+        seed: int,
+        start_utc: datetime,
+        imu_params: Ln200Params | None = None,
+        slip: bool = True,
+        yaw_rad: float = 0.0,
+        x_m: float = 0.0,
+        y_m: float = 0.0,
+        mast_bias_sigma_deg: float = 0.05,
+    ) -> None:
+        self.site: Site = site(site_name)
+        self.terrain = make_terrain(site_name, seed)
+        self.lat_rad = math.radians(self.site.lat_deg)
+        self.lon_east_rad = math.radians(self.site.lon_east_deg)
+        self.omega_mars_ll = mars_rotation_ll(self.lat_rad)
+        rng_imu, rng_encoders, rng_slip, rng_cam = np.random.default_rng(seed).spawn(4)
+        self.t_s = utc_to_t_s(start_utc)
+        self.imu = Ln200Imu(imu_params or Ln200Params(), rng_imu, t_on_s=self.t_s)
+        self.encoders = MobilityEncoders(EncoderParams(), rng_encoders)
+        self.slip = (
+            SlipModel(self.terrain.soil, rng_slip) if slip else SlipModel.ideal(self.terrain.soil)
+        )
+        self.state = drive.initial_state(
+            self.terrain, self.t_s, x_m=x_m, y_m=y_m, yaw_rad=yaw_rad, slip_model=self.slip
+        )
+        if not (math.isfinite(mast_bias_sigma_deg) and 0.0 <= mast_bias_sigma_deg <= 5.0):
+            raise InputError("mast_bias_sigma_deg", "must be in [0, 5] deg")
+        self.mast_bias_rad = np.radians(mast_bias_sigma_deg) * rng_cam.standard_normal(2)
+        self._rng_cam = rng_cam
+        self.totals = RunningTotals()
+        self._encoder_counts = self.encoders.read(self.state.as_trajectory()).wheel_counts[0]
+
+    # ---- commands -------------------------------------------------------------------
+
+    def rest(self, duration_s: float) -> ImuSamples:
+        """Stay still for ``duration_s``: jump the clock, one aggregated IMU sample."""
+        q_ll_b = self.q_ll_b()
+        samples = self.imu.measure_interval(duration_s, q_ll_b, self.omega_mars_ll)
+        self.totals.rest_s += duration_s
+        self.totals.gyro_rest_angle_b += samples.delta_angle_b[0]
+        self.totals.truth_rest_angle_b += self._inertial_rest_angle(q_ll_b, duration_s)
+        self.t_s += duration_s
+        self.state = self.state.at_time(self.t_s)
+        self.totals.idle_s_jumped += duration_s
+        return samples
+
+    def drive_straight(self, distance_m: float) -> Segment:
+        """Drive ``distance_m`` (> 0) straight ahead; returns its truth and sensor samples."""
+        steer = bool(np.any(self.state.steer_rad != 0.0))
+        return self._drive(
+            lambda start: drive.drive_straight(self.terrain, start, distance_m, self.slip), steer
+        )
+
+    def drive_arc(self, radius_m: float, angle_rad: float) -> Segment:
+        """Drive along an arc (see ``sim.rover.drive.drive_arc`` for the signs)."""
+        return self._drive(
+            lambda start: drive.drive_arc(self.terrain, start, radius_m, angle_rad, self.slip),
+            True,
+        )
+
+    def turn_in_place(self, angle_rad: float) -> Segment:
+        """Turn in place by ``angle_rad`` (positive: clockwise seen from above, to the right)."""
+        return self._drive(
+            lambda start: drive.turn_in_place(self.terrain, start, angle_rad, self.slip), True
+        )
+
+    def _drive(
+        self,
+        primitive: Callable[[drive.DriveState], tuple[TruthTrajectory, drive.DriveState]],
+        steers: bool,
+    ) -> Segment:
+        """Run a drive primitive. Steering the corner wheels at rest moves their contact
+        points and so the body's attitude: when the wheels steer, one control cycle of
+        steering comes first, from the pose at rest to the primitive's first (steered)
+        pose, so that the IMU and the truth see the change."""
+        before = self.state
+        start = before.at_time(before.t_s + CONTROL_DT_S) if steers else before
+        traj, self.state = primitive(start)
+        if steers:
+            traj = _prepend(before.as_trajectory(), traj)
+        return self._sense(traj)
+
+    def rest_cycles(self, duration_s: float) -> ImuSamples:
+        """Stay still for ``duration_s`` with every 8 Hz IMU sample (the last may be short),
+        for the modes that average the accelerometers sample by sample."""
+        if not (math.isfinite(duration_s) and duration_s > 0.0):
+            raise InputError("duration_s", "must be positive and finite")
+        n = max(1, math.ceil(duration_s / CONTROL_DT_S - 1e-9))
+        t = self.t_s + np.minimum(np.arange(n + 1) * CONTROL_DT_S, duration_s)
+        q_ll_b = self.q_ll_b()
+        samples = self.imu.measure(t, np.tile(q_ll_b, (n + 1, 1)), self.omega_mars_ll)
+        self.totals.rest_s += duration_s
+        self.totals.gyro_rest_angle_b += samples.delta_angle_b.sum(axis=0)
+        self.totals.truth_rest_angle_b += self._inertial_rest_angle(q_ll_b, duration_s)
+        self.t_s = float(t[-1])
+        self.state = self.state.at_time(self.t_s)
+        return samples
+
+    def pancam_sun_image(self, az_rad: float, el_rad: float) -> SunImage:
+        """A Pancam solar-filter frame now, the mast commanded to ``(az_rad, el_rad)``."""
+        sun_b = Rotation.from_quat(self.q_ll_b()).inv().apply(self.sun_ll())
+        az_true = az_rad + float(self.mast_bias_rad[0])
+        el_true = el_rad + float(self.mast_bias_rad[1])
+        return render_sun_image(sun_b, az_true, el_true, self._rng_cam)
+
+    def navcam_pair(
+        self, az_rad: float = 0.0, el_rad: float | None = None, **options: Any
+    ) -> NavcamPair:
+        """A Navcam stereo pair now (``sim.sensors.navcam.camera.render_navcam_pair``) from the
+        truth pose and the true Sun, the mast commanded to ``(az_rad, el_rad)`` (default elevation:
+        the renderer's, 35 deg down). The Navcams share the Pancam mast head, so the mast's
+        pointing bias applies to them too; ``pair.az_rad``, ``pair.el_rad`` are the true
+        pointing. ``options`` go to the renderer (``rig``, ``shadows``, ``rover_shadow``,
+        ``noise``, ...); the noise draws from the simulator's camera generator unless an
+        ``rng`` is given. The Sun's LL direction is used as Site axes (they differ by the
+        rover's distance over the Mars radius, ~1e-5 rad here).
+        """
+        from sim.sensors.navcam.camera import DEFAULT_EL_RAD, render_navcam_pair
+
+        el_cmd = DEFAULT_EL_RAD if el_rad is None else el_rad
+        if not math.isfinite(az_rad):
+            raise InputError("az_rad", f"must be finite, got {az_rad}")
+        if not (math.isfinite(el_cmd) and abs(el_cmd) <= 0.5 * math.pi):
+            raise InputError("el_rad", f"must be in [-pi/2, pi/2], got {el_cmd}")
+        az_true = az_rad + float(self.mast_bias_rad[0])
+        el_true = min(max(el_cmd + float(self.mast_bias_rad[1]), -0.5 * math.pi), 0.5 * math.pi)
+        kwargs: dict[str, Any] = {"rng": self._rng_cam, **options}
+        return render_navcam_pair(
+            self.terrain,
+            self.state.p_s,
+            self.state.q_s_b,
+            self.sun_ll(),
+            az_rad=az_true,
+            el_rad=el_true,
+            **kwargs,
+        )
+
+    def wheel_angle_rad_now(self) -> FloatArray:
+        """The wheel encoders' angles now (6,), rad since power-on, as the flight
+        software reads them (quantised)."""
+        out: FloatArray = self.encoders.wheel_angle_rad(np.asarray(self._encoder_counts))
+        return out
+
+    # ---- truth views ----------------------------------------------------------------
+
+    def sun_ll(self) -> FloatArray:
+        """Truth apparent sun direction in LL now, unit (3,)."""
+        out: FloatArray = sun_ll_truth(self.t_s, self.lat_rad, self.lon_east_rad)
+        return out
+
+    def earth_ll(self) -> FloatArray:
+        """Truth apparent Earth direction in LL now, unit (3,)."""
+        out: FloatArray = earth_ll_truth(self.t_s, self.lat_rad, self.lon_east_rad)
+        return out
+
+    def q_ll_b(self) -> FloatArray:
+        """Truth attitude of the body in the Local-Level frame at the rover, ``[x, y, z, w]``."""
+        out: FloatArray = q_ll_b_from_site(
+            self.state.q_s_b[None, :], self.state.p_s[None, :], self.lat_rad, self.lon_east_rad
+        )[0]
+        return out
+
+    # ---- internals ------------------------------------------------------------------
+
+    def _inertial_rest_angle(self, q_ll_b: FloatArray, duration_s: float) -> FloatArray:
+        R_b_ll = Rotation.from_quat(q_ll_b).inv()
+        out: FloatArray = R_b_ll.apply(self.omega_mars_ll * duration_s)
+        return out
+
+    def _sense(self, traj: TruthTrajectory) -> Segment:
+        q_ll_b = q_ll_b_from_site(traj.q_s_b, traj.p_s, self.lat_rad, self.lon_east_rad)
+        # The accelerometers sense the rover's own accelerations too (starting and stopping,
+        # climbing over rocks): seed 000 uses them only at rest, but the radio EKF (seed 004,
+        # eq. 2) integrates them. Site and LL axes differ by ~1e-5 rad here: ignored.
+        accel = traj.accel_s_from_rest()
+        samples = self.imu.measure(traj.t_s, q_ll_b, self.omega_mars_ll, accel_ll=accel)
+        encoders = self.encoders.read(traj)
+        counts = encoders.wheel_counts
+        wheel_rad = self.encoders.wheel_angle_rad(counts[-1] - self._encoder_counts)
+        self._encoder_counts = counts[-1]
+        totals = self.totals
+        totals.cycles_simulated += len(traj) - 1
+        totals.distance_truth_m += float(np.sum(np.linalg.norm(np.diff(traj.p_s, axis=0), axis=1)))
+        totals.distance_odometry_m += float(np.mean(wheel_rad)) * MER_GEOMETRY.wheel_radius_m
+        yaw = Rotation.from_quat(traj.q_s_b).as_euler("ZYX")[:, 0]
+        totals.heading_change_rad += float(np.sum(np.angle(np.exp(1j * np.diff(yaw)))))
+        totals.max_wheel_gap_m = max(totals.max_wheel_gap_m, self.state.max_gap_m)
+        totals.unsettled_poses += self.state.unsettled_poses
+        self.t_s = float(traj.t_s[-1])
+        return Segment(traj, samples, encoders)
+
+
+def _prepend(first: TruthTrajectory, rest: TruthTrajectory) -> TruthTrajectory:
+    """One trajectory: the sample(s) of ``first`` then those of ``rest``."""
+    return TruthTrajectory(
+        **{
+            f.name: np.concatenate([getattr(first, f.name), getattr(rest, f.name)])
+            for f in fields(TruthTrajectory)
+        }
+    )

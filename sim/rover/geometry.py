@@ -1,0 +1,218 @@
+"""MER-like six-wheel rocker-bogie geometry and its forward kinematics.
+
+Frames (docs/CONVENTIONS.md): the rover body frame ``b`` has x forward, y right, z down, its
+origin at the bottom of the body, midway between the two middle wheels in x and y.
+
+The suspension is the MER rocker-bogie (Lindemann and Voorhees 2005, "Mars Exploration
+Rover mobility assembly design, test and performance"): on each side a *rocker* hinged to
+the body carries the front wheel at one end and, at the other, the pivot of a *bogie* that
+carries the middle and rear wheels. A differential joins the two rockers through the body,
+so the right rocker angle is the negative of the left one. All suspension joints turn
+about the body y axis, so every wheel centre keeps its lateral offset ``±track/2``.
+
+Joint angles are right-handed rotations about body +y (right). With z down that lifts the
+forward end of a link: a positive left rocker angle raises the left front wheel.
+``bogie_rad`` are the bogie angles relative to their rockers, ``[left, right]``.
+
+Steering (the four corner wheels): a rotation of the wheel about the link's z axis through
+the wheel centre, positive turning the wheel's front to the right (clockwise seen from
+above, as in seed 000 section 2.5). We assume the steering axis passes through the wheel
+centre, so steering turns the axle but does not move the wheel centre.
+
+The wheel order everywhere is ``WHEEL_NAMES`` of ``sim.rover.truth``: LF, LM, LR, RF, RM, RR.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from sim.errors import InputError
+from sim.rover.truth import STEERED_WHEELS, WHEEL_NAMES
+
+FloatArray = NDArray[np.float64]
+
+# Index of each steered wheel (STEERED_WHEELS order) in WHEEL_NAMES order.
+STEERED_INDEX = tuple(WHEEL_NAMES.index(name) for name in STEERED_WHEELS)
+LEFT = (0, 1, 2)  # LF, LM, LR
+RIGHT = (3, 4, 5)  # RF, RM, RR
+
+
+@dataclass(frozen=True)
+class RoverGeometry:
+    """Dimensions of a MER-like rover (metres, radians, kilograms), body-frame positions.
+
+    Positions ``(x, z)`` are in the body frame at zero joint angles (x forward, z down).
+    Values marked "approximate" are plausible choices, not flight drawings
+    (REFERENCES.md, Hardware: "rocker-bogie link lengths: choose and document").
+    """
+
+    wheel_radius_m: float = 0.13  # REFERENCES.md: MER wheel diameter 26 cm
+    wheel_width_m: float = 0.16  # approximate, MER wheel width ~16 cm
+    track_m: float = 1.2  # approximate: between left and right wheel centres
+    x_front_m: float = 0.70  # approximate: wheelbase front-to-rear 1.4 m
+    x_middle_m: float = 0.0  # middle wheels under the origin, the turn-in-place centre
+    x_rear_m: float = -0.70  # approximate
+    # Depth of the wheel centres below the body origin at zero angles: with r = 0.13 m
+    # the body bottom clears level ground by 0.30 m (approximate, MER-like clearance).
+    wheel_centre_z_m: float = 0.17
+    rocker_pivot_x_m: float = 0.10  # approximate: differential pivot, on the body side
+    rocker_pivot_z_m: float = -0.05  # approximate: 5 cm above the body bottom
+    bogie_pivot_x_m: float = -0.35  # approximate: midway between middle and rear wheels
+    bogie_pivot_z_m: float = 0.02  # approximate: 15 cm above the wheel centres
+    rocker_limit_rad: float = float(np.deg2rad(35.0))  # approximate joint stop, ±
+    bogie_limit_rad: float = float(np.deg2rad(60.0))  # approximate joint stop, ±
+    mass_kg: float = 174.0  # REFERENCES.md: ~174 kg
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            if not math.isfinite(getattr(self, f.name)):
+                raise InputError(f.name, "must be finite")
+        for name in (
+            "wheel_radius_m",
+            "wheel_width_m",
+            "track_m",
+            "wheel_centre_z_m",
+            "rocker_limit_rad",
+            "bogie_limit_rad",
+            "mass_kg",
+        ):
+            if getattr(self, name) <= 0.0:
+                raise InputError(name, "must be positive")
+        if not self.x_front_m > self.x_middle_m > self.x_rear_m:
+            raise InputError("x_middle_m", "wheels must go front, middle, rear along x")
+
+    @property
+    def body_height_m(self) -> float:
+        """Height of the body origin above level ground with no sinkage (m)."""
+        return self.wheel_centre_z_m + self.wheel_radius_m
+
+    def wheel_xy_b(self) -> FloatArray:
+        """Wheel-centre ``(x, y)`` in the body frame at zero joint angles, shape (6, 2)."""
+        xs = (self.x_front_m, self.x_middle_m, self.x_rear_m)
+        half = 0.5 * self.track_m
+        return np.array([[x, -half] for x in xs] + [[x, half] for x in xs])
+
+    def _offsets(self) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+        """Link vectors in (x, z): pivot P, front-P, bogie pivot-P, middle-B, rear-B."""
+        p = np.array([self.rocker_pivot_x_m, self.rocker_pivot_z_m])
+        b = np.array([self.bogie_pivot_x_m, self.bogie_pivot_z_m])
+        zc = self.wheel_centre_z_m
+        front = np.array([self.x_front_m, zc]) - p
+        middle = np.array([self.x_middle_m, zc]) - b
+        rear = np.array([self.x_rear_m, zc]) - b
+        return p, front, b - p, middle, rear
+
+
+def _rot_xz(angle: FloatArray, v: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Rotate the (x, z) link vector ``v`` by ``angle`` about +y; returns (x, z) arrays.
+
+    Ry = [[c, 0, s], [0, 1, 0], [-s, 0, c]], so x' = c x + s z and z' = -s x + c z.
+    """
+    c, s = np.cos(angle), np.sin(angle)
+    return c * v[0] + s * v[1], -s * v[0] + c * v[1]
+
+
+@dataclass(frozen=True)
+class WheelKinematics:
+    """Wheel centres, axles and their joint-angle derivatives, all in the body frame.
+
+    Shapes: ``centre_b``, ``axle_b`` (..., 6, 3); ``link_rad`` (..., 6) is the pitch of the
+    link that carries each wheel (rocker for the fronts, rocker + bogie otherwise);
+    ``dcentre_dq`` (..., 6, 3, 3) with the last axis over (rocker, bogie_left,
+    bogie_right); ``daxle_dq`` likewise. Unit axles point to the wheel's right (body +y at
+    zero steering).
+    """
+
+    centre_b: FloatArray
+    axle_b: FloatArray
+    link_rad: FloatArray
+    dcentre_dq: FloatArray
+    daxle_dq: FloatArray
+
+
+def _gen_y(v: FloatArray) -> FloatArray:
+    """d/dθ of Ry(θ) v expressed on the rotated vector: (x, y, z) -> (z, 0, -x)."""
+    out = np.zeros_like(v)
+    out[..., 0] = v[..., 2]
+    out[..., 2] = -v[..., 0]
+    return out
+
+
+def wheel_kinematics(
+    geometry: RoverGeometry,
+    rocker_rad: ArrayLike,
+    bogie_rad: ArrayLike,
+    steer_rad: ArrayLike | None = None,
+) -> WheelKinematics:
+    """Forward kinematics of the suspension, vectorised over leading axes.
+
+    ``rocker_rad`` (...,) is the left rocker angle (the right one is its negative),
+    ``bogie_rad`` (..., 2) the [left, right] bogie angles relative to their rockers,
+    ``steer_rad`` (..., 4) the corner steering angles in ``STEERED_WHEELS`` order (zero
+    if omitted). Returns wheel centres and axles in the body frame with their derivatives.
+
+    >>> g = RoverGeometry()
+    >>> k = wheel_kinematics(g, 0.0, [0.0, 0.0])
+    >>> np.allclose(k.centre_b[:, 2], g.wheel_centre_z_m)
+    True
+    """
+    rocker = np.asarray(rocker_rad, dtype=float)
+    bogie = np.asarray(bogie_rad, dtype=float)
+    lead = np.broadcast_shapes(rocker.shape, bogie.shape[:-1])
+    rocker = np.broadcast_to(rocker, lead)
+    bogie = np.broadcast_to(bogie, (*lead, 2))
+    p, f_off, b_off, m_off, r_off = geometry._offsets()
+
+    centre = np.empty((*lead, 6, 3))
+    link = np.empty((*lead, 6))
+    dcentre = np.zeros((*lead, 6, 3, 3))
+    half = 0.5 * geometry.track_m
+    for side, (rock_sign, idx) in enumerate(((1.0, LEFT), (-1.0, RIGHT))):
+        rho = rock_sign * rocker  # the differential: right rocker = -left rocker
+        beta = bogie[..., side]
+        fx, fz = _rot_xz(rho, f_off)
+        bx, bz = _rot_xz(rho, b_off)
+        mx, mz = _rot_xz(rho + beta, m_off)
+        rx, rz = _rot_xz(rho + beta, r_off)
+        y = -half if side == 0 else half
+        i_f, i_m, i_r = idx
+        centre[..., i_f, :] = np.stack([p[0] + fx, np.full(lead, y), p[1] + fz], axis=-1)
+        centre[..., i_m, :] = np.stack([p[0] + bx + mx, np.full(lead, y), p[1] + bz + mz], -1)
+        centre[..., i_r, :] = np.stack([p[0] + bx + rx, np.full(lead, y), p[1] + bz + rz], -1)
+        link[..., i_f] = rho
+        link[..., i_m] = rho + beta
+        link[..., i_r] = rho + beta
+        pivot = np.array([p[0], 0.0, p[1]])
+        bogie_pivot = np.stack([p[0] + bx, np.zeros(lead), p[1] + bz], axis=-1)
+        bogie_col = 1 + side
+        for i in idx:
+            arm = centre[..., i, :].copy()
+            arm[..., 1] = 0.0
+            # d centre / d rocker: rotation of the whole side about the rocker pivot,
+            # with the chain rule sign of the differential.
+            dcentre[..., i, :, 0] = rock_sign * _gen_y(arm - pivot)
+            if i != i_f:
+                dcentre[..., i, :, bogie_col] = _gen_y(arm - bogie_pivot)
+
+    steer = np.zeros((*lead, 4)) if steer_rad is None else np.asarray(steer_rad, dtype=float)
+    steer = np.broadcast_to(steer, (*lead, 4))
+    sigma = np.zeros((*lead, 6))
+    sigma[..., list(STEERED_INDEX)] = steer
+    # axle = Ry(link) Rz(sigma) ŷ, with Rz(sigma) ŷ = (-sin sigma, cos sigma, 0)
+    ax_x, ax_z = _rot_xz(link, np.stack([-np.sin(sigma), np.zeros_like(sigma)]))
+    axle = np.stack([ax_x, np.cos(sigma), ax_z], axis=-1)
+    daxle = np.zeros((*lead, 6, 3, 3))
+    g_axle = _gen_y(axle)  # d axle / d link
+    for side, (rock_sign, idx) in enumerate(((1.0, LEFT), (-1.0, RIGHT))):
+        for i in idx:
+            daxle[..., i, :, 0] = rock_sign * g_axle[..., i, :]
+            if i != idx[0]:
+                daxle[..., i, :, 1 + side] = g_axle[..., i, :]
+    return WheelKinematics(centre, axle, link, dcentre, daxle)
+
+
+MER_GEOMETRY = RoverGeometry()

@@ -1,0 +1,308 @@
+"""Contact of a rover wheel's rim with a terrain: the search for the contact point.
+
+Implements the wheel-ground contact used by ``sim.rover.settle``: the contact kinematics of
+seed 001 section 2.2.4 with the full contact point on the rim instead of its one-parameter
+model.
+
+Contact of one wheel: a disk of radius ``r_eff`` (wheel radius minus sinkage) in the plane
+normal to its axle ``a``. On smooth ground with upward unit normal ``n`` it touches at the
+rim point lowest along ``n``, ``q = c + r_eff d`` with ``d = normalise(-n + (n·a) a)``, and
+the gap is the signed distance of ``q`` from the surface along ``n``. For a locally planar
+surface through ``S`` that is ``n·(c - S) - r_eff sqrt(1 - (n·a)^2)`` (as
+``n·d = -sqrt(1 - (n·a)^2)``); its derivative in the settling unknowns is ``sim.rover.settle``'s
+Newton Jacobian.
+
+Finding ``q``: the rim point lowest along the local normal is the rim point of least
+vertical clearance over the terrain, and we search for it as that minimum, because the
+heightmaps are bilinear: their normal jumps at every 5 cm cell edge and on rock flanks,
+where "lowest along the local normal" has no fixed point (an iteration on it flips between
+faces) while the least clearance is always defined, and is the same point on smooth ground.
+Per wheel and Newton iteration, one step of a bracketing search in the rim angle
+(``contact``): the clearance and its slope at the bracket ends and at a trial inside (where
+the end tangents meet: exact at a kink, a bisection on a smooth minimum). The tangents also
+bound the minimum from below; a pose converges when every wheel's best clearance found is
+within ``tol_m`` of zero and of that bound. A converged pose then gets a rim check
+(``deeper``): samples round the lower rim, dense near the contact, sparse far round, looking
+for a deeper basin (a rock touching further round the wheel); if there is one the search
+moves there.
+
+Frames: Site ``s`` (x North, y East, z Down). Rim angles are measured in the wheel plane
+from the vertically lowest rim point (``Wheels.e_low``) towards ``Wheels.e_fwd``. Heights
+are elevations (up); a surface point is ``(x, y, -h)`` in the Site frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sim.rover.geometry import RoverGeometry, WheelKinematics, wheel_kinematics
+from sim.world.terrain import Terrain
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+IntArray = NDArray[np.int64]
+
+SCAN_HALF_RAD = float(np.deg2rad(85.0))  # rim angles searched either side of the bottom
+TRUST_BRACKET_RAD = float(np.deg2rad(3.0))  # widest bracket whose tangent bound is used
+NUDGE_RAD = 2e-4  # 26 µm of rim: how far inside its bracket a trial must be
+MIN_STEP_RAD = float(np.deg2rad(0.5))  # smallest and largest move of a bracket that
+MAX_STEP_BRACKET_RAD = float(np.deg2rad(10.0))  # lost the minimum
+# Rim check offsets from the contact (degrees): 2.5° (5.7 mm) apart where the rim runs a
+# hair above the ground (10° round, a 13 cm rim is 2 mm up), 15° apart where only a rock as
+# tall as r (1 - cos Δ) reaches it; wide enough to cover ±85° from any contact angle.
+_CHECK_DEG = (2.5, 5, 7.5, 10, 12.5, 15, 20, 25, 30, 40, 50, 60, 75, 90, 110, 130, 150, 170)
+CHECK_OFFSETS_RAD = np.deg2rad(np.concatenate([-np.array(_CHECK_DEG[::-1]), _CHECK_DEG]))
+CHECK_NEAR_RAD = float(np.deg2rad(2.5))
+CHECK_SLACK_M = 3e-4  # a rim check counts a point this much below tol_m (see deeper)
+REFINE_SAMPLES = 9  # resampling across a suspect minimum of the rim check
+
+
+def unit_normal(hx: FloatArray, hy: FloatArray) -> FloatArray:
+    """Upward unit normal in the Site frame (z Down, so n_z < 0) from the slopes."""
+    n = np.stack([-hx, -hy, -np.ones_like(hx)], axis=-1)
+    out: FloatArray = n / np.linalg.norm(n, axis=-1, keepdims=True)
+    return out
+
+
+def height_and_gradient(
+    terrain: Terrain, x: FloatArray, y: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Height and slopes in one query where the terrain offers it (heightmaps do)."""
+    both = getattr(terrain, "height_and_gradient", None)
+    if both is not None:
+        h, hx, hy = both(x, y)
+        return np.asarray(h), np.asarray(hx), np.asarray(hy)
+    hx, hy = terrain.gradient(x, y)
+    return terrain.height_m(x, y), hx, hy
+
+
+@dataclass(frozen=True)
+class Wheels:
+    """Wheel frames at some unknowns: Site-frame centres, axles, rim bases, (m, 6, 3)."""
+
+    R: FloatArray  # (m, 3, 3) and its partials in roll and pitch
+    dR_droll: FloatArray
+    dR_dpitch: FloatArray
+    kin: WheelKinematics
+    centre: FloatArray
+    axle: FloatArray
+    e_low: FloatArray  # in the wheel plane, towards the vertically lowest rim point
+    e_fwd: FloatArray  # in the wheel plane, axle x e_low
+    r: FloatArray  # (m, 6) contact radius
+
+    def take(self, idx: IntArray) -> Wheels:
+        k = self.kin
+        kin = WheelKinematics(
+            k.centre_b[idx], k.axle_b[idx], k.link_rad[idx], k.dcentre_dq[idx], k.daxle_dq[idx]
+        )
+        return Wheels(
+            self.R[idx],
+            self.dR_droll[idx],
+            self.dR_dpitch[idx],
+            kin,
+            self.centre[idx],
+            self.axle[idx],
+            self.e_low[idx],
+            self.e_fwd[idx],
+            self.r[idx],
+        )
+
+
+def wheels(
+    geometry: RoverGeometry,
+    rotation: tuple[FloatArray, FloatArray, FloatArray],
+    u: FloatArray,
+    x: FloatArray,
+    y: FloatArray,
+    steer: FloatArray,
+    r_eff: FloatArray,
+) -> Wheels:
+    """The six wheel frames of ``m`` poses in the Site frame.
+
+    ``rotation``: ``R_s_b`` and its partials in roll and pitch, (m, 3, 3) each, as
+    ``sim.rover.settle.rotation_s_b`` returns them; ``u`` (m, 6) the settling unknowns
+    ``(z, roll, pitch, rocker, bogie_l, bogie_r)`` (m, rad); ``x``, ``y`` (m,) the body
+    origin's North and East (m); ``steer`` (m, 4) corner steering angles (rad); ``r_eff``
+    (m, 6) contact radii (m).
+    """
+    R, dR_droll, dR_dpitch = rotation
+    kin = wheel_kinematics(geometry, u[:, 3], u[:, 4:6], steer)
+    Rt = R.transpose(0, 2, 1)  # row vectors times R^T apply R: batched matmul beats einsum
+    centre = np.column_stack([x, y, u[:, 0]])[:, None, :] + kin.centre_b @ Rt
+    axle = kin.axle_b @ Rt
+    low = -axle[..., 2:3] * axle  # Site +z (Down) minus its component along the axle
+    low[..., 2] += 1.0
+    low /= np.linalg.norm(low, axis=-1, keepdims=True)
+    return Wheels(R, dR_droll, dR_dpitch, kin, centre, axle, low, np.cross(axle, low), r_eff)
+
+
+def _rim(
+    terrain: Terrain, w: Wheels, theta: FloatArray, slope: bool = True
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Clearance at rim angles ``theta`` (m, 6, K), measured from the lowest rim point.
+
+    Returns ``(f, df, point, normal)``: the vertical clearance ``f`` (m) of the rim point
+    over the terrain, ``df/dθ`` (m/rad), the point (m, 6, K, 3) and the upward unit normal
+    there; with ``slope=False`` only ``f`` (one height query, the others empty).
+    Component arrays rather than (..., 3) stacks: this is the solver's hot loop.
+    """
+    c, s = np.cos(theta), np.sin(theta)
+    pos, der = [], []
+    for i in range(3):
+        lo = (w.r * w.e_low[..., i])[..., None]
+        fw = (w.r * w.e_fwd[..., i])[..., None]
+        pos.append(w.centre[..., i, None] + lo * c + fw * s)
+        der.append(fw * c - lo * s)
+    if not slope:
+        empty = np.empty(0)
+        return -pos[2] - terrain.height_m(pos[0], pos[1]), empty, empty, empty
+    h, hx, hy = height_and_gradient(terrain, pos[0], pos[1])
+    df = -der[2] - hx * der[0] - hy * der[1]
+    return -pos[2] - h, df, np.stack(pos, axis=-1), unit_normal(hx, hy)
+
+
+def _tangent_meet(
+    t0: FloatArray,
+    f0: FloatArray,
+    d0: FloatArray,
+    t1: FloatArray,
+    f1: FloatArray,
+    d1: FloatArray,
+) -> tuple[FloatArray, FloatArray, BoolArray]:
+    """Where the tangents at ``t0`` (falling) and ``t1`` (rising) meet: (angle, value, ok).
+
+    ``ok`` where the ends look convex (each tangent passes below the other end): then the
+    value bounds the minimum between them from below, exactly where two plane faces meet
+    in a kink, and the angle lies in ``[t0, t1]``.
+    """
+    den = d0 - d1
+    t = (f1 - f0 + d0 * t0 - d1 * t1) / np.where(den < 0.0, den, -1.0)
+    ok = (d0 <= 0.0) & (d1 >= 0.0) & (f1 + d1 * (t0 - t1) <= f0) & (f0 + d0 * (t1 - t0) <= f1)
+    return np.clip(t, t0, t1), f0 + d0 * (t - t0), ok
+
+
+def _holds_minimum(f0: FloatArray, d0: FloatArray, f1: FloatArray, d1: FloatArray) -> BoolArray:
+    """Whether an interval must hold a local minimum, from the clearance at its ends: it
+    falls from the left end and rises into or ends higher at the right one, or mirrored."""
+    out: BoolArray = ((d0 <= 0.0) & ((d1 > 0.0) | (f1 > f0))) | (
+        (d1 >= 0.0) & ((d0 < 0.0) | (f0 > f1))
+    )
+    return out
+
+
+@dataclass(frozen=True)
+class _Contact:
+    """One search step's result per wheel, (m, 6) unless noted."""
+
+    lo: FloatArray  # the next bracket
+    hi: FloatArray
+    theta: FloatArray  # angle of the lowest rim point found
+    clearance: FloatArray  # its vertical clearance
+    gap: FloatArray  # its distance along the normal
+    error: FloatArray  # clearance minus a lower bound of the minimum (inf: none yet)
+    point: FloatArray  # (m, 6, 3)
+    normal: FloatArray  # (m, 6, 3)
+
+
+def contact(terrain: Terrain, w: Wheels, lo: FloatArray, hi: FloatArray) -> _Contact:
+    """One bracketing step of the rim-minimum search for every wheel.
+
+    A bracket holding a minimum (``_holds_minimum``) is split at a trial: where the end
+    tangents meet if the ends look convex, else the middle; the half that still holds a
+    minimum and has the lowest point is kept. A bracket that lost the minimum (the pose
+    moved) steps downhill by twice its width and is checked again next time.
+    """
+    f, df, pts, nrm = _rim(terrain, w, np.stack([lo, hi], axis=-1))
+    f0, f1, d0, d1 = f[..., 0], f[..., 1], df[..., 0], df[..., 1]
+    valid = _holds_minimum(f0, d0, f1, d1)
+    left = ~valid & (f0 <= f1)  # downhill lies below lo (else above hi)
+    step = np.clip(2.0 * (hi - lo), MIN_STEP_RAD, MAX_STEP_BRACKET_RAD)
+    t_meet, _, convex = _tangent_meet(lo, f0, d0, hi, f1, d1)
+    # Off the ends: at a kink the tangents meet exactly at the end already found, and a
+    # sample just past it closes the bracket.
+    nudge = np.minimum(0.25 * (hi - lo), NUDGE_RAD)
+    t_meet = np.clip(np.where(convex, t_meet, 0.5 * (lo + hi)), lo + nudge, hi - nudge)
+    trial = np.where(valid, t_meet, np.where(left, lo - step, hi + step))
+    trial = np.clip(trial, -SCAN_HALF_RAD, SCAN_HALF_RAD)
+    ft, dt, pt, nt = (
+        a[..., 0, :] if a.ndim == 4 else a[..., 0] for a in _rim(terrain, w, trial[..., None])
+    )
+
+    right_ok = _holds_minimum(ft, dt, f1, d1)
+    lowest_left = np.where(ft <= np.minimum(f0, f1), dt > 0.0, f0 < f1)
+    keep_left = _holds_minimum(f0, d0, ft, dt) & (lowest_left | ~right_ok)
+    new_lo = np.where(valid, np.where(keep_left, lo, trial), np.where(left, trial, hi))
+    new_hi = np.where(valid, np.where(keep_left, trial, hi), np.where(left, lo, trial))
+    fl = np.where(valid, np.where(keep_left, f0, ft), np.where(left, ft, f1))
+    dl = np.where(valid, np.where(keep_left, d0, dt), np.where(left, dt, d1))
+    fh = np.where(valid, np.where(keep_left, ft, f1), np.where(left, f0, ft))
+    dh = np.where(valid, np.where(keep_left, dt, d1), np.where(left, d0, dt))
+    # Lower bound of the minimum in a narrow convex bracket: where the tangents meet, or
+    # the lower end less the steeper end slope times the width.
+    _, meet, convex = _tangent_meet(new_lo, fl, dl, new_hi, fh, dh)
+    flat = np.minimum(fl, fh) - np.maximum(-dl, dh) * (new_hi - new_lo)
+    trusted = convex & (new_hi - new_lo <= TRUST_BRACKET_RAD)
+    lower = np.where(trusted, np.maximum(meet, flat), -np.inf)
+
+    f3 = np.stack([f0, f1, ft], axis=-1)  # the best of lo, hi and the trial
+    j = np.argmin(f3, axis=-1)
+    best = np.take_along_axis(f3, j[..., None], -1)[..., 0]
+    theta = np.take_along_axis(np.stack([lo, hi, trial], axis=-1), j[..., None], -1)[..., 0]
+    jj = j[..., None, None]
+    point = np.take_along_axis(np.concatenate([pts, pt[..., None, :]], -2), jj, -2)[..., 0, :]
+    normal = np.take_along_axis(np.concatenate([nrm, nt[..., None, :]], -2), jj, -2)[..., 0, :]
+    return _Contact(
+        new_lo, new_hi, theta, best, best * -normal[..., 2], best - lower, point, normal
+    )
+
+
+def deeper(
+    terrain: Terrain, w: Wheels, clearance: FloatArray, theta: FloatArray, margin_m: float
+) -> tuple[BoolArray, FloatArray, FloatArray]:
+    """The rim check: is any rim point below the contact's ``clearance - margin_m``?
+
+    Samples at ``CHECK_OFFSETS_RAD`` from the contact angle ``theta`` (k, 6). A sampled
+    local minimum whose neighbours rise steeply enough that something deeper may hide
+    between them is resampled finely. Returns ``(deeper (k, 6), lo, hi)`` with a bracket
+    round the deepest point found, kept clear of the contact (or the search returns to it).
+    """
+    angles = np.clip(theta[..., None] + CHECK_OFFSETS_RAD, -SCAN_HALF_RAD, SCAN_HALF_RAD)
+    f = _rim(terrain, w, angles, slope=False)[0]
+    limit = clearance - margin_m
+    j = np.argmin(f, axis=-1)
+    best = np.take_along_axis(f, j[..., None], -1)[..., 0]
+    centre = np.take_along_axis(angles, j[..., None], -1)[..., 0]
+    half = np.full(best.shape, CHECK_NEAR_RAD)
+    rise_l = np.full(f.shape, np.inf)
+    rise_r = np.full(f.shape, np.inf)
+    rise_l[..., 1:] = f[..., :-1] - f[..., 1:]
+    rise_r[..., :-1] = f[..., 1:] - f[..., :-1]
+    local_min = (rise_l >= 0.0) & (rise_r >= 0.0)
+    rise = np.maximum(
+        np.where(np.isinf(rise_l), rise_r, rise_l), np.where(np.isinf(rise_r), rise_l, rise_r)
+    )
+    own = np.abs(CHECK_OFFSETS_RAD) < 1.5 * CHECK_NEAR_RAD  # next to the contact: its basin
+    bound = np.where(local_min & ~own, f - rise, np.inf)
+    k = np.argmin(bound, axis=-1)
+    suspect = (np.take_along_axis(bound, k[..., None], -1)[..., 0] < limit) & (best >= limit)
+    rows, cols = np.nonzero(suspect)
+    if rows.size:
+        n = np.arange(rows.size)
+        kk = k[rows, cols]
+        t_lo = angles[rows, cols, np.maximum(kk - 1, 0)]
+        t_hi = angles[rows, cols, np.minimum(kk + 1, CHECK_OFFSETS_RAD.size - 1)]
+        fine = np.linspace(t_lo, t_hi, REFINE_SAMPLES, axis=-1)
+        grid = np.zeros((rows.size, 6, REFINE_SAMPLES))
+        grid[n, cols] = fine
+        ff = _rim(terrain, w.take(rows), grid, slope=False)[0][n, cols]
+        jj = np.argmin(ff, axis=-1)
+        better = ff[n, jj] < best[rows, cols]
+        r, c = rows[better], cols[better]
+        best[r, c] = ff[n, jj][better]
+        centre[r, c] = fine[n, jj][better]
+        half[r, c] = ((t_hi - t_lo) / (REFINE_SAMPLES - 1))[better]
+    half = np.minimum(half, 0.5 * np.abs(centre - theta))
+    return best < limit, centre - half, centre + half
