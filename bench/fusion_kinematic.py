@@ -1,4 +1,4 @@
-"""Balaram's kinematic EKF on surface eq. 22: the figures of seed 001 sec. 4.1.
+"""Balaram's kinematic EKF on surface eq. 22: the figures of Balaram 2000 sec. 4.1.
 
 Two experiments of the paper, Monte Carlo over seeds (sensor noise, the filter's initial
 attitude and position drawn from its own initial covariance):
@@ -62,7 +62,7 @@ from sim.sensors.sun_sensor import SunSensorParams, WassSunSensor
 FloatArray = NDArray[np.float64]
 
 START_UTC = datetime(2004, 4, 14, 12, 0, 0, tzinfo=UTC)
-SUN_S = np.array([-1.0, 1.0, -1.0]) / math.sqrt(3.0)  # seed 001 sec. 4.1, z flipped to Down
+SUN_S = np.array([-1.0, 1.0, -1.0]) / math.sqrt(3.0)  # Balaram 2000 sec. 4.1, z flipped to Down
 START_X_M, START_Y_M, START_YAW_RAD = 1.1, -0.5, math.pi / 2  # right wheels over both bumps
 STRAIGHT_M = 1.0
 TURN_RAD = 2.0 * math.pi

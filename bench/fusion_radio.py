@@ -1,4 +1,4 @@
-"""Seed 004's four simulation cases for the radio + terrain-matching EKF, Monte Carlo.
+"""Jiang, Li et al. 2014's four simulation cases for the radio + terrain-matching EKF, Monte Carlo.
 
 Each seed is one ``sim.scenarios.radio`` drive (1000 s at 1 s steps, during a relay pass);
 the four cases of the paper's Table 1 run on the same drive and IMU, with their own map
@@ -66,7 +66,7 @@ from sim.world.sites import make_terrain
 
 FloatArray = NDArray[np.float64]
 
-# Table 1 of seed 004: (image resolution m, radio accuracy m); the paper's results (m)
+# Table 1 of Jiang, Li et al. 2014: (image resolution m, radio accuracy m); the paper's results (m)
 CASES = {1: (10.0, 10.0), 2: (10.0, 1.0), 3: (0.25, 10.0), 4: (0.25, 1.0)}
 PAPER_ERR_M = {1: 20.0, 2: 5.0, 3: 2.0, 4: 0.35}
 SETTLE_S = 100.0

@@ -9,7 +9,7 @@ then a course (``course``: 10 m straight, a 90° turn in place, a 60° arc of 5 
 the truth at the end of the course.
 
 Figures, per site, RMS over seeds: ``session_<site>_<estimator>_err_m`` and the same as a
-percentage of the distance driven, ``..._err_pct``. There are no targets: seed 000's
+percentage of the distance driven, ``..._err_pct``. There are no targets: Ali et al. 2005's
 requirement for SAPP (10 % of the distance) is ``roverops bench sapp``'s, and the papers
 give no figure for these courses.
 """

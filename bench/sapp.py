@@ -1,5 +1,5 @@
 """``roverops bench sapp``: SAPP against MER's requirements, Monte Carlo over seeds, sites
-and times (seed 000, Ali et al. 2005; the figures of ../shared/REFERENCES.md).
+and times (Ali et al. 2005; the figures of docs/REFERENCES.md).
 
 Every run is a ``RoverSession``: the flight software in the loop on the simulated rover,
 judged against the simulator's truth.

@@ -1,4 +1,4 @@
-"""``roverops bench vo``: MER visual odometry (seed 002, Maimone, Cheng and Matthies 2007)
+"""``roverops bench vo``: MER visual odometry (Cheng, Maimone and Matthies 2005)
 measured on rendered Navcam pairs, with an OpenCV baseline beside it.
 
 Every drive is a ``RoverSession`` ``vo=on`` drive (``sim.loop.session``): the flight software's
@@ -8,7 +8,8 @@ error measured is VO's (and wheel odometry's), not a heading error's. A wrapper 
 flight VO (``RecordingVO``) keeps, for every pair, the truth pose, VO's outcome and the
 baseline's (``bench.vo_baseline``: ORB, StereoSGBM, solvePnPRansac) on the same images.
 
-- Rock course (seed 002 sec. 3, Fig. 4): 2.45 m commanded straight over rocks 8-20 cm tall
+- Rock course (Cheng, Maimone and Matthies 2005 sec. 3, Fig. 4): 2.45 m commanded straight over
+rocks 8-20 cm tall
   (``sim.scenarios.vo_courses.find_rock_course``) in 35 cm steps, each step's slip drawn
   uniformly in 0-85 % (``SlipParams.slip_range``); the distance truly driven is shorter
   (about 1.4 m).
@@ -69,7 +70,7 @@ from sim.world.sites import make_terrain, site
 
 FloatArray = NDArray[np.float64]
 
-ROCK_COURSE_M = 2.45  # seed 002 sec. 3
+ROCK_COURSE_M = 2.45  # Cheng, Maimone and Matthies 2005 sec. 3
 ROCK_STEP_M = 0.35
 ROCK_SLIP = (0.0, 0.85)
 SLOPE_DEG = 20.0

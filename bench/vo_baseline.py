@@ -7,8 +7,8 @@ by the rectified pinhole relation ``z = f B / d``. Per step: the previous pair's
 are matched to the new left image's by their ORB descriptors (Hamming distance, mutual best
 matches), and ``cv2.solvePnPRansac`` finds the camera motion that puts the previous 3D
 points on the new pixels (RANSAC, then a refinement on the inliers). No prediction from
-wheel odometry, no covariances, no sanity checks: what MER's method adds (seed 002 sec. 2)
-is what this lacks.
+wheel odometry, no covariances, no sanity checks: what MER's method adds (Cheng, Maimone and
+Matthies 2005 sec. 2) is what this lacks.
 
 Frames as ``estimation.vo.odometry``: the camera motion ``P_c1 = R P_c0 + t`` (left eye)
 becomes the body motion through the rig's mounting (``R_b_cam``, the left eye's centre

@@ -9,7 +9,7 @@ optical centre, ``A`` the unit boresight, and ``H = f x_cam + c_u A``,
 
 which is the usual ``u = f x/z + c_u``, ``v = f y/z + c_v`` in the camera frame. Pancam's
 narrow field (16 deg) has negligible distortion for the sun finder, whose error budget
-(Eisenman, Liebe and Perez 2002, seed 000 ref. [3]) is dominated by centroiding.
+(Eisenman, Liebe and Perez 2002, Ali et al. 2005 ref. [3]) is dominated by centroiding.
 
 Frames (docs/CONVENTIONS.md): the camera frame has ``z`` along the boresight, ``x`` right and
 ``y`` down in the image. Pixel coordinates ``(u, v)`` are (column, row) with the centre of

@@ -1,6 +1,6 @@
 """Onboard ephemeris (the IVP "conic approximation"): Sun and Earth directions in LL.
 
-Flight software (seed 000, Ali et al. 2005: the rover computes the Sun's expected position
+Flight software (Ali et al. 2005: the rover computes the Sun's expected position
 onboard for Sun finding and Sungaze, and the Earth's for HGA pointing). It never sees the
 truth ephemeris; it needs only the onboard clock ``t_s`` (TT seconds since J2000) and the
 site. Method:

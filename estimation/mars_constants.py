@@ -1,6 +1,6 @@
 """Physical constants of Mars that the flight software and the simulator share.
 
-Sources are on each line; see ../shared/REFERENCES.md.
+Sources are on each line; see docs/REFERENCES.md.
 """
 
 MARS_GRAVITY_M_S2 = 3.711  # NASA Mars fact sheet, equatorial surface gravity

@@ -5,8 +5,8 @@ Quaternions are numpy arrays ``[x, y, z, w]`` (scalar last), multiplied with the
 product, exactly as ``scipy.spatial.transform.Rotation`` stores them, so
 ``Rotation.from_quat(q_a_b).apply(v_b) == v_a``. With this convention chains read left to
 right like matrices: ``q_a_c = quat_multiply(q_a_b, q_b_c)`` matches ``R_a_c = R_a_b @ R_b_c``.
-Seed 000 writes ``δq^B ⊗ ^Bq^{LL}`` for a correction expressed in the body frame (on the left)
-and ``^Bq^{LL} ⊗ δq^{LL}`` for one expressed in LL (on the right); both keep that order here.
+Ali et al. 2005 writes ``δq^B ⊗ ^Bq^{LL}`` for a correction expressed in the body frame (on the
+left) and ``^Bq^{LL} ⊗ δq^{LL}`` for one expressed in LL (on the right); both keep that order here.
 """
 
 from __future__ import annotations
@@ -57,7 +57,7 @@ def quat_canonical(q: ArrayLike) -> FloatArray:
 def quat_from_rotvec(theta: ArrayLike) -> FloatArray:
     """Unit quaternion of the rotation vector ``theta`` (rad, (..., 3)), exact for any size.
 
-    A small-angle error state ``theta`` (Balaram, seed 001, eqs. 5-7) maps through this to
+    A small-angle error state ``theta`` (Balaram 2000, eqs. 5-7) maps through this to
     ``δq``; which side ``δq`` multiplies is the caller's to state.
     """
     t = np.asarray(theta, dtype=float)

@@ -6,7 +6,7 @@ Units are in the argument names; angles are degrees here, at the edge (docs/CONV
 the sequencer converts them. The text and JSON sequence formats (the operations-server
 issue) parse into these.
 
-SAPP's commands follow Ali et al. 2005 (seed 000): the NATE primitives (sec. 2.2-2.4), the
+SAPP's commands follow Ali et al. 2005: the NATE primitives (sec. 2.2-2.4), the
 acquisition commands of sec. 2.2.4, and the two lessons of sec. 5 (Suncheck then Sungaze
 as one command, the operators' practice of sec. 4; gyrocompassing).
 
@@ -210,7 +210,7 @@ _TOLERANCE_DEG = ArgSpec("number", "deg", 0.0, 90.0, lo_open=True, note="omit: t
 _DRIVE_TO_NOTE = "the goal must be 0.01-100 m from the estimated position when it starts"
 
 
-VO_STEP_MAX_M = 0.75  # seed 002 sec. 4: at most 75 cm per step
+VO_STEP_MAX_M = 0.75  # Cheng, Maimone and Matthies 2005 sec. 4: at most 75 cm per step
 VO_STEP_MAX_DEG = 18.0  # and at most 18 deg of turn, for 60 % overlap between pairs
 VO_SPECS: Mapping[str, ArgSpec] = {
     "vo": ArgSpec(
@@ -236,7 +236,7 @@ def vo_step_count(
 
     >>> vo_step_count(2.0, 0.0), vo_step_count(0.0, -90.0), vo_step_count(0.5, 40.0)
     (3, 5, 3)
-    >>> vo_step_count(2.45, 0.0, max_step_m=0.35)  # seed 002's rock course
+    >>> vo_step_count(2.45, 0.0, max_step_m=0.35)  # Cheng, Maimone and Matthies 2005's rock course
     7
     """
     if not (math.isfinite(max_step_m) and max_step_m > 0.0):
@@ -415,21 +415,21 @@ class Sungaze(Command):
 
 @dataclass(frozen=True)
 class GetTiltAttitude(Command):
-    """GetTiltAttitude (seed 000 sec. 2.2.4)."""
+    """GetTiltAttitude (Ali et al. 2005 sec. 2.2.4)."""
 
     name: ClassVar[str] = "GET_TILT_ATTITUDE"
 
 
 @dataclass(frozen=True)
 class GetCoarseAttitude(Command):
-    """GetCoarseAttitude (seed 000 sec. 2.2.4)."""
+    """GetCoarseAttitude (Ali et al. 2005 sec. 2.2.4)."""
 
     name: ClassVar[str] = "GET_COARSE_ATTITUDE"
 
 
 @dataclass(frozen=True)
 class GetFineAttitude(Command):
-    """GetFineAttitude (seed 000 sec. 2.2.4)."""
+    """GetFineAttitude (Ali et al. 2005 sec. 2.2.4)."""
 
     name: ClassVar[str] = "GET_FINE_ATTITUDE"
 

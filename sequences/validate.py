@@ -3,14 +3,14 @@
 ``validate(source, context)`` parses the source (``sequences.language``: syntax, commands,
 arguments, time tags) and then checks what spans lines: time tags going backwards and the
 Articulate state (NATE accepts only ARTICULATE_STOP, WAIT and HGA_PASS while
-articulating; Ali et al. 2005, seed 000, sec. 2.4.1, as ``estimation.sapp.nate`` implements it).
+articulating; Ali et al. 2005, sec. 2.4.1, as ``estimation.sapp.nate`` implements it).
 
 With a ``ValidationContext`` (the rover's clock and state at the start, which the server fills
 from ``sim``) it also walks the sequence predicting when each command starts and what SAPP's
-Attitude Quality Flag (seed 000 sec. 2.1) and IMU integration time (sec. 4) will be, and
+Attitude Quality Flag (Ali et al. 2005 sec. 2.1) and IMU integration time (sec. 4) will be, and
 warns where the plan is risky. The predictions are estimates, made without the simulator:
 
-- Durations: drives at 0.0375 m/s along the path and turns at 2.1 deg/s (seed 000 sec. 2.4.2
+- Durations: drives at 0.0375 m/s along the path and turns at 2.1 deg/s (Ali et al. 2005 sec. 2.4.2
   and 2.5, ``sim.rover.drive``); NADIR_UPDATE/NADIR_CHECK their window (10 s by default); SUNFIND
   5 min (its upper bound); SUNCHECK 1 min; SUNGAZE 10 min (its timer); GET_TILT_ATTITUDE
   10 s; GET_COARSE_ATTITUDE 10 s + 5 min; GET_FINE_ATTITUDE 15 min; SUNCHECK_SUNGAZE
@@ -20,7 +20,7 @@ warns where the plan is risky. The predictions are estimates, made without the s
   SUNCHECK_SUNGAZE give Fine and reset the IMU time; checks leave the flag alone.
 - Drives and the time spent in Articulate add their duration to the IMU time (and the gyro
   counter, which is the same away from the wheel-odometry submode); Fine drops to Coarse
-  once that exceeds ``fine_to_coarse_s`` (900 s, seed 000 sec. 2.4; SET_PARAM may change it).
+  once that exceeds ``fine_to_coarse_s`` (900 s, Ali et al. 2005 sec. 2.4; SET_PARAM may change it).
 - ``@ hh:mm LMST`` waits for the next time the LMST clock reads that; a passed
   ``@ sol N hh:mm LMST`` is assumed to start at once, late.
 - The commands that image the sun (SUNFIND, SUNGAZE, SUNCHECK, GET_COARSE_ATTITUDE,
@@ -105,17 +105,17 @@ CODES: dict[str, str] = {
 AqfName = Literal["Unknown", "TiltOnly", "Coarse", "Fine"]
 AQF_RANK: dict[str, int] = {"Unknown": 0, "TiltOnly": 1, "Coarse": 2, "Fine": 3}
 
-DRIVE_SPEED_M_S = 0.0375  # seed 000 sec. 2.5, sim.rover.drive.DEFAULT_SPEED_M_S
-TURN_RATE_DEG_S = 2.1  # seed 000 sec. 2.4.2, sim.rover.drive.DEFAULT_TURN_RATE_RAD_S
-NADIR_WINDOW_S = 10.0  # seed 000 sec. 2.2.1, NATE's default window
+DRIVE_SPEED_M_S = 0.0375  # Ali et al. 2005 sec. 2.5, sim.rover.drive.DEFAULT_SPEED_M_S
+TURN_RATE_DEG_S = 2.1  # Ali et al. 2005 sec. 2.4.2, sim.rover.drive.DEFAULT_TURN_RATE_RAD_S
+NADIR_WINDOW_S = 10.0  # Ali et al. 2005 sec. 2.2.1, NATE's default window
 SUNFIND_S = 300.0  # upper bound of a Sunfind search (estimate)
 SUNCHECK_S = 60.0  # one pointed image (estimate)
 SUNGAZE_S = 600.0  # the Sungaze timer, sec. 2.2.3
 GET_FINE_ATTITUDE_S = 900.0  # estimate: Nadir Update, Sunfind, Sungaze
 SUNCHECK_SUNGAZE_S = 660.0  # estimate: Suncheck then Sungaze
 GYROCOMPASS_S = 1800.0  # NATE's gyrocompass_duration_s default
-FINE_TO_COARSE_S = 900.0  # seed 000 sec. 2.4: "currently 15 minutes"
-IMU_TIME_LIMIT_S = 10_000.0  # seed 000 sec. 4: the operators' limit since the last Sungaze
+FINE_TO_COARSE_S = 900.0  # Ali et al. 2005 sec. 2.4: "currently 15 minutes"
+IMU_TIME_LIMIT_S = 10_000.0  # Ali et al. 2005 sec. 4: the operators' limit since the last Sungaze
 _EPS_S = 1e-6
 MAX_EPHEMERIS_SOL = 17_668
 """The last sol whose every LMST lies inside the ephemeris the rover runs on (the bundled

@@ -30,7 +30,7 @@ def test_one_run_of_each_part() -> None:
     nees = metrics["filter_consistency_nees"]
     assert set(nees) == {"kinematic_ekf", "radio_ekf"}
     assert all(math.isfinite(v) and v > 0.0 for v in nees.values())
-    # the EKF beats averaged wheel odometry on eq. 22 (seed 001: 0.3 % against 2 %)
+    # the EKF beats averaged wheel odometry on eq. 22 (Balaram 2000: 0.3 % against 2 %)
     assert metrics["eq22_straight_ekf_err_pct"] < metrics["eq22_straight_odometry_err_pct"]
     # beside SAPP in sessions: every estimator's error on each site, in sense
     for site in ("gusev", "meridiani"):

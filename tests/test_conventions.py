@@ -54,7 +54,8 @@ def test_conjugate_inverts_and_rotvec_matches_scipy() -> None:
 
 
 def test_body_correction_on_left_llcorrection_on_right() -> None:
-    # Seed 000: δq^B ⊗ ^Bq^{LL} rotates about a body axis; ^Bq^{LL} ⊗ δq^{LL} about an LL axis.
+    # Ali et al. 2005: δq^B ⊗ ^Bq^{LL} rotates about a body axis; ^Bq^{LL} ⊗ δq^{LL} about an LL
+    # axis.
     q_b_ll = Rotation.from_euler("z", 90, degrees=True).inv().as_quat()
     dq = quat_from_rotvec([0.0, 0.0, 0.1])
     left = Rotation.from_quat(quat_multiply(dq, q_b_ll))

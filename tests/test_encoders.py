@@ -15,7 +15,7 @@ WHEEL_RADIUS_M = 0.13  # MER wheel, 26 cm diameter (REFERENCES.md)
 
 
 def drive_truth(n: int = 801, t0_s: float = 0.0, seed: int = 0) -> TruthTrajectory:
-    """100 s at 8 Hz: forward at 3.75 cm/s (seed 000), a reverse stretch, per-wheel
+    """100 s at 8 Hz: forward at 3.75 cm/s (Ali et al. 2005), a reverse stretch, per-wheel
     differences as on rough ground, and corner steering sweeping +-30 deg."""
     rng = np.random.default_rng(seed)
     t = t0_s + np.arange(n, dtype=np.float64) * CONTROL_DT_S

@@ -1,4 +1,4 @@
-"""SAPP gyro propagation (seed 000 sec. 2.4) on the simulator's IMU: Mars' rotation is
+"""SAPP gyro propagation (Ali et al. 2005 sec. 2.4) on the simulator's IMU: Mars' rotation is
 subtracted, so a rover at rest keeps its attitude, and a turn follows the truth."""
 
 import math

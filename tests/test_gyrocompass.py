@@ -1,4 +1,4 @@
-"""Gyrocompassing at rest (seed 000 sec. 5 lessons learned; ``estimation.sapp.gyrocompass``).
+"""Gyrocompassing at rest (Ali et al. 2005 sec. 5 lessons learned; ``estimation.sapp.gyrocompass``).
 
 References from outside the module: the simulator's LN-200 model (``sim.sensors.imu``) senses the
 truth attitude of a tilted rover at rest; truth headings come from scipy's Euler angles; the

@@ -194,7 +194,7 @@ def test_ninety_degree_yaw_integrates_to_ninety_degrees_about_body_z() -> None:
 
 
 def test_delta_angles_are_body_frame_rotation_increments() -> None:
-    # A rover pitched 30 deg turning in place about its own z at 2.1 deg/s (seed 000):
+    # A rover pitched 30 deg turning in place about its own z at 2.1 deg/s (Ali et al. 2005):
     # the body rate is exactly (0, 0, w) in body axes, though every Euler angle changes.
     rate = math.radians(2.1)
     t = np.arange(161) * CONTROL_DT_S

@@ -1,4 +1,4 @@
-"""The continuous-discrete EKF core (seed 001 sec. 3) equals a linear Kalman filter on a
+"""The continuous-discrete EKF core (Balaram 2000 sec. 3) equals a linear Kalman filter on a
 linear model, and its discretisation is the exact one."""
 
 import numpy as np

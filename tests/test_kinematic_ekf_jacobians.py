@@ -1,4 +1,4 @@
-"""Every Jacobian of the kinematic EKF (seed 001, eqs. 1-20) against finite differences.
+"""Every Jacobian of the kinematic EKF (Balaram 2000, eqs. 1-20) against finite differences.
 
 The attitude columns are checked against the *exact* rotation model: perturbing the
 reference attitude to ``q0 ⊗ δq(θ)`` (eq. 5, error on the right, body axes), so a sign or

@@ -1,4 +1,4 @@
-"""The sensors the kinematic EKF needs (seed 001 secs. 1.3, 2.3): the WASS model and its
+"""The sensors the kinematic EKF needs (Balaram 2000 secs. 1.3, 2.3): the WASS model and its
 inverse, the rocker/bogie sensors, the compliant wheels, and the flight software's copy of
 the rover geometry."""
 

@@ -1,4 +1,4 @@
-"""The slip constraint (seed 001, eqs. 17-20) is zero for a rover rolling without slip on
+"""The slip constraint (Balaram 2000, eqs. 17-20) is zero for a rover rolling without slip on
 flat ground, and the whole filter on surface eq. 22 beats the averaged wheel odometry."""
 
 import math
@@ -86,7 +86,7 @@ def test_estimate_reports_its_frames() -> None:
 
 
 def test_ekf_beats_averaged_odometry_over_eq22() -> None:
-    # Seed 001 sec. 4.1.1: over eq. 22 the averaged odometry over-counts (paper 2 %), the
+    # Balaram 2000 sec. 4.1.1: over eq. 22 the averaged odometry over-counts (paper 2 %), the
     # kinematic EKF corrects the internal kinematics and contact angles (paper 0.3 %).
     r = run_once("straight", 1)
     odometry_pct = 100 * abs(r.distance_odometry_m - r.distance_true_m) / r.distance_true_m

@@ -1,4 +1,4 @@
-"""Nadir Update / Nadir Check (seed 000 sec. 2.2.1, 2.3.1) and the Attitude Quality Flag.
+"""Nadir Update / Nadir Check (Ali et al. 2005 sec. 2.2.1, 2.3.1) and the Attitude Quality Flag.
 
 References from outside the module: hand-derived tilt and heading formulas, scipy's
 ``Rotation.align_vectors`` as an independent minimal-rotation solver, the LN-200 IMU model

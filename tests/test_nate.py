@@ -1,4 +1,4 @@
-"""The NATE core (seed 000 Figure 1, sec. 2.1-2.5) on the simulator's sensors: every AQF
+"""The NATE core (Ali et al. 2005 Figure 1, sec. 2.1-2.5) on the simulator's sensors: every AQF
 transition of sec. 2.2.1, 2.3.1 and 2.4 one by one, a rover at rest in Articulate, a
 straight drive in Mobility, Site planting and refused commands."""
 

@@ -1,4 +1,4 @@
-"""NATE's camera modes on real Pancam images (seed 000 sec. 2.2.2, 2.2.3, 2.2.4, 2.3.2, 5).
+"""NATE's camera modes on real Pancam images (Ali et al. 2005 sec. 2.2.2, 2.2.3, 2.2.4, 2.3.2, 5).
 
 The simulated rover (``sim.loop.rover_sim.RoverSim``) renders the Pancam sun frame at the mast
 pointing NATE asks for, from the truth, as ``sim.loop.session`` does; NATE runs the sun finder

@@ -1,6 +1,6 @@
 """NATE's guards found by review: flagged gyro samples are not integrated, gyrocompassing
 never claims Coarse without a measured tilt, a Nadir window too short for its sample count
-is refused up front, and a drive the simulator refuses changes nothing (seed 000
+is refused up front, and a drive the simulator refuses changes nothing (Ali et al. 2005
 sec. 2.1-2.4)."""
 
 import math

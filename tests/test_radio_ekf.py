@@ -1,4 +1,5 @@
-"""The radio + terrain-matching EKF's flight code (seed 004): Jacobians, update, RK4, inputs."""
+"""The radio + terrain-matching EKF's flight code (Jiang, Li et al. 2014): Jacobians, update, RK4,
+inputs."""
 
 from __future__ import annotations
 
@@ -188,7 +189,8 @@ def test_zero_velocity_update_is_the_kalman_update_of_a_direct_velocity_measurem
 
 
 def test_horizontal_sigma_is_the_initial_ten_metres_per_axis() -> None:
-    ekf = RadioEkf(LAT, LON, 0.0, 0.0, height_m=-1500.0)  # P0 = diag(10² I, I): seed 004
+    # P0 = diag(10² I, I): Jiang, Li et al. 2014
+    ekf = RadioEkf(LAT, LON, 0.0, 0.0, height_m=-1500.0)
     assert ekf.horizontal_sigma_m(-1500.0) == pytest.approx(math.hypot(10.0, 10.0), rel=1e-12)
 
 

@@ -1,5 +1,5 @@
-"""Seed 004's simulator side: the relay orbiter against Kepler, the onboard beacon against
-the orbiter, landmark pixels against the flight model, and a short filter run."""
+"""Jiang, Li et al. 2014's simulator side: the relay orbiter against Kepler, the onboard beacon
+against the orbiter, landmark pixels against the flight model, and a short filter run."""
 
 from __future__ import annotations
 

@@ -113,7 +113,7 @@ def test_site_metres_follow_the_ellipsoid() -> None:
     ("resolution_m", "sigma_m", "band"),
     [
         (0.25, 0.3, (8.0, 20.0)),  # converged: as near as pairs remain
-        (0.25, 10.0, (30.0, 60.0)),  # seed 004's 10 m start: three sigmas out
+        (0.25, 10.0, (30.0, 60.0)),  # Jiang, Li et al. 2014's 10 m start: three sigmas out
         (0.25, 500.0, (50.0, 100.0)),  # lost: capped
         (10.0, 10.0, (50.0, 200.0)),  # a 10 m map: 5 to 20 resolutions
     ],

@@ -1,5 +1,5 @@
 """``RoverSession`` end to end: SAPP in the loop on the simulated rover (docs/DESIGN.md, "One
-control cycle"; seed 000 sec. 2.2.4 GetFineAttitude, sec. 2.5 position, sec. 1 HGA).
+control cycle"; Ali et al. 2005 sec. 2.2.4 GetFineAttitude, sec. 2.5 position, sec. 1 HGA).
 
 Gusev, 2004-04-14 16:30 UTC (sun 47 deg up, Earth 75 deg up): GetFineAttitude, a 5 m
 drive, a Site, a 5 minute HGA pass; then a drive refused during Articulate. At 04:00 UTC
@@ -131,7 +131,7 @@ def test_the_drive_is_tracked_and_plant_site_zeroes_both_positions(day: Day) -> 
     assert last.command == "DRIVE_STRAIGHT distance_m=5.0"
     p_est, p_true = np.array(last.p_s_est), np.array(last.p_s_true)
     assert float(np.linalg.norm(p_true[:2])) == pytest.approx(5.0, abs=0.5)
-    assert float(np.linalg.norm(p_est - p_true)) < 0.5  # seed 000 sec. 1: 10 % of distance
+    assert float(np.linalg.norm(p_est - p_true)) < 0.5  # Ali et al. 2005 sec. 1: 10 % of distance
     assert {f.nate_mode for f in day.session.frames[start:end]} >= {"Mobility"}
     assert day.plant.details["site_index"] == 1
     planted = [f for f in day.session.frames if f.command == "PLANT_SITE"][-1]

@@ -1,4 +1,4 @@
-"""Site frames (seed 000 sec. 4): planting resets the position, the chain joins the Sites."""
+"""Site frames (Ali et al. 2005 sec. 4): planting resets the position, the chain joins the Sites."""
 
 import numpy as np
 import pytest

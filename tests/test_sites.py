@@ -148,7 +148,7 @@ def test_eq22_is_balarams_surface() -> None:
     t = make_terrain("eq22", 0)
     x = np.array([0.0, 0.5, 0.5, 1.0, -0.7])
     y = np.array([0.0, 0.2, -0.2, 1.0, 0.4])
-    # Equation 22 of seed 001, written out independently of sim.world.terrain.
+    # Equation 22 of Balaram 2000, written out independently of sim.world.terrain.
     bump = 0.25 * np.exp(-5 * (6.25 * (x - 0.5) ** 2 + 6.25 * (y - 0.2) ** 2))
     dip = 0.25 * np.exp(-4 * (6.25 * (x - 0.5) ** 2 + 6.25 * (y + 0.2) ** 2))
     expected = 0.2 * (bump - dip + 0.5 * np.sin(0.75 * x * y))

@@ -19,7 +19,7 @@ DEG = math.pi / 180.0
 
 
 def test_level_ground_slip_is_a_few_percent() -> None:
-    # Seed 000 section 4: Opportunity on the plains "very small amounts of slip".
+    # Ali et al. 2005 section 4: Opportunity on the plains "very small amounts of slip".
     for soil in (GUSEV_SOIL, MERIDIANI_SAND):
         s, c = slip_curve(soil, 0.0)
         assert 0.01 <= float(s) <= 0.06, soil.name

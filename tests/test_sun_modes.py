@@ -1,4 +1,5 @@
-"""Sunfind, Sungaze and Suncheck as procedures (seed 000 sec. 2.2.2, 2.2.3, 2.3.2), no images.
+"""Sunfind, Sungaze and Suncheck as procedures (Ali et al. 2005 sec. 2.2.2, 2.2.3, 2.3.2), no
+images.
 
 The procedures are fed synthetic ``SunFix`` results made from a known true attitude: a
 "sky" answers each ``PancamRequest`` with the true body sun if the Pancam pinhole model

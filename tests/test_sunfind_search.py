@@ -1,4 +1,4 @@
-"""Sunfind search geometry, confirmation checks and heading update (seed 000 sec. 2.2.2).
+"""Sunfind search geometry, confirmation checks and heading update (Ali et al. 2005 sec. 2.2.2).
 
 References from outside the module: scipy ``Rotation`` (matrix products, relative
 rotations), the Pancam pinhole model of ``estimation.camera_model`` (does the sun land in

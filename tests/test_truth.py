@@ -21,7 +21,8 @@ def test_turn_in_place_rate_is_the_commanded_rate_about_body_down() -> None:
     )
     omega = traj.omega_b_s_in_b()
     steady = omega[2:-2]  # the first and last intervals are shorter (the schedule's ends)
-    np.testing.assert_allclose(steady[:, 2], math.radians(2.1), rtol=1e-9)  # seed 000: 2.1 deg/s
+    # Ali et al. 2005: 2.1 deg/s
+    np.testing.assert_allclose(steady[:, 2], math.radians(2.1), rtol=1e-9)
     np.testing.assert_allclose(steady[:, :2], 0.0, atol=1e-12)
 
 
@@ -29,7 +30,7 @@ def test_straight_drive_velocity_is_the_commanded_speed() -> None:
     sim = RoverSim("flat", 0, START, slip=False)
     traj = sim.drive_straight(2.0).truth
     v = traj.v_s()[5:-5]
-    np.testing.assert_allclose(v[:, 0], 0.0375, rtol=1e-9)  # seed 000: 3.75 cm/s
+    np.testing.assert_allclose(v[:, 0], 0.0375, rtol=1e-9)  # Ali et al. 2005: 3.75 cm/s
     np.testing.assert_allclose(v[:, 1:], 0.0, atol=1e-12)
 
 

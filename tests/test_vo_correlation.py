@@ -1,5 +1,5 @@
 """Pseudo-normalised correlation, the vectorised correlation surfaces and the biquadratic
-subpixel peak (estimation/vo/correlation.py, search.py; seed 002 sec. 2)."""
+subpixel peak (estimation/vo/correlation.py, search.py; Cheng, Maimone and Matthies 2005 sec. 2)."""
 
 from __future__ import annotations
 

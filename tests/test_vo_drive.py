@@ -1,6 +1,6 @@
-"""Drives with visual odometry (seed 002 sec. 4): steps of at most 0.75 m and 18 deg, the
-prediction VO is given and the pose it puts back, and a real ``vo=on`` drive in a rover
-session: every step ends in an update or a logged failure, the rover stands while VO
+"""Drives with visual odometry (Cheng, Maimone and Matthies 2005 sec. 4): steps of at most 0.75 m
+and 18 deg, the prediction VO is given and the pose it puts back, and a real ``vo=on`` drive in a
+rover session: every step ends in an update or a logged failure, the rover stands while VO
 computes, and the attitude changes only when ``vo_attitude`` says so."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
-"""Visual odometry end to end on stereo pairs rendered exactly in this file (seed 002 sec. 2;
-estimation/vo/odometry.py and everything under it).
+"""Visual odometry end to end on stereo pairs rendered exactly in this file (Cheng, Maimone and
+Matthies 2005 sec. 2; estimation/vo/odometry.py and everything under it).
 
 The renderer is deliberately tiny and independent of sim/: the terrain is a few textured
 planes (the ground and a rising bank), each pixel of each eye is a ray of the rig's pinhole

@@ -1,5 +1,6 @@
 """Corner features: Harris response, one candidate per grid cell, a fixed number kept at a
-minimum separation (estimation/vo/features.py; seed 002 sec. 2 "Feature Detection")."""
+minimum separation (estimation/vo/features.py; Cheng, Maimone and Matthies 2005 sec. 2 "Feature
+Detection")."""
 
 from __future__ import annotations
 

@@ -1,5 +1,6 @@
 """Motion estimation: the closed-form weighted fit, RANSAC and the maximum-likelihood
-refinement (seed 002 eqs. 12-17; estimation/vo/motion.py, ml_motion.py, odometry.py)."""
+refinement (Cheng, Maimone and Matthies 2005 eqs. 12-17; estimation/vo/motion.py, ml_motion.py,
+odometry.py)."""
 
 from __future__ import annotations
 
@@ -24,7 +25,8 @@ def _points(rng: np.random.Generator, n: int) -> np.ndarray:
 
 def _stereo_like_covariances(p: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """Anisotropic covariances: range error growing as range², cross-range as range,
-    elongated along the line of sight from the mast head (seed 002's error ellipsoids)."""
+    elongated along the line of sight from the mast head (Cheng, Maimone and Matthies 2005's error
+    ellipsoids)."""
     covs = []
     for point in p:
         los = point / np.linalg.norm(point)

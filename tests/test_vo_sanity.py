@@ -1,5 +1,5 @@
-"""The February 2005 sanity constraints on a VO update (seed 002 end of sec. 2;
-estimation/vo/sanity.py) and the validation of VoParams (estimation/vo/params.py)."""
+"""The February 2005 sanity constraints on a VO update (Cheng, Maimone and Matthies 2005 end of sec.
+2; estimation/vo/sanity.py) and the validation of VoParams (estimation/vo/params.py)."""
 
 from __future__ import annotations
 

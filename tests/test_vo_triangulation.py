@@ -1,5 +1,5 @@
-"""Triangulation by the shortest segment between two rays and its covariance (seed 002
-eqs. 1-11; estimation/vo/triangulation.py, geometry.py)."""
+"""Triangulation by the shortest segment between two rays and its covariance (Cheng, Maimone and
+Matthies 2005 eqs. 1-11; estimation/vo/triangulation.py, geometry.py)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""Wheel odometry (seed 000 §2.5, eqs. 5-7) against hand-computed arcs, exact circles and sim."""
+"""Wheel odometry (Ali et al. 2005 §2.5, eqs. 5-7) against hand-computed arcs, exact circles and
+sim."""
 
 from __future__ import annotations
 

@@ -7,7 +7,7 @@
 const $ = (id) => document.getElementById(id);
 const state = { rover: null, ws: null, validateTimer: null, dictionary: [], me: null };
 const ROLES = ["viewer", "operator", "conductor", "admin"]; // each may do all before it
-const IMU_WARN_S = 10000; // seed 000 sec. 4: MER reacquired attitude at about this IMU time
+const IMU_WARN_S = 10000; // Ali et al. 2005 sec. 4: MER reacquired attitude at about this IMU time
 
 function token() { return state.me && state.me.role ? sessionStorage.getItem("roverops-token") || "" : ""; }
 function authHeaders() { const t = token(); return t ? { Authorization: `Bearer ${t}` } : {}; }

@@ -1,1 +1,1 @@
-"""Fusion filters of the flight software: Balaram's kinematic EKF (seed 001)."""
+"""Fusion filters of the flight software: Balaram's kinematic EKF (Balaram 2000)."""

@@ -1,7 +1,7 @@
-"""The continuous-discrete extended Kalman filter, model-agnostic (seed 001, sec. 3).
+"""The continuous-discrete extended Kalman filter, model-agnostic (Balaram 2000, sec. 3).
 
 Balaram's step (ii) is "the standard continuous-discrete EKF algorithm" (Gelb, *Applied
-Optimal Estimation*, 1974, p. 188, seed 001 ref. 12): between measurements the state
+Optimal Estimation*, 1974, p. 188, Balaram 2000 ref. 12): between measurements the state
 follows ``Ẋ = f(X)`` and the covariance ``Ṗ = F P + P Fᵀ + Q``; at a measurement
 ``Y = h(X) + n`` the state and covariance are updated with the gain ``K``.
 
@@ -105,7 +105,7 @@ def update(
     """One measurement update; ``residual = Y - h(x)``. Returns ``(x⁺, P⁺, NIS)``.
 
     The normalised innovation squared ``rᵀ S⁻¹ r`` is returned for residual monitoring
-    (seed 001 sec. 1.2: sensors enabled or disabled on their residuals).
+    (Balaram 2000 sec. 1.2: sensors enabled or disabled on their residuals).
     """
     m, n = residual.shape[0], x.shape[0]
     if H.shape != (m, n) or not np.all(np.isfinite(H)):

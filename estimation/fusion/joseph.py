@@ -1,4 +1,4 @@
-"""Kalman measurement update in Joseph form (seed 004, eqs. 28-30).
+"""Kalman measurement update in Joseph form (Jiang, Li et al. 2014, eqs. 28-30).
 
 ``K = P H^T (H P H^T + R)^-1`` (eq. 28), ``x+ = x + K (y - h(x))`` (eq. 29) and
 ``P+ = (I - K H) P (I - K H)^T + K R K^T`` (eq. 30). The Joseph form keeps ``P+``

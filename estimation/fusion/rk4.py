@@ -1,4 +1,4 @@
-"""Classical fourth-order Runge-Kutta step (seed 004, sec. 5: "a four-order Runge-Kutta
+"""Classical fourth-order Runge-Kutta step (Jiang, Li et al. 2014, sec. 5: "a four-order Runge-Kutta
 algorithm is selected as the numerical solver" of the dynamics, eq. 26).
 
 One step of ``dx/dt = f(t, x)`` from ``t`` to ``t + dt``; its local error is ``O(dt^5)``.

@@ -1,4 +1,4 @@
-"""The SAPP Attitude Quality Flag (Ali et al. 2005, seed 000, sec. 2.1).
+"""The SAPP Attitude Quality Flag (Ali et al. 2005, sec. 2.1).
 
 The flag says how *complete* the attitude estimate is, not how accurate. Its four values,
 from worst to best: Unknown (not to be trusted; the value after landing), TiltOnly (good
@@ -18,7 +18,7 @@ import enum
 
 
 class AttitudeQuality(enum.Enum):
-    """Attitude Quality Flag; the value is the rank, 0 = worst (seed 000, sec. 2.1)."""
+    """Attitude Quality Flag; the value is the rank, 0 = worst (Ali et al. 2005, sec. 2.1)."""
 
     UNKNOWN = 0
     TILT_ONLY = 1

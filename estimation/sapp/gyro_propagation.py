@@ -1,4 +1,4 @@
-"""Gyro attitude propagation of SAPP's Articulate and Mobility modes (seed 000, sec. 2.4).
+"""Gyro attitude propagation of SAPP's Articulate and Mobility modes (Ali et al. 2005, sec. 2.4).
 
 The gyros measure the body's rotation relative to inertial space: the rover's rotation
 relative to the Local-Level frame plus the rotation of Mars, which carries the LL frame.
@@ -10,7 +10,7 @@ left, the rotation relative to the surface, propagates the estimate at 8 Hz::
     ^Bq_+^{LL} = δq^B(-Δθ_rel^B) ⊗ ^Bq_-^{LL}                        (as eq. 1's form)
 
 The correction is expressed in the body frame, so it multiplies on the left (docs/CONVENTIONS.md,
-and eq. 1 of seed 000); its sign is negative because a body that turns by ``φ`` relative to
+and eq. 1 of Ali et al. 2005); its sign is negative because a body that turns by ``φ`` relative to
 LL sees the LL frame turn by ``-φ``: ``R_b_ll+ = R(φ)ᵀ R_b_ll``. ``ω_mars^LL`` comes from
 the onboard IVP (``estimation.ivp.mars_rotation_ll``). At rest the subtraction cancels the
 gyro reading exactly when the estimate is right; an attitude error ``δ`` leaves a residual

@@ -1,7 +1,7 @@
 """Gyrocompassing at rest: heading from the gyros' measurement of Mars' rotation.
 
 Ali et al. 2005, "Attitude and Position Estimation on the Mars Exploration Rovers"
-(seed 000), sec. 5 (lessons learned): "it would have been comforting if the software had
+(Ali et al. 2005), sec. 5 (lessons learned): "it would have been comforting if the software had
 the capability to perform gyrocompassing ... determining the Mars rotation vector from gyro
 readings when the rover is stationary ... only a rough attitude estimate, it could be used
 if the cameras failed". The paper gives no equations for it; this module writes the
@@ -31,12 +31,12 @@ East rate error over the horizontal signal, plus the tilt coupling: an estimate 
 (independent terms add in quadrature; ``σ_bias + ARW/√T`` would be the conservative sum).
 ``σ_bias`` is the bias *averaged over the span* (turn-on plus whatever instability does not
 average out). Defaults: LN-200 class, 1 deg/h bias and 0.1 deg/sqrt(h) ARW
-(/work/shared/REFERENCES.md, "Hardware"), tilt 7.9e-4 rad per axis (300 µg accelerometer
+(docs/REFERENCES.md, "Hardware"), tilt 7.9e-4 rad per axis (300 µg accelerometer
 bias over 3.711 m/s², as ``estimation.sapp.nadir`` computes).
 
 How good is it? At Gusev (14.57° S) ``Ω cos φ = 14.62 · 0.968 = 14.15 deg/h``, so a 1 deg/h
 gyro bias alone gives ``1 / 14.15 rad = 4.0 deg`` of heading error (1 σ; 12 deg 3 σ), and no
-averaging removes it: gyrocompassing is **Coarse-class at best, never Fine** (seed 000's
+averaging removes it: gyrocompassing is **Coarse-class at best, never Fine** (Ali et al. 2005's
 HGA needs 2 deg 3 σ, sec. 1; Sungaze gives 1.5 deg 3 σ). Near the poles the horizontal
 signal vanishes and the method fails: refused below ``min_horizontal_rate_rad_s``
 (5 deg/h, |φ| > ~70°). A span so short that the ARW alone would exceed

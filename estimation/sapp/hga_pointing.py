@@ -1,7 +1,7 @@
-"""Pointing the High Gain Antenna at Earth from the onboard attitude (seed 000, sec. 1).
+"""Pointing the High Gain Antenna at Earth from the onboard attitude (Ali et al. 2005, sec. 1).
 
 MER must point the HGA at Earth to within 2° (3σ); after the other error sources that
-leaves 1.5° (3σ) for the attitude estimate (seed 000, sec. 1). Onboard, the Earth
+leaves 1.5° (3σ) for the attitude estimate (Ali et al. 2005, sec. 1). Onboard, the Earth
 direction comes from IVP in Local-Level and is taken into the body frame with the SAPP
 estimate, ``earth_b = R_b_ll(q̂) earth_ll``; the HGA's two-axis gimbal then turns to it.
 
@@ -25,7 +25,7 @@ from estimation.camera_model import mast_az_el_for
 
 FloatArray = NDArray[np.float64]
 
-HGA_POINTING_REQUIREMENT_DEG = 2.0  # seed 000 sec. 1: Earth within 2 deg, 3 sigma
+HGA_POINTING_REQUIREMENT_DEG = 2.0  # Ali et al. 2005 sec. 1: Earth within 2 deg, 3 sigma
 HGA_ELEVATION_MIN_RAD = 0.0  # approximate: the dish clears the deck from 0 deg ...
 HGA_ELEVATION_MAX_RAD = math.pi / 2  # ... to straight up
 

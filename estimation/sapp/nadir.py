@@ -1,7 +1,7 @@
 """Nadir Update and Nadir Check: roll and pitch from the averaged accelerometers.
 
 Ali et al. 2005, "Attitude and Position Estimation on the Mars Exploration Rovers"
-(seed 000): sec. 2.2.1 (Nadir Update, eq. 1), sec. 2.3 and 2.3.1 (Nadir Check), and the
+(Ali et al. 2005): sec. 2.2.1 (Nadir Update, eq. 1), sec. 2.3 and 2.3.1 (Nadir Check), and the
 Attitude Quality Flag consequences of sec. 2.1 (``estimation.sapp.aqf``).
 
 Averaging (sec. 2.2.1). The IMU gives 8 Hz delta velocities ``dv_b`` over ``dt``; at rest
@@ -84,13 +84,13 @@ _WINDOW_REL_TOL = 1e-9  # a window of 80 x 0.1 s that sums to 7.9999999999 s is 
 class NadirParams:
     """Ground-settable parameters of Nadir Update and Nadir Check (sources: module doc)."""
 
-    window_s: float = 10.0  # seed 000 sec. 2.2.1, "typically 10 seconds"
+    window_s: float = 10.0  # Ali et al. 2005 sec. 2.2.1, "typically 10 seconds"
     min_valid_samples: int = 40  # documented choice: half of 10 s at 8 Hz
     gravity_m_s2: float = MARS_GRAVITY_M_S2  # known Mars gravity, NASA fact sheet
     gravity_tolerance_m_s2: float = 0.1  # documented choice (module doc)
     sample_gate_m_s2: float = 1.0  # documented choice: per-sample | |f| - g | gate
     # Nadir Check tolerance, documented choice: 2/3 of the 1.5 deg (3 sigma) level of a
-    # Fine attitude (seed 000 sec. 2.2.3), over 20x the bias-limited nadir error.
+    # Fine attitude (Ali et al. 2005 sec. 2.2.3), over 20x the bias-limited nadir error.
     check_tolerance_rad: float = math.radians(1.0)
 
     def __post_init__(self) -> None:
@@ -132,7 +132,7 @@ class AccelAverage:
 
 
 class AccelAverager:
-    """Running average of accelerometer samples over one window (seed 000 sec. 2.2.1).
+    """Running average of accelerometer samples over one window (Ali et al. 2005 sec. 2.2.1).
 
     Feed 8 Hz samples with ``add`` until ``full``; ``average()`` gives the result at any
     time. A sample is consumed while the time already covered is below ``window_s`` (so the
@@ -214,7 +214,7 @@ def average_accelerometer(
 
 
 class NadirFailure(enum.Enum):
-    """Why a sanity check failed (seed 000 sec. 2.2.1 and 2.3.1)."""
+    """Why a sanity check failed (Ali et al. 2005 sec. 2.2.1 and 2.3.1)."""
 
     TOO_FEW_SAMPLES = "too few valid accelerometer samples"
     GRAVITY_MAGNITUDE = "measured gravity magnitude differs from Mars gravity"

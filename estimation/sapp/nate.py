@@ -1,4 +1,4 @@
-"""The NATE state machine: SAPP's Navigation/Attitude Estimator (seed 000 Figure 1).
+"""The NATE state machine: SAPP's Navigation/Attitude Estimator (Ali et al. 2005 Figure 1).
 
 Ali et al. 2005, "Attitude and Position Estimation on the Mars Exploration Rovers" (seed
 000): Figure 1 (the NATE modes), sec. 2.1 (Attitude Quality Flag), 2.2.1 (Nadir Update,
@@ -154,11 +154,11 @@ from estimation.sapp.wheel_odometry import (
 FloatArray = NDArray[np.float64]
 
 IDENTITY_Q = np.array([0.0, 0.0, 0.0, 1.0])
-FINE_TO_COARSE_S = 15.0 * 60.0  # seed 000 sec. 2.4: "currently 15 minutes" of propagation
+FINE_TO_COARSE_S = 15.0 * 60.0  # Ali et al. 2005 sec. 2.4: "currently 15 minutes" of propagation
 
 
 class NateMode(enum.Enum):
-    """NATE modes (seed 000 Figure 1, plus sec. 5's gyrocompassing)."""
+    """NATE modes (Ali et al. 2005 Figure 1, plus sec. 5's gyrocompassing)."""
 
     IDLE = "Idle"
     NADIR_UPDATE = "NadirUpdate"
@@ -173,7 +173,7 @@ class NateMode(enum.Enum):
 
 _CAMERA_MODES = (NateMode.SUNFIND, NateMode.SUNGAZE, NateMode.SUNCHECK)
 _8HZ_MODES = (NateMode.NADIR_UPDATE, NateMode.NADIR_CHECK, NateMode.ARTICULATE, NateMode.MOBILITY)
-CONTROL_DT_S = 0.125  # 8 Hz (seed 000 sec. 2.4)
+CONTROL_DT_S = 0.125  # 8 Hz (Ali et al. 2005 sec. 2.4)
 # A Nadir Check that fails drops the flag (error); one that aborts could not judge (warning).
 _CHECK_SEVERITY: dict[NadirCheckOutcome, Severity] = {
     NadirCheckOutcome.PASSED: "info",
@@ -766,9 +766,9 @@ class Nate:
 
     def visual_odometry_update(self, p_s: ArrayLike, q_b_ll: ArrayLike | None = None) -> None:
         """Adopt a visual odometry position in the current Site, and the attitude when
-        given (Idle only, between drive steps: seed 002 sec. 4, where VO corrected the
-        pose SAPP propagated from the wheels and gyros). The flag and counters stay: VO
-        measures the motion since the previous image pair, so an attitude it updates is
+        given (Idle only, between drive steps: Cheng, Maimone and Matthies 2005 sec. 4, where VO
+        corrected the pose SAPP propagated from the wheels and gyros). The flag and counters stay:
+        VO measures the motion since the previous image pair, so an attitude it updates is
         no better known in absolute terms than the one it started from."""
         self._require("visual_odometry_update", NateMode.IDLE)
         p = np.asarray(p_s, dtype=np.float64)

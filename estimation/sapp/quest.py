@@ -1,13 +1,13 @@
 """QUEST: optimal attitude from weighted vector observations, for Sungaze.
 
 Shuster, M.D. and Oh, S.D., "Three-Axis Attitude Determination from Vector Observations",
-J. Guidance and Control 4(1), 1981, pp. 70-77 (seed 000 ref. [6]). Seed 000 (Ali et al.
-2005) sec. 2.2.3: Sungaze feeds observed and expected sun vectors to QUEST after each image
+J. Guidance and Control 4(1), 1981, pp. 70-77 (Ali et al. 2005 ref. [6]). Ali et al.
+2005 sec. 2.2.3: Sungaze feeds observed and expected sun vectors to QUEST after each image
 and may stop early once the covariance is below 1.5 deg 3σ.
 
 The equations, labelled Q1-Q11 at the lines that implement them. Shuster and Oh's numbers
 are given where secondary sources cite them; the paper itself is not among the seeds, so
-those numbers are unverified (the recipe is the one in ../shared/REFERENCES.md).
+those numbers are unverified (the recipe is the one in docs/REFERENCES.md).
 
 - Q1  weights ``a_i = σ_tot² / σ_i²`` with ``σ_tot⁻² = Σ σ_i⁻²`` (so ``Σ a_i = 1``).
 - Q2  attitude profile matrix ``B = Σ a_i b_i r_iᵀ``; ``S = B + Bᵀ``, ``σ = tr B``,
@@ -36,7 +36,7 @@ those numbers are unverified (the recipe is the one in ../shared/REFERENCES.md).
   measured unit vector has isotropic error σ_i² (I - b_i b_iᵀ) about its true direction):
   ``P_θθ = (Σ σ_i⁻² (I - b_i b_iᵀ))⁻¹``. θ is the attitude error as a rotation vector in
   the *body* frame, multiplying on the *left*:
-  ``q_b_r_true = quat_from_rotvec(θ_b) ⊗ q_b_r_estimate`` (seed 000's ``δq^B ⊗ ^Bq``).
+  ``q_b_r_true = quat_from_rotvec(θ_b) ⊗ q_b_r_estimate`` (Ali et al. 2005's ``δq^B ⊗ ^Bq``).
 
 With one direction (or all directions parallel) the attitude about it is unobservable: the
 information matrix of Q11 is singular, QUEST's Q6-Q8 give 0/0 in every frame, and the

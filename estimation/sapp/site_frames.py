@@ -1,4 +1,4 @@
-"""Site frames and their chain (seed 000, Table 1, sec. 1 and sec. 4 "Operations on Mars").
+"""Site frames and their chain (Ali et al. 2005, Table 1, sec. 1 and sec. 4 "Operations on Mars").
 
 A Site frame has the orientation of the Local-Level frame and the origin the LL frame
 had when it was planted, fixed to the surface. SAPP keeps the rover's position in the
@@ -13,7 +13,7 @@ in Site ``k`` puts Site ``k + 1``'s origin at ``origin_k + p``. The Sites' axes 
 North-East-Down where they were planted; they differ from each other only by the turn of
 the LL frame over the curved surface, ``d / R`` (3e-4 rad per km on Mars), so adding the
 offsets without rotating them is good to ~0.3 m per km of separation, far below the
-position knowledge of a traverse (seed 000 requires 10 % of distance driven).
+position knowledge of a traverse (Ali et al. 2005 requires 10 % of distance driven).
 """
 
 from __future__ import annotations

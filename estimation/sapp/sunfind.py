@@ -2,8 +2,8 @@
 
 MER finds the sun by centroiding its image in a Pancam frame taken through the 440 or
 880 nm solar filter with neutral density 5 (Eisenman, Liebe and Perez 2002, "Sun sensing
-on the Mars Exploration Rovers", seed 000 ref. [3]); SAPP's Sunfind, Suncheck and Sungaze
-(Ali et al. 2005, seed 000 sec. 2.2.2-2.2.3 and 2.3) turn the centroid into a body-frame
+on the Mars Exploration Rovers", Ali et al. 2005 ref. [3]); SAPP's Sunfind, Suncheck and Sungaze
+(Ali et al. 2005 sec. 2.2.2-2.2.3 and 2.3) turn the centroid into a body-frame
 sun vector. The paper's exact onboard code is not public; this is the standard method:
 
 1. Background and noise: the median and the MAD of a 1-in-16 subsample of the frame.

@@ -1,7 +1,7 @@
 """Sunfind's search geometry, confirmation checks and heading update.
 
 Ali et al. 2005, "Attitude and Position Estimation on the Mars Exploration Rovers"
-(seed 000), sec. 2.2.2 and Figure 2: eq. (2) the search guesses, eq. (3) the heading steps,
+(Ali et al. 2005), sec. 2.2.2 and Figure 2: eq. (2) the search guesses, eq. (3) the heading steps,
 eq. (4) the final heading update. The state machine that moves the mast and takes the
 images is not here; this module is the pure geometry it needs. The estimate ``q_b_ll``
 (``^Bq^{LL}``) is assumed to have the right tilt (Nadir Update ran first); nothing here

@@ -1,7 +1,7 @@
 """Wheel odometry of SAPP's Mobility mode: body-frame position change per control cycle.
 
 Flight software: Ali et al. 2005, "Attitude and Position Estimation on the Mars Exploration
-Rovers" (seed 000), section 2.5, eqs. (5)-(7), and the Site-frame update described there.
+Rovers" (Ali et al. 2005), section 2.5, eqs. (5)-(7), and the Site-frame update described there.
 It sees only the wheel encoders (rotation of each wheel), the steering potentiometers and the
 driving software's command (straight, arc about a centre, turn in place).
 
@@ -12,7 +12,7 @@ x forward, y right, z down; Site ``s`` is North-East-Down.
 Signs, checked against the geometry:
 
 - Steering ``σ_i`` is 0 for a wheel pointed straight ahead and increases clockwise seen from
-  above (seed 000 §2.5), i.e. a positive rotation about body +z (down): the wheel rolls
+  above (Ali et al. 2005 §2.5), i.e. a positive rotation about body +z (down): the wheel rolls
   along ``d_i = (cos σ_i, sin σ_i)`` in the body XY plane. Arc length ``a_i`` = wheel
   rotation × wheel radius, positive rolling forwards along ``d_i``.
 - ``ψ`` is a rotation about body +z (down): positive is clockwise seen from above, a right
@@ -32,12 +32,12 @@ Signs, checked against the geometry:
   ``(R sin ψ, R (1 - cos ψ))`` for C = (0, R). At 8 Hz and 3.75 cm/s, ``ψ`` is small.
 
 The heading change of a step is ``ψ_ave`` (arcs, turns in place) or 0 (straight drives):
-Mobility's off-nominal submode (seed 000 §2.4.2) propagates attitude from it, a rotation
+Mobility's off-nominal submode (Ali et al. 2005 §2.4.2) propagates attitude from it, a rotation
 about body z: ``q_s_b ← q_s_b ⊗ q(ψ ẑ)`` (the rotation is expressed in the body frame, so it
 multiplies on the right of ``q_s_b``; it is ``δq^B ⊗ ^Bq^{LL}`` in the paper's order with
 ``δq^B = q(-ψ ẑ)``).
 
-Site update (seed 000 §2.5, first paragraph): each control cycle the attitude is propagated
+Site update (Ali et al. 2005 §2.5, first paragraph): each control cycle the attitude is propagated
 first, then the body-frame change is "converted to Site frame using the freshly propagated
 attitude estimate" (the end-of-step attitude) and added: ``Δp_s = R_s_b Δp_b``.
 
@@ -306,7 +306,7 @@ def propagate_heading(q_s_b: ArrayLike, delta_heading_rad: float) -> FloatArray:
 
 
 def propagate_position(p_s: ArrayLike, q_s_b: ArrayLike, delta_p_b: ArrayLike) -> FloatArray:
-    """Site position after the step: ``p_s + R_s_b Δp_b`` (m, (3,)), seed 000 §2.5.
+    """Site position after the step: ``p_s + R_s_b Δp_b`` (m, (3,)), Ali et al. 2005 §2.5.
 
     ``q_s_b`` must be the freshly propagated (end-of-step) attitude, as SAPP does.
 

@@ -1,4 +1,4 @@
-"""MER stereo visual odometry (Maimone, Cheng and Matthies 2007, seed 002, section 2).
+"""MER stereo visual odometry (Cheng, Maimone and Matthies 2005, section 2).
 
 The front is ``odometry.VisualOdometry`` (tuned by ``params.VoParams``); one idea per module
 beneath it: ``stereo_rig`` and ``geometry`` (the pointed pair in the body frame),

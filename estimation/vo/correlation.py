@@ -1,6 +1,6 @@
 """Pseudo-normalised correlation and the biquadratic subpixel peak, vectorised over features.
 
-Seed 002 (Maimone, Cheng and Matthies 2007), sec. 2 "Feature-based stereo matching": the best
+Cheng, Maimone and Matthies 2005, sec. 2 "Feature-based stereo matching": the best
 match maximises the pseudo-normalised correlation of two windows, and "a biquadratic
 polynomial is fit to a 3x3 neighborhood of correlation scores and the peak of this polynomial
 is chosen as the correlation peak"; the curvatures of that polynomial give each match's 2x2
@@ -176,7 +176,8 @@ _FIT = np.linalg.pinv(_DESIGN)  # (6, 9)
 
 
 def biquadratic_peak(samples: ArrayLike) -> tuple[FloatArray, FloatArray, BoolArray]:
-    """Peak of the biquadratic fitted to 3x3 score neighbourhoods (seed 002 sec. 2).
+    """Peak of the biquadratic fitted to 3x3 score neighbourhoods (Cheng, Maimone and Matthies 2005
+    sec. 2).
 
     ``samples`` (N, 3, 3): scores around each integer peak (row index = ``v``, column = ``u``).
     Returns ``offset`` (N, 2) the peak's ``(du, dv)`` from the centre sample in pixels,

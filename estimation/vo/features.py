@@ -1,7 +1,7 @@
 """Corner features for visual odometry: Harris response, one candidate per grid cell, a fixed
 number of the strongest kept at a minimum separation.
 
-Seed 002 (Maimone, Cheng and Matthies 2007), sec. 2 "Feature Detection": "An interest
+Cheng, Maimone and Matthies 2005, sec. 2 "Feature Detection": "An interest
 operator tuned for corner detection (e.g. Förstner or Harris) is applied to an image pair,
 and pixels with the highest interest values are selected. To reduce the computational cost,
 a grid with cells smaller than the minimum distance between features is superimposed on the
@@ -128,7 +128,8 @@ def detect_features(
     aperture_px: int,
     harris_k: float,
 ) -> tuple[IntArray, Float32Array]:
-    """Corner features of a left image (the whole of seed 002's "Feature Detection").
+    """Corner features of a left image (the whole of Cheng, Maimone and Matthies 2005's "Feature
+    Detection").
 
     Returns ``uv`` (M, 2) integer ``(u, v)`` pixels, ``M <= n_features``, strongest first,
     and their Harris responses (M,). ``cell_px`` must be smaller than ``min_separation_px``

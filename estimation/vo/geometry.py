@@ -1,10 +1,10 @@
 """The pointed stereo pair in the rover body frame: rays through pixels and projections of
-body-frame points, for the visual odometry of seed 002 (Maimone, Cheng and Matthies 2007).
+body-frame points, for the visual odometry of Cheng, Maimone and Matthies 2005.
 
-Seed 002 sec. 2 triangulates "by intersecting rays projected through the camera models" and
-scores RANSAC hypotheses by reprojecting features "to the current image frame"; both need
-the pair's geometry at the mast pointing of the moment. This module fixes it once per pair:
-the rig's pinhole model (``estimation.vo.stereo_rig``), ``R_b_cam`` (camera to body, the
+Cheng, Maimone and Matthies 2005 sec. 2 triangulates "by intersecting rays projected through the
+camera models" and scores RANSAC hypotheses by reprojecting features "to the current image frame";
+both need the pair's geometry at the mast pointing of the moment. This module fixes it once per
+pair: the rig's pinhole model (``estimation.vo.stereo_rig``), ``R_b_cam`` (camera to body, the
 same for both eyes of the rectified pair) and the eyes' optical centres in the body frame.
 
 Frames (docs/CONVENTIONS.md): ``b`` the rover body (x forward, y right, z down); the cameras
@@ -53,7 +53,8 @@ class PointedPair:
 
     @property
     def baseline_b(self) -> FloatArray:
-        """``B = C_2 - C_1``, left to right eye, body frame, m (seed 002 eq. 5)."""
+        """``B = C_2 - C_1``, left to right eye, body frame, m (Cheng, Maimone and Matthies 2005 eq.
+        5)."""
         out: FloatArray = self.c_right_b - self.c_left_b
         return out
 

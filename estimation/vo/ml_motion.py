@@ -1,6 +1,6 @@
 """Maximum-likelihood motion refinement with each feature's 3D error model.
 
-Seed 002 (Maimone, Cheng and Matthies 2007), sec. 2, eqs. 15-17: with ``P_pj`` and ``P_cj``
+Cheng, Maimone and Matthies 2005, sec. 2, eqs. 15-17: with ``P_pj`` and ``P_cj``
 the observed positions of feature ``j`` before and after the motion,
 
     P_cj = R P_pj + T + e_j                                           (15)

@@ -1,6 +1,6 @@
 """Robust motion estimation: closed-form weighted least squares inside RANSAC.
 
-Seed 002 (Maimone, Cheng and Matthies 2007), sec. 2 "Robust Motion Estimation", eqs. 12-14:
+Cheng, Maimone and Matthies 2005, sec. 2 "Robust Motion Estimation", eqs. 12-14:
 for features seen at ``P_pj`` before and ``P_cj`` after the motion,
 
     e_j = P_cj - R P_pj - T                                           (12)

@@ -1,6 +1,6 @@
 """The visual-odometry front: one call per stereo pair, MER's algorithm end to end.
 
-Seed 002 (Maimone, Cheng and Matthies 2007), sec. 2: detect features in the new left image
+Cheng, Maimone and Matthies 2005, sec. 2: detect features in the new left image
 (``features``), match and triangulate them in the new pair (``stereo``, eqs. 1-11) for the
 next step; track the previous pair's features into the new pair with the wheel-odometry
 prediction (``tracking``); estimate the motion by closed-form least squares inside RANSAC

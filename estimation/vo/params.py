@@ -1,12 +1,12 @@
-"""Every tuning threshold of the MER visual odometry (seed 002, Maimone, Cheng and Matthies
-2007, sec. 2), in one validated dataclass.
+"""Every tuning threshold of the MER visual odometry (Cheng, Maimone and Matthies
+2005, sec. 2), in one validated dataclass.
 
 Pixel quantities are at the image's own resolution. The defaults suit the full 1024 x 1024
 Navcam; :meth:`VoParams.for_width` rescales them for another width (MER ran VO on 256 x 256
-images, seed 002 sec. 4). The paper gives few numbers: 6-point RANSAC samples, "e.g."
-a 0.5 px reprojection threshold (at 256 px; we use 0.75 px, see ``ransac_threshold_px``), a
-3x3 subpixel fit, "a few pixels" of epipolar slack; the rest were tuned on rendered Navcam
-pairs (tests/test_vo_end_to_end.py, ``roverops bench vo``).
+images, Cheng, Maimone and Matthies 2005 sec. 4). The paper gives few numbers: 6-point RANSAC
+samples, "e.g." a 0.5 px reprojection threshold (at 256 px; we use 0.75 px, see
+``ransac_threshold_px``), a 3x3 subpixel fit, "a few pixels" of epipolar slack; the rest were tuned
+on rendered Navcam pairs (tests/test_vo_end_to_end.py, ``roverops bench vo``).
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Sanity constraints on a visual-odometry update (the February 2005 MER flight software).
 
-Seed 002 (Maimone, Cheng and Matthies 2007), end of sec. 2: "As of the February 2005 version
+Cheng, Maimone and Matthies 2005, end of sec. 2: "As of the February 2005 version
 of MER flight software, optional constraints can also be placed on the final motion estimate
 to provide additional sanity checking. The magnitude of the 3D update vector, its X and Y
 Site Frame components, the magnitude of the Roll, Pitch and Yaw updates and the angular

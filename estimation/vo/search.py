@@ -1,6 +1,6 @@
 """Correlation search: N templates, each over its own rectangle of candidate positions in an
 image, with the subpixel peak and its covariance. The common step of stereo matching and
-tracking in seed 002 (Maimone, Cheng and Matthies 2007) sec. 2.
+tracking in Cheng, Maimone and Matthies 2005 sec. 2.
 
 The image is padded once so that every search rectangle can be gathered as one stack
 (``estimation.vo.correlation.gather_windows``) however close to an edge it lies; candidate

@@ -1,7 +1,7 @@
 """Feature-based stereo: match left-image features along the epipolar line of the right
 image, triangulate, and keep the good matches.
 
-Seed 002 (Maimone, Cheng and Matthies 2007), sec. 2 "Feature-based stereo matching":
+Cheng, Maimone and Matthies 2005, sec. 2 "Feature-based stereo matching":
 "Because the stereo cameras are well calibrated, the stereo matching is done strictly along
 the epipolar line with only a few pixels of offset buffer above and below it. We use
 pseudo-normalized correlation to determine the best match. In order to obtain sub-pixel
@@ -72,7 +72,7 @@ def stereo_points(
     cov_left_extra_px2: ArrayLike | None = None,
 ) -> StereoPoints:
     """Match features ``uv_left_px`` (N, 2, subpixel allowed) into the right image and
-    triangulate them (seed 002 sec. 2, eqs. 1-11).
+    triangulate them (Cheng, Maimone and Matthies 2005 sec. 2, eqs. 1-11).
 
     ``disparity_min_px`` / ``disparity_max_px``: scalars or (N,) per-feature ranges, px.
     ``window_px`` the odd correlation window; ``row_slack_px`` >= 1 the rows searched above

@@ -1,10 +1,10 @@
 """The Navcam stereo pair as the flight software knows it: a rectified pinhole pair on the
 mast head, pointed by the mast's azimuth and elevation.
 
-MER's Navcams (Maki et al. 2003, JGR 108(E12) 8071; seed 002 sec. 4): 1024 x 1024 pixels,
-a 45 deg square field of view, a 20 cm stereo baseline, on the mast head about 1.5 m above
-the ground. VO on Mars ran on images downsampled to 256 x 256 to save time (seed 002
-sec. 4); ``NAVCAM.at_resolution(256)`` is that camera.
+MER's Navcams (Maki et al. 2003, JGR 108(E12) 8071; Cheng, Maimone and Matthies 2005 sec. 4): 1024 x
+1024 pixels, a 45 deg square field of view, a 20 cm stereo baseline, on the mast head about 1.5 m
+above the ground. VO on Mars ran on images downsampled to 256 x 256 to save time (Cheng, Maimone and
+Matthies 2005 sec. 4); ``NAVCAM.at_resolution(256)`` is that camera.
 
 The pair is modelled rectified (both eyes share one orientation, the right eye displaced
 along the image ``x`` axis by the baseline), the ideal the CAHVOR calibration and

@@ -1,6 +1,6 @@
 """Feature tracking into the next stereo pair, guided by the wheel-odometry motion.
 
-Seed 002 (Maimone, Cheng and Matthies 2007), sec. 2 "Feature Tracking": "The features
+Cheng, Maimone and Matthies 2005, sec. 2 "Feature Tracking": "The features
 selected from the previous image are projected into the second pair using the approximate
 motion provided by onboard wheel odometry. Then a correlation-based search reestablishes
 the 2D positions precisely in the second image pair. Stereo matching of these tracked

@@ -1,6 +1,6 @@
 """Stereo triangulation by the shortest segment between two rays, and its covariance.
 
-Seed 002 (Maimone, Cheng and Matthies 2007), sec. 2, eqs. 1-11 (the OCR of the seed is
+Cheng, Maimone and Matthies 2005, sec. 2, eqs. 1-11 (the OCR of the seed is
 garbled; these are the standard Matthies/Cheng forms, re-derived below). With optical
 centres ``C_1``, ``C_2``, unit rays ``r_1``, ``r_2`` to the same feature, and ``P_1``, ``P_2``
 the ends of the shortest segment between the rays:

@@ -252,8 +252,8 @@ class RoverSim:
     def _sense(self, traj: TruthTrajectory) -> Segment:
         q_ll_b = q_ll_b_from_site(traj.q_s_b, traj.p_s, self.lat_rad, self.lon_east_rad)
         # The accelerometers sense the rover's own accelerations too (starting and stopping,
-        # climbing over rocks): seed 000 uses them only at rest, but the radio EKF (seed 004,
-        # eq. 2) integrates them. Site and LL axes differ by ~1e-5 rad here: ignored.
+        # climbing over rocks): Ali et al. 2005 uses them only at rest, but the radio EKF (Jiang, Li
+        # et al. 2014, eq. 2) integrates them. Site and LL axes differ by ~1e-5 rad here: ignored.
         accel = traj.accel_s_from_rest()
         samples = self.imu.measure(traj.t_s, q_ll_b, self.omega_mars_ll, accel_ll=accel)
         encoders = self.encoders.read(traj)

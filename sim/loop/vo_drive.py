@@ -1,5 +1,5 @@
-"""Drives with visual odometry: MER's step-and-image drive (Maimone, Cheng and Matthies
-2007, seed 002, sec. 4), the geometry between SAPP's estimate and the VO front.
+"""Drives with visual odometry: MER's step-and-image drive (Cheng, Maimone and Matthies
+2005, sec. 4), the geometry between SAPP's estimate and the VO front.
 
 A ``vo=on`` drive is split into steps of at most ``VO_STEP_MAX_M`` of path and
 ``VO_STEP_MAX_DEG`` of turn (``sequences.commands.vo_step_count``), so that adjacent Navcam
@@ -39,8 +39,8 @@ VO_MAST_EL_RAD = math.radians(-35.0)  # the ground ahead (sim.sensors.navcam.cam
 class VoDriveOptions:
     """How a session steps and images its ``vo=on`` drives. ``step_max_m``,
     ``step_max_deg``: the longest step and the largest turn per step (MER's 0.75 m and
-    18 deg, seed 002 sec. 4; the seed's ground test drove 35 cm steps, sec. 3);
-    ``rover_shadow``: draw the rover's own shadow in the VO pairs (sec. 4.3's false
+    18 deg, Cheng, Maimone and Matthies 2005 sec. 4; the seed's ground test drove 35 cm steps, sec.
+    3); ``rover_shadow``: draw the rover's own shadow in the VO pairs (sec. 4.3's false
     positive; ``sim.sensors.navcam.camera``)."""
 
     step_max_m: float = cmd.VO_STEP_MAX_M

@@ -1,6 +1,6 @@
 """Wheel rotations of a compliant wheel controller: every wheel rolls without slip.
 
-Seed 001 section 4 validates its kinematic estimator on a kinematic simulator (ROAMS)
+Balaram 2000 section 4 validates its kinematic estimator on a kinematic simulator (ROAMS)
 whose wheels correspond to "a highly compliant control algorithm at each wheel minimizing
 slip in the rolling direction": each wheel turns exactly as much as its contact point
 needs to roll over the terrain, so the drive rates vary as the wheels climb and descend

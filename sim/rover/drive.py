@@ -7,11 +7,11 @@ ends in: ``(TruthTrajectory, DriveState)``. Samples sit on the control grid
 the rover at rest at the end. Sample 0 is the start pose (the previous primitive's last)
 with this primitive's steering (the steering motion itself is not modelled).
 
-Commanded motion (seed 000 section 2.5): the body origin moves at ``speed_m_s``
-(3.75 cm/s) along the path, or the body turns at ``rate_rad_s`` (2.1°/s, seed 000
+Commanded motion (Ali et al. 2005 section 2.5): the body origin moves at ``speed_m_s``
+(3.75 cm/s) along the path, or the body turns at ``rate_rad_s`` (2.1°/s, Ali et al. 2005
 section 2.4.2). The corner wheels steer (angle positive turning the wheel's front to the
-right, clockwise seen from above, as in seed 000) so that every wheel rolls about the
-turn centre (Ackermann geometry; all-wheel steering as in Volpe's memo, seed 000 ref. 7):
+right, clockwise seen from above, as in Ali et al. 2005) so that every wheel rolls about the
+turn centre (Ackermann geometry; all-wheel steering as in Volpe's memo, Ali et al. 2005 ref. 7):
 a wheel at body ``(x_i, y_i)`` on an arc about ``(0, R)`` steers to
 ``atan(x_i / (R - y_i))`` and rolls ``hypot(x_i, R - y_i) / |R|`` times the path. The
 middle wheels sit on the body y axis, so they roll straight on any arc and turn in place
@@ -64,8 +64,8 @@ from sim.world.terrain import Terrain
 FloatArray = NDArray[np.float64]
 log = logging.getLogger(__name__)
 
-DEFAULT_SPEED_M_S = 0.0375  # seed 000 section 2.5: MER drives at ~3.75 cm/s
-DEFAULT_TURN_RATE_RAD_S = math.radians(2.1)  # seed 000 section 2.4.2: turns at ~2.1°/s
+DEFAULT_SPEED_M_S = 0.0375  # Ali et al. 2005 section 2.5: MER drives at ~3.75 cm/s
+DEFAULT_TURN_RATE_RAD_S = math.radians(2.1)  # Ali et al. 2005 section 2.4.2: turns at ~2.1°/s
 MAX_PATH_M = 1000.0  # longer single primitives are rejected as input errors
 MAX_SPEED_M_S = 0.1  # twice MER's ~5 cm/s top speed (REFERENCES.md)
 MAX_TURN_RATE_RAD_S = math.radians(10.0)  # about five times MER's 2.1°/s

@@ -16,7 +16,7 @@ forward end of a link: a positive left rocker angle raises the left front wheel.
 
 Steering (the four corner wheels): a rotation of the wheel about the link's z axis through
 the wheel centre, positive turning the wheel's front to the right (clockwise seen from
-above, as in seed 000 section 2.5). We assume the steering axis passes through the wheel
+above, as in Ali et al. 2005 section 2.5). We assume the steering axis passes through the wheel
 centre, so steering turns the axle but does not move the wheel centre.
 
 The wheel order everywhere is ``WHEEL_NAMES`` of ``sim.rover.truth``: LF, LM, LR, RF, RM, RR.

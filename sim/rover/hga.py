@@ -3,7 +3,7 @@
 What only a simulator can show (docs/DESIGN.md): the angle between where the flight software
 pointed the HGA (``estimation.sapp.hga_pointing``, from its estimate and IVP) and where Earth
 really is in the body frame (the truth attitude and the DE421 Earth direction), and the
-margin left against MER's 2° (3σ) pointing requirement (seed 000, sec. 1).
+margin left against MER's 2° (3σ) pointing requirement (Ali et al. 2005, sec. 1).
 """
 
 from __future__ import annotations

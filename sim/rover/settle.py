@@ -3,7 +3,7 @@
 Given the body origin's horizontal position and the heading, the suspension has six free
 coordinates ``u = (z, roll, pitch, rocker, bogie_left, bogie_right)`` and six contact
 conditions, one per wheel: a rover with six wheels on the ground is a root of six equations
-in six unknowns (the point of a rocker-bogie; the contact kinematics of seed 001 section
+in six unknowns (the point of a rocker-bogie; the contact kinematics of Balaram 2000 section
 2.2.4 with the full contact point on the rim instead of its one-parameter model). Newton's
 method solves all poses at once.
 

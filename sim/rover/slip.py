@@ -25,8 +25,8 @@ Bekker 1969), reduced to the whole vehicle:
   small on level ground, growing with uphill slope and infinite as ``ρ -> 1``: the slope
   at which the soil cannot hold the rover (just below the friction angle, because of the
   rolling resistance). Beyond it the rover slides back: ``s`` is capped at ``slip_max``
-  (> 1, MER measured up to 125 %, seed 002 and REFERENCES.md). Downhill ``ρ < 0`` and the
-  same law, odd in ``ρ``, gives skid (``s < 0``).
+  (> 1, MER measured up to 125 %, Cheng, Maimone and Matthies 2005 and REFERENCES.md). Downhill ``ρ
+  < 0`` and the same law, odd in ``ρ``, gives skid (``s < 0``).
 - Lateral creep on a cross slope: the same law for the cross-slope weight component
   against the traction left over by the longitudinal thrust (the traction ellipse, Wong
   ch. 2), directed downslope, as a fraction of the rolled distance.
@@ -34,7 +34,7 @@ Bekker 1969), reduced to the whole vehicle:
   so a digging wheel sinks deeper and the rover rides lower: ``sim.rover.settle`` puts the wheel
   centres ``r - z`` above the surface. Slip is on the undeformed radius (Wong, ch. 2).
 
-With the default parameters the curve reproduces MER's experience (seed 000 section 4;
+With the default parameters the curve reproduces MER's experience (Ali et al. 2005 section 4;
 Maimone et al. 2007): a few % on level ground, tens of % at 15-20° on loose sand, 100 %
 and more (sliding back) from ~24° on sand and ~34° on Gusev soil.
 
@@ -198,7 +198,7 @@ def turn_slip_curve(
 
     During a turn in place the corner wheels push in every direction, some straight up
     the fall line, so we take the fall-line slope for both (assumption; MER saw large slips
-    turning in place on slopes, seed 000 section 4). Returns ``(slip, creep)``, creep a
+    turning in place on slopes, Ali et al. 2005 section 4). Returns ``(slip, creep)``, creep a
     non-negative fraction of the mean rolled distance, directed down the fall line.
     """
     slope = np.abs(np.asarray(slope_rad, dtype=float))

@@ -18,7 +18,7 @@ from scipy.spatial.transform import Rotation
 
 FloatArray = NDArray[np.float64]
 
-CONTROL_RATE_HZ = 8.0  # MER's attitude/position loop rate (seed 000)
+CONTROL_RATE_HZ = 8.0  # MER's attitude/position loop rate (Ali et al. 2005)
 CONTROL_DT_S = 1.0 / CONTROL_RATE_HZ
 
 WHEEL_NAMES = ("LF", "LM", "LR", "RF", "RM", "RR")  # left/right, front/middle/rear

@@ -1,7 +1,7 @@
 """Contact of a rover wheel's rim with a terrain: the search for the contact point.
 
 Implements the wheel-ground contact used by ``sim.rover.settle``: the contact kinematics of
-seed 001 section 2.2.4 with the full contact point on the rim instead of its one-parameter
+Balaram 2000 section 2.2.4 with the full contact point on the rim instead of its one-parameter
 model.
 
 Contact of one wheel: a disk of radius ``r_eff`` (wheel radius minus sinkage) in the plane

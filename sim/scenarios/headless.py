@@ -49,7 +49,7 @@ SCENARIOS: dict[str, Scenario] = {
     for s in (
         Scenario("rest_1h", "gusev", "rest", 3600.0, "rest at the site, idle time jumped over"),
         Scenario("drive_100m", "gusev", "straight", 100.0, "a straight drive north"),
-        Scenario("turn_360_eq22", "eq22", "turn", 360.0, "a turn in place on seed 001 eq. 22"),
+        Scenario("turn_360_eq22", "eq22", "turn", 360.0, "a turn in place on Balaram 2000 eq. 22"),
         Scenario(
             "fine_drive_hga",
             "gusev",

@@ -1,12 +1,13 @@
-"""Seed 004's scenario on our simulator: a 1000 s drive during a relay pass, with its sensors.
+"""Jiang, Li et al. 2014's scenario on our simulator: a 1000 s drive during a relay pass, with its
+sensors.
 
-Seed 004 sec. 5: the rover drives a random 2-D trajectory for 1000 s, sampled at 1 s.
+Jiang, Li et al. 2014 sec. 5: the rover drives a random 2-D trajectory for 1000 s, sampled at 1 s.
 Here ``RoverSim`` drives a random chain of straight legs and arcs on Meridiani Planum
 (flat plains, as the paper's 2-D model assumes; MER speed 3.75 cm/s, with slip), timed so
 the relay orbiter (``sim.sensors.orbiter``) culminates above 45° mid-drive.
 
 The IMU is ``sim.sensors.imu``'s model with the *paper's* settings rather than the LN-200's
-(seed 004 sec. 5, "according to the parameters of the MER IMU"): accelerometer bias
+(Jiang, Li et al. 2014 sec. 5, "according to the parameters of the MER IMU"): accelerometer bias
 3e-3 m/s² and gyro bias 5e-6 rad/s (drawn per axis with those 1σ: the paper gives
 fixed values, a Monte Carlo needs draws of that size), white noise of variance 5e-8
 (m/s²)² and 9e-8 (rad/s)² per 1 s sample (the LN-200's are 2.2x and 0.1x those), no bias
@@ -46,7 +47,7 @@ from sim.world.marsclock import t_s_to_utc
 FloatArray = NDArray[np.float64]
 
 SITE = "meridiani"
-DURATION_S = 1000.0  # seed 004 sec. 5
+DURATION_S = 1000.0  # Jiang, Li et al. 2014 sec. 5
 STEP_S = 1.0
 PAPER_IMU = Ln200Params(
     gyro_bias_turn_on_deg_per_h=5.0e-6 / DEG_PER_H_TO_RAD_S,  # 5e-6 rad/s

@@ -1,6 +1,7 @@
 """Courses for the visual-odometry benchmark, found on the sites' own terrain (truth).
 
-- ``find_rock_course``: seed 002's ground test (sec. 3, Fig. 4) drove "over several large
+- ``find_rock_course``: Cheng, Maimone and Matthies 2005's ground test (sec. 3, Fig. 4) drove "over
+several large
   non-obstacle rocks, each less than 20 cm tall". On ``gusev`` we look for a straight
   course whose wheel tracks cross at least ``min_bumps`` rocks, the tallest
   ``ROCK_MIN_M``-``ROCK_MAX_M`` high, with nothing taller than ``ROCK_MAX_M`` anywhere under
@@ -31,7 +32,7 @@ from sim.world.heightmap import HeightmapTerrain
 FloatArray = NDArray[np.float64]
 
 ROCK_MIN_M = 0.08  # the tallest rock under the wheels: a real climb ...
-ROCK_MAX_M = 0.20  # ... but a non-obstacle, as in seed 002 Fig. 4
+ROCK_MAX_M = 0.20  # ... but a non-obstacle, as in Cheng, Maimone and Matthies 2005 Fig. 4
 BUMP_M = 0.04  # a stretch of track this far above the ground is on a rock
 TRACK_SAMPLE_M = 0.02
 SLOPE_SEARCH_M = 800.0

@@ -1,6 +1,6 @@
 """Wheel drive encoders and steering angle sensors: quantised readings from the truth.
 
-Wheel odometry on MER counts the drive motors' encoder pulses (seed 000, sec. 2.5). Each
+Wheel odometry on MER counts the drive motors' encoder pulses (Ali et al. 2005, sec. 2.5). Each
 wheel's actuator turns its wheel through a gearbox of about 1500:1 (JPL, Spirit sol 2113
 release: "about 1,500 motor rotations for each full wheel rotation"). The motor encoder
 resolution is not in our public sources; we take 16 counts per motor revolution

@@ -2,7 +2,7 @@
 
 The truth a gyro senses is the body's rotation relative to inertial space: the rover's
 rotation relative to the Local-Level frame plus the rotation of Mars, which the LL frame
-(fixed to the surface) carries (seed 000, sec. 2.4.1). Over an interval ``[t_k, t_k+1]``::
+(fixed to the surface) carries (Ali et al. 2005, sec. 2.4.1). Over an interval ``[t_k, t_k+1]``::
 
     R_i_b(t) = R_i_ll(t) R_ll_b(t),   R_i_ll(t_k + dt) = R_i_ll(t_k) exp([omega_ll]x dt)
     dR_k = R_i_b(t_k)^T R_i_b(t_k+1) = R_ll_b(t_k)^T exp([omega_ll]x dt) R_ll_b(t_k+1)

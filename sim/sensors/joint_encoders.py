@@ -1,6 +1,6 @@
 """Rocker and bogie angle sensors: quantised, noisy readings of the suspension's truth.
 
-Rocky-7 reads its internal angles with potentiometers (seed 001 sec. 1.3); Balaram's
+Rocky-7 reads its internal angles with potentiometers (Balaram 2000 sec. 1.3); Balaram's
 estimator uses them, smoothed and differenced, as known inputs to its slip constraints
 (sec. 3). The simulator had no such sensors; these read ``TruthTrajectory.rocker_rad``
 and ``bogie_rad``. Approximate values (no public MER figure): a 16-bit ADC over 360 deg

@@ -1,14 +1,15 @@
-"""Landmarks from an orbital map of the terrain, and their Navcam pixels (seed 004, eqs. 10-11).
+"""Landmarks from an orbital map of the terrain, and their Navcam pixels (Jiang, Li et al. 2014,
+eqs. 10-11).
 
 An orbital image of resolution ``resolution_m`` (MRO CTX/MOC class: ~10 m, HiRISE: 0.25 m,
-seed 004 Table 1) shows distinctive points; the rover matches its Navcam images to it.
+Jiang, Li et al. 2014 Table 1) shows distinctive points; the rover matches its Navcam images to it.
 
 - Landmarks: the site is cut into ``spacing_m`` cells; in each, the point whose albedo
   departs most from the cell's mean, among samples at the map's resolution (no finer than
   ``spacing_m / 4``), is the landmark. Its true position is that point on the terrain.
 - The map's matching error: the map gives each landmark at its true position plus
   Gaussian error of ``resolution_m`` (1σ) on each axis (North, East and height). That is
-  how seed 004 uses the resolution: "the accuracy heavily depends on the resolution".
+  how Jiang, Li et al. 2014 uses the resolution: "the accuracy heavily depends on the resolution".
   The error is drawn once per landmark: a landmark seen twice repeats its error.
 - Pixels (eqs. 10-11): a level camera at the mast head, panned about body ``z`` so each
   matched landmark is near the image centre; ``u = f x_c/z_c``, ``v = f y_c/z_c`` relative
@@ -37,7 +38,8 @@ IntArray = NDArray[np.int64]
 
 NAVCAM_OFFSET_B_M = (0.45, -0.30, -1.30)  # body axes (x fwd, y right, z down): mast head
 NAVCAM_FOCAL_PX = 512.0 / math.tan(math.radians(22.5))  # 1024 px over 45° (MER Navcam)
-PIXEL_SIGMA_PX = 1.0e-3 * NAVCAM_FOCAL_PX  # R = 1e-6 in focal-length units (seed 004 sec. 5)
+# R = 1e-6 in focal-length units (Jiang, Li et al. 2014 sec. 5)
+PIXEL_SIGMA_PX = 1.0e-3 * NAVCAM_FOCAL_PX
 
 
 @dataclass(frozen=True)
@@ -62,8 +64,8 @@ def matching_geometry(resolution_m: float) -> tuple[float, float, float]:
     Why not farther: a landmark's line of sight fixes the rover to within its map error
     plus its distance times the attitude error (eqs. 10-11 use the onboard attitude), so
     nearer is better as long as pairs 60-120° apart remain (an 8-20 m annulus holds ~16
-    landmarks 8 m apart). Seed 004's case 4 measured the attitude's share: the true attitude
-    in the camera alone takes its error from 0.37 to 0.26 m (seeds 0-9); in eq. 1 alone,
+    landmarks 8 m apart). Jiang, Li et al. 2014's case 4 measured the attitude's share: the true
+    attitude in the camera alone takes its error from 0.37 to 0.26 m (seeds 0-9); in eq. 1 alone,
     nothing.
     """
     return (

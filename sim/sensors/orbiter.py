@@ -1,9 +1,11 @@
-"""A relay orbiter around Mars on a Keplerian (two-body) orbit: truth for seed 004's radio.
+"""A relay orbiter around Mars on a Keplerian (two-body) orbit: truth for Jiang, Li et al. 2014's
+radio.
 
 The orbit is Mars Odyssey's mapping orbit, approximately: 370 x 432 km altitude over the
 equatorial radius (``a = 3797.2 km``, ``e = 0.0082``), inclination 93.2° to Mars' equator
 (near polar, Sun-synchronous), period ~117.8 min (NASA/JPL Mars Odyssey mission pages;
-values approximate). Perturbations (J2, drag) are left out, as seed 004 does over a pass.
+values approximate). Perturbations (J2, drag) are left out, as Jiang, Li et al. 2014 does over a
+pass.
 
 Frames: the elements are referred to Mars' equator at the epoch, in the Mars-centred
 inertial frame ``mci`` whose ``z`` is the IAU pole and ``x`` the node of Mars' equator on
@@ -12,7 +14,7 @@ in J2000 (ICRF axes, Mars-centred: what the DSN would upload) and in Mars-fixed 
 Kepler's equation is solved with the onboard solver (``estimation.ivp.solve_kepler``),
 the same mathematics any orbit-determination ground tool uses.
 
-Range measurements (seed 004, eqs. 7-9): the distance from the rover's antenna to the
+Range measurements (Jiang, Li et al. 2014, eqs. 7-9): the distance from the rover's antenna to the
 orbiter plus Gaussian noise of the case's accuracy, only while the orbiter is above the
 elevation mask at the rover (UHF relay passes: ~10°, approximate).
 """

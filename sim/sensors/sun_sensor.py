@@ -1,4 +1,4 @@
-"""A wide-angle sun sensor (WASS-like), seed 001 sec. 1.3 and eqs. 14-16.
+"""A wide-angle sun sensor (WASS-like), Balaram 2000 sec. 1.3 and eqs. 14-16.
 
 Rocky-7 carries Lockheed-Martin's Wide Angle Sun Sensor: a fish-eye lens images the Sun
 on a two-dimensional position-sensing device whose edge currents give the centroid
@@ -34,7 +34,7 @@ BoolArray = NDArray[np.bool_]
 class SunSensorParams:
     """Field of view and noise of the sensor (units in the names)."""
 
-    half_fov_rad: float = math.radians(80.0)  # 160 deg field of view (seed 001 sec. 1.3)
+    half_fov_rad: float = math.radians(80.0)  # 160 deg field of view (Balaram 2000 sec. 1.3)
     noise_sm: float = 0.0022  # 1σ per output axis (approximate, see the module docstring)
 
     def __post_init__(self) -> None:

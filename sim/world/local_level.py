@@ -1,6 +1,6 @@
 """The Local-Level frame at the rover versus the Site frame it drives in.
 
-A Site frame has the orientation of the Local-Level frame where it was planted (seed 000,
+A Site frame has the orientation of the Local-Level frame where it was planted (Ali et al. 2005,
 Table 1) and stays fixed to the surface; the Local-Level frame travels with the rover and
 stays aligned with the local North, East and ellipsoid normal. On the curved surface of
 Mars the two separate by ``d / R``: 0.0017 deg after 100 m. Small, but it is real, so the

@@ -3,7 +3,7 @@
 Implements the Mars24 algorithm of Allison and McEwen (2000, Planet. Space Sci. 48,
 215-235) as documented step by step, with its current constants, on NASA GISS's page
 "Mars24 Sunclock -- Algorithm and Worked Examples" (constants copied into
-../shared/REFERENCES.md, "Mars time and the Sun"). Each line of math carries its step
+docs/REFERENCES.md, "Mars time and the Sun"). Each line of math carries its step
 number, A-1 .. D-6.
 
 Time scales (docs/CONVENTIONS.md):

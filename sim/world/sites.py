@@ -8,7 +8,7 @@
 - ``meridiani``: Meridiani Planum, Opportunity's plains: flat, fine basaltic sand with
   hematite spherules, small aeolian ripples (crests a few metres apart, a few cm high,
   slightly sinuous) and very few small rocks (k = 0.005).
-- ``eq22``: Balaram's analytic surface, equation 22 of seed 001 (``sim.world.terrain``).
+- ``eq22``: Balaram's analytic surface, equation 22 of Balaram 2000 (``sim.world.terrain``).
 - ``flat``: a level plane.
 
 Locations: Spirit's landing site 14.57° S, 175.48° E (``gusev``, and ``eq22`` and ``flat``,
@@ -112,7 +112,7 @@ _SITES = {
             SPIRIT_LAT_DEG,
             SPIRIT_LON_EAST_DEG,
             BEDROCK,
-            "Balaram's undulating test surface (seed 001, eq. 22)",
+            "Balaram's undulating test surface (Balaram 2000, eq. 22)",
         ),
         Site("flat", SPIRIT_LAT_DEG, SPIRIT_LON_EAST_DEG, BEDROCK, "a level plane"),
     )

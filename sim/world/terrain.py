@@ -4,7 +4,7 @@ Coordinates are those of the Site frame (docs/CONVENTIONS.md): ``x`` North and `
 metres; heights are elevations *up* in metres (the Site frame's ``z`` is Down, so a surface
 point is ``(x, y, -h)`` in Site coordinates).
 
-The analytic ``eq22`` surface is equation 22 of Balaram (seed 001), the undulating terrain
+The analytic ``eq22`` surface is equation 22 of Balaram 2000, the undulating terrain
 of its straight-line and turn-in-place simulations. The OCR of the paper misplaces a
 bracket; we read it as two Gaussian bumps and a saddle term::
 
@@ -133,7 +133,7 @@ class PlaneTerrain:
 
 
 class Eq22Terrain:
-    """Balaram's undulating test surface, seed 001 equation 22 (see the module docstring)."""
+    """Balaram's undulating test surface, Balaram 2000 equation 22 (see the module docstring)."""
 
     def __init__(self, soil: Soil = BEDROCK, albedo_value: float = 0.25) -> None:
         self.name = "eq22"

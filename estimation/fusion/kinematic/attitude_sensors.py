@@ -1,4 +1,4 @@
-"""Gyro and wide-angle sun sensor measurements of the kinematic EKF (seed 001, eqs. 12-16).
+"""Gyro and wide-angle sun sensor measurements of the kinematic EKF (Balaram 2000, eqs. 12-16).
 
 Both are functions of the filter state ``X`` (``kinematic_process``) and the reference
 attitude ``q0 = q_s_b`` with the small-angle error on the right (eq. 5):
@@ -28,7 +28,7 @@ from estimation.fusion.kinematic.process import Layout, skew
 FloatArray = NDArray[np.float64]
 
 R_WASS_B = np.diag([1.0, -1.0, -1.0])  # sensor from body: boresight up (see docstring)
-WASS_HALF_FOV_RAD = float(np.deg2rad(80.0))  # 160 deg field of view (seed 001 sec. 1.3)
+WASS_HALF_FOV_RAD = float(np.deg2rad(80.0))  # 160 deg field of view (Balaram 2000 sec. 1.3)
 HEADING_GYRO = np.array([[0.0, 0.0, 1.0]])  # B_g of eq. 13
 THREE_AXIS_GYRO = np.eye(3)  # B_g = I (eq. 12, full 3-axis gyro)
 

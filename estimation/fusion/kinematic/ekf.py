@@ -1,4 +1,4 @@
-"""Balaram's kinematic EKF for a rocker-bogie rover (seed 001, sec. 3, eqs. 1-21).
+"""Balaram's kinematic EKF for a rocker-bogie rover (Balaram 2000, sec. 3, eqs. 1-21).
 
 State ``X = (θ, ω_p, x, v_p, ξ[, b])`` (``kinematic_process``) beside the reference
 attitude quaternion ``q_s_b`` (the paper's ``q``: ``R(q) = R_s_b`` takes body

@@ -1,4 +1,4 @@
-"""Joint rates from sampled joint angles: "simple smoothing and differencing" (seed 001 sec. 3).
+"""Joint rates from sampled joint angles: "simple smoothing and differencing" (Balaram 2000 sec. 3).
 
 Balaram's filter takes the suspension's joint angles and rates as known inputs. A plain
 difference over one control interval amplifies the angle sensors' noise by ``√2 / dt``;

@@ -1,6 +1,6 @@
 """Process model of Balaram's kinematic EKF: state layout, ``f``, ``F`` and ``Q``.
 
-Seed 001 sec. 2.2. The filter state is ``X = (θ, ω_p, x, v_p, ξ[, b])`` (sec. 3):
+Balaram 2000 sec. 2.2. The filter state is ``X = (θ, ω_p, x, v_p, ξ[, b])`` (sec. 3):
 
 - ``θ`` (3) the small-angle attitude error of eq. 5, ``q_s_b = q0_s_b ⊗ [θ/2; 1]``: a
   rotation in *body* axes multiplying the reference quaternion on the right, re-absorbed

@@ -1,6 +1,6 @@
 """The flight software's own rocker-bogie geometry and the kinematics its filter needs.
 
-Seed 001 (Balaram) builds its slip constraints (eqs. 17-20) on the forward kinematics of
+Balaram 2000 builds its slip constraints (eqs. 17-20) on the forward kinematics of
 the suspension: wheel centres and axles as functions of the internal angles ``γ`` and the
 steering angles ``λ``, and the contact frame ``l_f`` at contact angle ``ξ`` on each wheel's
 equator (sec. 2.2.4). The flight software may not import the simulator, so it keeps its

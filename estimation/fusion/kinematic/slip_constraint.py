@@ -1,4 +1,4 @@
-"""Balaram's kinematic slip constraint (seed 001, eqs. 17-20), one contact angle per wheel.
+"""Balaram's kinematic slip constraint (Balaram 2000, eqs. 17-20), one contact angle per wheel.
 
 For each wheel the forward kinematics from the body to the contact frame ``l_f``
 (``rover_kinematics``) gives the twist of the wheel at its contact point relative to the

@@ -1,4 +1,5 @@
-"""Onboard ephemeris of an orbiting radio beacon: two-body propagation (seed 004, eqs. 5-6).
+"""Onboard ephemeris of an orbiting radio beacon: two-body propagation (Jiang, Li et al. 2014, eqs.
+5-6).
 
 "The parameters of orbiting radio beacons measured by the DSN are uploaded to the rover in
 advance" and, over a pass, perturbations are neglected: ``dr_o/dt = v_o`` (eq. 5),

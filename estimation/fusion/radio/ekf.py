@@ -1,4 +1,4 @@
-"""Radio + terrain-matching EKF for a Mars rover (seed 004, Jiang, Li et al. 2014, sec. 4).
+"""Radio + terrain-matching EKF for a Mars rover (Jiang, Li et al. 2014, sec. 4).
 
 State ``X = [L, λ, v_N, v_E]``: planetographic latitude and East longitude of the body
 origin (rad), North and East velocity (m/s) (sec. 4.1; models in ``radio_models``).
@@ -47,7 +47,8 @@ MAX_PREDICTED_FOCAL_LENGTHS = 2.0
 
 @dataclass(frozen=True)
 class RadioEkfTuning:
-    """Filter noise settings (1σ or variances, units in the names). Defaults: seed 004 sec. 5."""
+    """Filter noise settings (1σ or variances, units in the names). Defaults: Jiang, Li et al. 2014
+    sec. 5."""
 
     p0_position_m: float = 10.0  # P0 = diag(10² I, I)
     p0_velocity_m_s: float = 1.0
@@ -187,8 +188,8 @@ class RadioEkf:
 
     def update_velocity(self, v_ne_m_s: ArrayLike, sigma_m_s: float) -> FloatArray:
         """A direct North/East velocity measurement (m/s, 1σ ``sigma_m_s`` per axis). Not in
-        seed 004: the rover uses it as a zero-velocity update when its wheels have stopped
-        (the driving software knows), so a parked rover's velocity stays known.
+        Jiang, Li et al. 2014: the rover uses it as a zero-velocity update when its wheels have
+        stopped (the driving software knows), so a parked rover's velocity stays known.
         Returns the innovation (2,)."""
         v = _array("v_ne_m_s", v_ne_m_s, (2,))
         sigma = _scalar("sigma_m_s", sigma_m_s, 1e-9, 10.0)

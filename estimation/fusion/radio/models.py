@@ -1,4 +1,4 @@
-"""Models of the radio + terrain-matching EKF (seed 004, Jiang, Li et al. 2014), with Jacobians.
+"""Models of the radio + terrain-matching EKF (Jiang, Li et al. 2014), with Jacobians.
 
 State ``X = [L, λ, v_N, v_E]`` (sec. 4.1): planetographic latitude and East longitude of
 the rover's body origin (rad) and its North and East velocity on the surface (m/s).

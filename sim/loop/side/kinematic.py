@@ -2,7 +2,7 @@
 can compare them (the fusion issue, item 3).
 
 ``KinematicEkfRunner`` runs Balaram's kinematic EKF (``estimation.fusion.kinematic.ekf``,
-seed 001) on every drive segment, sample for sample at 8 Hz, from the sensors the rover
+Balaram 2000) on every drive segment, sample for sample at 8 Hz, from the sensors the rover
 has: the IMU's gyros (the heading gyro, eqs. 12-13), the wheel and steering encoders and
 the rocker/bogie joint encoders (the slip constraints, eqs. 17-20) and a WASS-like sun
 sensor (eqs. 15-16, with IVP's sun as the reference), and the drive's commanded rates

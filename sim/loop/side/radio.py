@@ -1,10 +1,10 @@
 """The radio + terrain-matching EKF beside SAPP in a rover session (the fusion issue,
-item 3; seed 004, ``estimation.fusion.radio.ekf``).
+item 3; Jiang, Li et al. 2014, ``estimation.fusion.radio.ekf``).
 
-``RadioEkfRunner`` runs the filter on what this rover has, with seed 004's sensor set in
-its case 4 configuration (a HiRISE-class 0.25 m landmark map, 1 m radio ranging):
+``RadioEkfRunner`` runs the filter on what this rover has, with Jiang, Li et al. 2014's sensor set
+in its case 4 configuration (a HiRISE-class 0.25 m landmark map, 1 m radio ranging):
 
-- **Drives**, in seed 004's 1 s steps (the last one of a segment shorter):
+- **Drives**, in Jiang, Li et al. 2014's 1 s steps (the last one of a segment shorter):
   - eq. 2 with the IMU's specific force over the step, its 8 Hz samples rotated to LL by
     SAPP's attitude, summed, and turned into body axes at the step's start;
   - eq. 1 with SAPP's attitude: the paper takes the attitude as known, and SAPP is this
@@ -23,7 +23,7 @@ its case 4 configuration (a HiRISE-class 0.25 m landmark map, 1 m radio ranging)
   the ground would upload it for the pass, propagated onboard (two-body,
   ``estimation.fusion.radio.beacon``).
 
-What is taken as exact, as seed 004 takes it: the orbiter's state (the upload is the
+What is taken as exact, as Jiang, Li et al. 2014 takes it: the orbiter's state (the upload is the
 true two-body state, so the ranges carry only their 1 m noise; a real predict has
 along-track errors that would bias them), the maps' tie to the site (the rover's start is
 its true placement in the map, and the elevation model is the true rock-free ground), and
@@ -33,13 +33,13 @@ maps and ephemerides are good: the mission-frame error leaves out any map-tie er
 The filter estimates position only (latitude, longitude, North and East velocity); its
 frames carry its position and error and no attitude of its own. It starts at the first
 drive, from SAPP's mission position placed at the rover's start in the site's map, with
-seed 004's 10 m ``P0``. The mission frame's origin is the rover's start: the placement
+Jiang, Li et al. 2014's 10 m ``P0``. The mission frame's origin is the rover's start: the placement
 (``x_m``, ``y_m``) the session was given, at the map's height there. The onboard map gives
 the heights: the orbital elevation model (``sim.sensors.landmarks.OrbitalDem``, 1 m posts) plus the
 body's nominal height above the ground.
 Noise: the filter's Q (``SESSION_TUNING``) is ten times smaller than the one matched to
-seed 004's scenario (``sim.scenarios.radio.SCENARIO_TUNING``): this rover's LN-200 has a
-tenth of the paper's gyro noise and SAPP's Fine attitude leaks less gravity into eq. 2.
+Jiang, Li et al. 2014's scenario (``sim.scenarios.radio.SCENARIO_TUNING``): this rover's LN-200 has
+a tenth of the paper's gyro noise and SAPP's Fine attitude leaks less gravity into eq. 2.
 Over six courses on Gusev and Meridiani it gave 0.20 m RMS against 0.24 m, half the
 step-to-step jitter, and a final NEES of 1.7 over the 2 horizontal states. The sensors draw
 from generators seeded from the session's seed.
@@ -77,9 +77,9 @@ from sim.world.marsclock import utc_to_t_s
 
 FloatArray = NDArray[np.float64]
 
-MAP_RESOLUTION_M = 0.25  # seed 004 Table 1, cases 3-4: HiRISE
-RADIO_SIGMA_M = 1.0  # seed 004 Table 1, cases 2 and 4
-STEP_S = 1.0  # seed 004 sec. 5
+MAP_RESOLUTION_M = 0.25  # Jiang, Li et al. 2014 Table 1, cases 3-4: HiRISE
+RADIO_SIGMA_M = 1.0  # Jiang, Li et al. 2014 Table 1, cases 2 and 4
+STEP_S = 1.0  # Jiang, Li et al. 2014 sec. 5
 REST_RANGE_EVERY_S = 10.0  # ranges while parked: the pass's geometry changes slowly
 NEW_PASS_GAP_S = 600.0  # an orbiter unseen this long comes back on a new pass
 ZUPT_SIGMA_M_S = 1.0e-3  # a parked rover's velocity: the wheels' creep, at most
