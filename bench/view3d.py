@@ -2,7 +2,7 @@
 
 The scene runs in this process: a ``RoverScene`` on Spirit's runtime (its clock not
 started), its own viser server on a loopback port, an empty in-memory store. It is fed the
-frames of a real drive in order, each kept as ``on_frames`` keeps it, and each is then drawn
+frames of a real drive in order, each kept as ``publish`` keeps it, and each is then drawn
 by calling ``_draw`` directly, so a timing is the scene thread's work for one frame.
 
 - ``view_draw_ms_median``, ``view_draw_ms_p95`` (and ``_max``): wall time of ``_draw`` per
@@ -239,7 +239,7 @@ def draw_in_order(
     """Keep and draw each frame in turn, timing ``_draw``; with a viewer, wait after each
     draw until it holds everything."""
     for frame in frames:
-        with scene._lock:  # what on_frames keeps, without waking the scene thread
+        with scene._lock:  # what publish keeps, without waking the scene thread
             scene._take(frame)
         centre = scene._terrain_centre
         held = len(viewer.windows) if viewer is not None else 0

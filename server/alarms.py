@@ -183,8 +183,9 @@ class AlarmEngine:
 
     # ---- judging frames -------------------------------------------------------------
 
-    def frames(self, rover: str, frames: list[dict[str, Any]]) -> None:
-        """Judge a played-out batch, frame by frame, every channel."""
+    def publish(self, rover: str, frames: list[dict[str, Any]]) -> None:
+        """A frame sink (``server.sinks``): judge a played-out batch, frame by frame, every
+        channel."""
         with self._lock:
             self._load(rover)
             for frame in frames:

@@ -77,6 +77,7 @@ from server.runtime import (
     RoverRuntime,
 )
 from server.scene3d import RoverScene
+from server.sinks import FrameSink, StorageSink
 from server.storage import BatchWriter, Store
 from server.timeline import sol_timeline, stored_command
 from server.uploads import ValidationSlots, read_body, request_error
@@ -321,6 +322,10 @@ class Server:
         self.queue_notices = QueueNotices(
             self._queue_notice, self.hub.notify, lambda rover: self.hub.count(rover) > 0
         )
+        self.alarms = AlarmEngine(self.store, self._when, self.hub.notify)
+        self.alarms.on_event = self._server_event
+        # every played-out batch, in order: stored, judged against the limits, sent live
+        self.sinks: list[FrameSink] = [StorageSink(self.writer), self.alarms, self.hub]
         for name, spec in ROVERS.items():
             saved = self.store.load_checkpoint(name)
             runtime = (
@@ -332,15 +337,13 @@ class Server:
                 runtime.set_clock(speed=config.initial_speed)
             if saved is not None:
                 self._resume(runtime)
-            runtime.listeners.append(self._frames)
+            runtime.sinks.extend(self.sinks)
             runtime.on_command = self._command
             runtime.on_sequence = self._sequence
             runtime.on_checkpoint = self.writer.checkpoint
             runtime.commit = self.writer.flush  # a clock change is stored when it answers
             runtime.on_queue = self.queue_notices.changed
             self.rovers[name] = runtime
-        self.alarms = AlarmEngine(self.store, self._when, self.hub.notify)
-        self.alarms.on_event = self._server_event
         self.scenes: dict[str, RoverScene] = {}
         if config.viewer_3d:
             self.scenes = {name: RoverScene(rt, self.store) for name, rt in self.rovers.items()}
@@ -375,14 +378,6 @@ class Server:
         runtime = self.rovers[rover]
         return {"t_s": t_s, "utc": t_s_to_utc(t_s).isoformat(), "lmst_h": runtime.lmst_h(t_s),
                 "sol": runtime.sol(t_s)}  # fmt: skip
-
-    def _frames(self, rover: str, frames: list[dict[str, Any]]) -> None:
-        self.writer.frames(rover, frames)
-        self.alarms.frames(rover, frames)  # server.alarms: limits judged, alarms raised
-        events = [(float(f["t_s"]), e) for f in frames for e in f.get("events", [])]
-        if events:
-            self.writer.events(rover, events)
-        self.hub.publish(rover, frames)
 
     def _command(self, rover: str, report: dict[str, Any]) -> None:
         self.writer.command(rover, **report)

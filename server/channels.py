@@ -1,7 +1,7 @@
 """Telemetry at a glance: any numeric channel of the telemetry frame against time, over a
 sol or a range of sols, decimated on the server so that spikes survive.
 
-A channel is a numeric field of ``sim.loop.session.TelemetryFrame`` (``hga_margin_deg``), one
+A channel is a numeric field of ``sim.loop.telemetry.TelemetryFrame`` (``hga_margin_deg``), one
 component of a numeric list field (``p_mission_est_0``), or a figure of an estimator
 running beside SAPP (``kinematic_ekf_position_error_m``): the names are the telemetry CSV's
 column names. Channels scored against the simulator's truth (``TRUTH_CHANNELS``, and every
@@ -24,7 +24,7 @@ from fastapi import FastAPI, HTTPException, Query
 
 from server.auth import Viewer
 from server.uploads import request_error
-from sim.loop.session import TelemetryFrame
+from sim.loop.telemetry import TelemetryFrame
 from sim.rover.truth import STEERED_WHEELS
 from sim.world.marsclock import t_s_for_sol_lmst
 

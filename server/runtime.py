@@ -58,6 +58,7 @@ from typing import Any
 
 from sequences import commands as cmd
 from sequences.language import Sequence, TimeTag
+from server.sinks import FrameSink
 from sim.loop.session import RoverSession
 from sim.world.marsclock import (
     SOL_S,
@@ -191,15 +192,12 @@ class Playout:
     frames: deque[dict[str, Any]] = field(default_factory=deque)
 
 
-Listener = Callable[[str, list[dict[str, Any]]], None]
-
-
 class RoverRuntime:
-    """One rover on its own clock (module docstring). ``listeners`` receive every frame
-    batch as it is played out (storage, WebSocket hub); ``on_command`` every command
-    report; ``on_sequence`` sequence status changes; ``on_checkpoint`` pickled state (called
-    under ``lock``, so checkpoints arrive in the order they were taken); ``commit`` stores
-    what ``on_checkpoint`` queued, at once (a clock change)."""
+    """One rover on its own clock (module docstring). ``sinks`` receive every frame
+    batch as it is played out (``server.sinks``: storage, alarms, WebSocket hub, 3D view);
+    ``on_command`` every command report; ``on_sequence`` sequence status changes; ``on_checkpoint``
+    pickled state (called under ``lock``, so checkpoints arrive in the order they were taken);
+    ``commit`` stores what ``on_checkpoint`` queued, at once (a clock change)."""
 
     def __init__(
         self,
@@ -214,7 +212,7 @@ class RoverRuntime:
         self.clock = ClockState()
         self.queue: deque[QueuedSequence] = deque()
         self.lock = threading.RLock()
-        self.listeners: list[Listener] = []
+        self.sinks: list[FrameSink] = []
         self.on_command: Callable[[str, dict[str, Any]], None] | None = None
         self.on_sequence: Callable[[int, str, str | None], None] | None = None
         self.on_checkpoint: Callable[[str, float, bytes], None] | None = None
@@ -637,8 +635,8 @@ class RoverRuntime:
         if not batch:
             return
         self.last_frame = batch[-1]
-        for listener in self.listeners:
-            listener(self.spec.name, batch)
+        for sink in self.sinks:
+            sink.publish(self.spec.name, batch)
 
     def _sequence_status(self, sequence_id: int, status: str, detail: str | None) -> None:
         if self.on_sequence is not None:

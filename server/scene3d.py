@@ -537,7 +537,7 @@ class RoverScene:
             self._take(frame)
         if self._latest is not None:
             self._draw(self._latest)
-        self.runtime.listeners.append(self.on_frames)
+        self.runtime.sinks.append(self)
         self._thread = threading.Thread(target=self._run, name=f"scene-{self.rover}", daemon=True)
         self._thread.start()
 
@@ -546,8 +546,8 @@ class RoverScene:
         self._dirty.set()
         if self._thread is not None:
             self._thread.join(timeout=5)
-        if self.on_frames in self.runtime.listeners:
-            self.runtime.listeners.remove(self.on_frames)
+        if self in self.runtime.sinks:
+            self.runtime.sinks.remove(self)
         if self.server is not None:
             self.server.stop()
 
@@ -596,8 +596,8 @@ class RoverScene:
 
     # ---- frames in (runtime thread) ----------------------------------------------------
 
-    def on_frames(self, rover: str, frames: list[dict[str, Any]]) -> None:
-        """Listener of ``RoverRuntime``: keep the traverses and the newest frame."""
+    def publish(self, rover: str, frames: list[dict[str, Any]]) -> None:
+        """A frame sink (``server.sinks``): keep the traverses and the newest frame."""
         with self._lock:
             for f in frames:
                 self._take(f)

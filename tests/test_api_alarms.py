@@ -27,7 +27,7 @@ def client(tmp_path_factory: pytest.TempPathFactory) -> Iterator[TestClient]:
     app = create_app(ServerConfig(database_url=url, operator_token=TOKEN, start_clocks=False))
     with TestClient(app) as c:
         runtime = app.state.server.rovers["spirit"]
-        runtime._idle(30.0)  # the rover's first frames, played out through the listeners
+        runtime._idle(30.0)  # the rover's first frames, played out through the sinks
         yield c
 
 

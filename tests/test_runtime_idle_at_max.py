@@ -6,6 +6,7 @@ wall clock."""
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import pytest
 
@@ -24,7 +25,12 @@ def test_an_empty_queue_at_max_keeps_the_clock_running_in_real_time(
     runtime: RoverRuntime,
 ) -> None:
     frames: list[float] = []
-    runtime.listeners.append(lambda _rover, batch: frames.extend(f["t_s"] for f in batch))
+
+    class Times:  # a frame sink keeping each played-out frame's time
+        def publish(self, rover: str, batch: list[dict[str, Any]]) -> None:
+            frames.extend(f["t_s"] for f in batch)
+
+    runtime.sinks.append(Times())
     start = runtime.t_s
     for _ in range(200):  # 10 s of wall time in 0.05 s ticks
         runtime._tick(0.05)

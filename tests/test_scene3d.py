@@ -151,7 +151,7 @@ def test_the_scene_follows_the_frames(
     session.execute(cmd.DriveStraight(distance_m=2.0))
     frames = [f.as_dict() for f in session.frames]
     assert len(frames) > 3
-    rover_scene.on_frames("spirit", frames)
+    rover_scene.publish("spirit", frames)
     last = frames[-1]
     _wait(lambda: np.allclose(rover_scene.model.root.position, last["p_mission_true"]))
     np.testing.assert_allclose(rover_scene.ghost.root.position, last["p_mission_est"])
@@ -175,7 +175,7 @@ def test_each_estimator_beside_sapp_is_a_traverse_of_its_own_colour(
     try:
         runtime.session.execute(cmd.DriveStraight(distance_m=2.0))
         frames = [f.as_dict() for f in runtime.session.frames]
-        rover_scene.on_frames("spirit", frames)
+        rover_scene.publish("spirit", frames)
         assert rover_scene.server is not None
         handles = rover_scene.server.scene._handle_from_node_name
         for name in ("kinematic_ekf", "radio_ekf"):
@@ -281,7 +281,7 @@ def test_a_viewer_who_scrubs_leaves_the_others_following(
     console: Console, drive: list[dict[str, Any]]
 ) -> None:
     half = len(drive) // 2
-    console.scene.on_frames("spirit", drive[:half])
+    console.scene.publish("spirit", drive[:half])
     a, b = _viewers(console, 2)
     try:
         _wait(
@@ -296,7 +296,7 @@ def test_a_viewer_who_scrubs_leaves_the_others_following(
         _wait(lambda: _at(a, "/rover", drive[0]["p_mission_true"]))
         assert b.owners("/rover") == {""}
 
-        console.scene.on_frames("spirit", drive[half:])
+        console.scene.publish("spirit", drive[half:])
         last = drive[-1]
         _wait(lambda: _at(b, "/rover", last["p_mission_true"]))
         _wait(lambda: status_text(last, True) in b.status())
@@ -319,7 +319,7 @@ def test_a_viewer_who_scrubs_leaves_the_others_following(
 def test_crafted_gui_messages_change_no_other_viewer_and_break_no_callback(
     console: Console, drive: list[dict[str, Any]]
 ) -> None:
-    console.scene.on_frames("spirit", drive)
+    console.scene.publish("spirit", drive)
     _wait(lambda: console.scene.frames_drawn > 0)
     last = drive[-1]
     a, b = _viewers(console, 2)

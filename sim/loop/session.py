@@ -31,7 +31,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Iterable, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
@@ -67,6 +67,7 @@ from sim.loop.side.kinematic import (
     SideRunner,
 )
 from sim.loop.side.radio import RadioEkfRunner
+from sim.loop.telemetry import TelemetryFrame
 from sim.loop.vo_drive import (
     VO_MAST_AZ_RAD,
     VO_MAST_EL_RAD,
@@ -91,67 +92,6 @@ VoDrive = cmd.DriveStraight | cmd.DriveArc | cmd.TurnInPlace | cmd.DriveTo
 EARTH_NODE_S = 60.0  # see the module docstring
 HGA_FRAME_S = 60.0  # one frame a minute during an Idle HGA pass
 WAIT_CHUNK_S = 600.0  # 8 Hz waits are simulated in chunks of this length
-
-
-@dataclass(frozen=True)
-class TelemetryFrame:
-    """One control cycle's telemetry (docs/DESIGN.md's frame, plus derived figures).
-
-    Angles in degrees at this edge; positions in metres: ``p_s_*`` in the current Site,
-    ``p_mission_*`` in the mission frame (the first Site; the chain of Site offsets).
-    ``rocker_deg``, ``bogie_deg`` [left, right] and ``steer_deg`` (``STEERED_WHEELS``
-    order) are the true suspension and steering (``sim.rover.truth``), for drawing the rover.
-    ``sun_ll_true``, ``earth_ll_true`` and ``hga_boresight_ll_true`` are unit vectors in LL
-    (truth): the sun, Earth, and where the dish really points.
-    ``vo_failures_in_row``: VO steps that failed since the last converged one (the flight
-    software's VO status); ``hga_margin_predicted_deg``: the HGA margin the rover predicts
-    from its own attitude knowledge (``estimation.sapp.pointing_knowledge``; no truth).
-    ``hga_error_deg``/``hga_margin_deg`` as the module docstring says; ``earth_up`` whether
-    Earth is above the horizon (truth). ``attitude_error_deg``: angle between the estimated
-    and true attitude; ``position_error_m``: between estimated and true mission positions.
-    """
-
-    t_s: float
-    sol: int
-    lmst_h: float
-    nate_mode: str
-    aqf: str
-    q_b_ll_est: list[float]
-    q_b_ll_true: list[float]
-    p_s_est: list[float]
-    p_s_true: list[float]
-    site_index: int
-    p_mission_est: list[float]
-    p_mission_true: list[float]
-    imu_integration_s: float
-    gyro_counter_s: float
-    tilt_est_deg: float
-    tilt_accel_deg: float
-    hga_error_deg: float
-    hga_margin_deg: float
-    earth_up: bool
-    attitude_error_deg: float
-    position_error_m: float
-    command: str
-    rocker_deg: float
-    bogie_deg: list[float]
-    steer_deg: list[float]
-    sun_ll_true: list[float]
-    earth_ll_true: list[float]
-    hga_boresight_ll_true: list[float]
-    events: list[Event] = field(default_factory=list)
-    estimators: dict[str, dict[str, Any]] = field(default_factory=dict)
-    vo_failures_in_row: int = 0
-    hga_margin_predicted_deg: float = math.nan
-
-    def as_dict(self) -> dict[str, Any]:
-        """The frame as a JSON-ready dict; a figure that does not exist (NaN, e.g. the
-        accelerometer tilt of a cycle without a sample) is ``None``: JSON has no NaN."""
-        out = asdict(self)
-        for key, value in out.items():
-            if isinstance(value, float) and not math.isfinite(value):
-                out[key] = None
-        return out
 
 
 @dataclass
