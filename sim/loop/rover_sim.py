@@ -19,7 +19,7 @@ know: it enters every sun vector as an unmodelled systematic error.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, fields
 from datetime import datetime
 from typing import TYPE_CHECKING, Any
@@ -102,7 +102,7 @@ class RoverSim:
         self.slip = (
             SlipModel(self.terrain.soil, rng_slip) if slip else SlipModel.ideal(self.terrain.soil)
         )
-        self.state = drive.initial_state(
+        self.drive_state = drive.initial_state(
             self.terrain, self.t_s, x_m=x_m, y_m=y_m, yaw_rad=yaw_rad, slip_model=self.slip
         )
         if not (math.isfinite(mast_bias_sigma_deg) and 0.0 <= mast_bias_sigma_deg <= 5.0):
@@ -110,7 +110,37 @@ class RoverSim:
         self.mast_bias_rad = np.radians(mast_bias_sigma_deg) * rng_cam.standard_normal(2)
         self._rng_cam = rng_cam
         self.totals = RunningTotals()
-        self._encoder_counts = self.encoders.read(self.state.as_trajectory()).wheel_counts[0]
+        self._encoder_counts = self.encoders.read(self.drive_state.as_trajectory()).wheel_counts[0]
+
+    # ---- checkpoint ---------------------------------------------------------------------
+
+    def state(self) -> dict[str, Any]:
+        """What changes as the rover runs, as plain data: the clock, the truth at rest, the
+        sensors (biases, generators), the slip model and the running totals. The terrain,
+        site and mast bias follow from the configuration and are not part of it."""
+        return {
+            "t_s": self.t_s,
+            "drive_state": drive_state_dict(self.drive_state),
+            "imu": self.imu.state(),
+            "encoders": self.encoders.state(),
+            "encoder_counts": np.asarray(self._encoder_counts).copy(),
+            "slip": self.slip.state(),
+            "rng_cam": self._rng_cam.bit_generator.state,
+            "mast_bias_rad": self.mast_bias_rad.copy(),
+            "totals": {f.name: _plain(getattr(self.totals, f.name)) for f in fields(RunningTotals)},
+        }
+
+    def load_state(self, state: Mapping[str, Any]) -> None:
+        """Load ``state`` (``state()``) onto a simulator built from the same arguments."""
+        self.t_s = float(state["t_s"])
+        self.drive_state = drive_state_from_dict(state["drive_state"])
+        self.imu.load_state(state["imu"])
+        self.encoders.load_state(state["encoders"])
+        self._encoder_counts = np.array(state["encoder_counts"], dtype=np.int64)
+        self.slip.load_state(state["slip"])
+        self._rng_cam.bit_generator.state = state["rng_cam"]
+        self.mast_bias_rad = np.array(state["mast_bias_rad"], dtype=np.float64)
+        self.totals = RunningTotals(**_arrays(state["totals"]))
 
     # ---- commands -------------------------------------------------------------------
 
@@ -122,13 +152,13 @@ class RoverSim:
         self.totals.gyro_rest_angle_b += samples.delta_angle_b[0]
         self.totals.truth_rest_angle_b += self._inertial_rest_angle(q_ll_b, duration_s)
         self.t_s += duration_s
-        self.state = self.state.at_time(self.t_s)
+        self.drive_state = self.drive_state.at_time(self.t_s)
         self.totals.idle_s_jumped += duration_s
         return samples
 
     def drive_straight(self, distance_m: float) -> Segment:
         """Drive ``distance_m`` (> 0) straight ahead; returns its truth and sensor samples."""
-        steer = bool(np.any(self.state.steer_rad != 0.0))
+        steer = bool(np.any(self.drive_state.steer_rad != 0.0))
         return self._drive(
             lambda start: drive.drive_straight(self.terrain, start, distance_m, self.slip), steer
         )
@@ -155,9 +185,9 @@ class RoverSim:
         points and so the body's attitude: when the wheels steer, one control cycle of
         steering comes first, from the pose at rest to the primitive's first (steered)
         pose, so that the IMU and the truth see the change."""
-        before = self.state
+        before = self.drive_state
         start = before.at_time(before.t_s + CONTROL_DT_S) if steers else before
-        traj, self.state = primitive(start)
+        traj, self.drive_state = primitive(start)
         if steers:
             traj = _prepend(before.as_trajectory(), traj)
         return self._sense(traj)
@@ -175,7 +205,7 @@ class RoverSim:
         self.totals.gyro_rest_angle_b += samples.delta_angle_b.sum(axis=0)
         self.totals.truth_rest_angle_b += self._inertial_rest_angle(q_ll_b, duration_s)
         self.t_s = float(t[-1])
-        self.state = self.state.at_time(self.t_s)
+        self.drive_state = self.drive_state.at_time(self.t_s)
         return samples
 
     def pancam_sun_image(self, az_rad: float, el_rad: float) -> SunImage:
@@ -209,8 +239,8 @@ class RoverSim:
         kwargs: dict[str, Any] = {"rng": self._rng_cam, **options}
         return render_navcam_pair(
             self.terrain,
-            self.state.p_s,
-            self.state.q_s_b,
+            self.drive_state.p_s,
+            self.drive_state.q_s_b,
             self.sun_ll(),
             az_rad=az_true,
             el_rad=el_true,
@@ -238,7 +268,10 @@ class RoverSim:
     def q_ll_b(self) -> FloatArray:
         """Truth attitude of the body in the Local-Level frame at the rover, ``[x, y, z, w]``."""
         out: FloatArray = q_ll_b_from_site(
-            self.state.q_s_b[None, :], self.state.p_s[None, :], self.lat_rad, self.lon_east_rad
+            self.drive_state.q_s_b[None, :],
+            self.drive_state.p_s[None, :],
+            self.lat_rad,
+            self.lon_east_rad,
         )[0]
         return out
 
@@ -266,10 +299,32 @@ class RoverSim:
         totals.distance_odometry_m += float(np.mean(wheel_rad)) * MER_GEOMETRY.wheel_radius_m
         yaw = Rotation.from_quat(traj.q_s_b).as_euler("ZYX")[:, 0]
         totals.heading_change_rad += float(np.sum(np.angle(np.exp(1j * np.diff(yaw)))))
-        totals.max_wheel_gap_m = max(totals.max_wheel_gap_m, self.state.max_gap_m)
-        totals.unsettled_poses += self.state.unsettled_poses
+        totals.max_wheel_gap_m = max(totals.max_wheel_gap_m, self.drive_state.max_gap_m)
+        totals.unsettled_poses += self.drive_state.unsettled_poses
         self.t_s = float(traj.t_s[-1])
         return Segment(traj, samples, encoders)
+
+
+def _plain(value: Any) -> Any:
+    return value.copy() if isinstance(value, np.ndarray) else value
+
+
+def drive_state_dict(state: drive.DriveState) -> dict[str, Any]:
+    """A ``DriveState`` as plain data (its fields; arrays copied)."""
+    return {f.name: _plain(getattr(state, f.name)) for f in fields(drive.DriveState)}
+
+
+def drive_state_from_dict(state: Mapping[str, Any]) -> drive.DriveState:
+    """The ``DriveState`` of ``drive_state_dict``."""
+    return drive.DriveState(**_arrays(state))
+
+
+def _arrays(state: Mapping[str, Any]) -> dict[str, Any]:
+    """``state`` with its lists and arrays as float arrays (a dataclass's fields)."""
+    return {
+        k: np.array(v, dtype=np.float64) if isinstance(v, list | np.ndarray) else v
+        for k, v in state.items()
+    }
 
 
 def _prepend(first: TruthTrajectory, rest: TruthTrajectory) -> TruthTrajectory:

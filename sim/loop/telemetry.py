@@ -1,67 +1,105 @@
-"""The telemetry frame: the one definition of its fields, from which the server's responses,
-its CSV columns and the published JSON schema (``GET /api/schema/telemetry``) all read."""
+"""The telemetry frame: the one definition of its fields, with each field's unit and meaning,
+from which the server's responses, its CSV columns, the published JSON schema
+(``GET /api/schema/telemetry``) and the tests all read.
+
+``TelemetryFrame`` is a plain dataclass whose fields carry pydantic metadata
+(``Annotated[..., Field(description=...)]``): the schema reads the descriptions, and a
+frame, built once per control cycle, pays no validation on construction.
+"""
 
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
-from typing import Any
+from dataclasses import asdict, dataclass, field, fields
+from typing import Annotated, Any
 
-from pydantic import TypeAdapter
+from pydantic import Field, TypeAdapter
 
 from estimation.events import Event
+
+Vec3 = list[float]
+Quat = list[float]
+
+
+def _about(text: str) -> Any:
+    """A field's meaning and unit, for the schema."""
+    return Field(description=text)
 
 
 @dataclass(frozen=True)
 class TelemetryFrame:
-    """One control cycle's telemetry (docs/DESIGN.md's frame, plus derived figures).
+    """One control cycle's telemetry: the flight software's estimate beside the truth, with
+    the derived figures (docs/DESIGN.md, "One control cycle").
 
-    Angles in degrees at this edge; positions in metres: ``p_s_*`` in the current Site,
-    ``p_mission_*`` in the mission frame (the first Site; the chain of Site offsets).
-    ``rocker_deg``, ``bogie_deg`` [left, right] and ``steer_deg`` (``STEERED_WHEELS``
-    order) are the true suspension and steering (``sim.rover.truth``), for drawing the rover.
-    ``sun_ll_true``, ``earth_ll_true`` and ``hga_boresight_ll_true`` are unit vectors in LL
-    (truth): the sun, Earth, and where the dish really points.
-    ``vo_failures_in_row``: VO steps that failed since the last converged one (the flight
-    software's VO status); ``hga_margin_predicted_deg``: the HGA margin the rover predicts
-    from its own attitude knowledge (``estimation.sapp.pointing_knowledge``; no truth).
-    ``hga_error_deg``/``hga_margin_deg`` as the module docstring says; ``earth_up`` whether
-    Earth is above the horizon (truth). ``attitude_error_deg``: angle between the estimated
-    and true attitude; ``position_error_m``: between estimated and true mission positions.
+    Angles in degrees at this edge; positions in metres; quaternions ``[x, y, z, w]``;
+    ``p_s_*`` in the current Site, ``p_mission_*`` in the mission frame (the first Site; the
+    chain of Site offsets). ``*_true`` is the simulator's truth, which a rover would not know.
     """
 
-    t_s: float
-    sol: int
-    lmst_h: float
-    nate_mode: str
-    aqf: str
-    q_b_ll_est: list[float]
-    q_b_ll_true: list[float]
-    p_s_est: list[float]
-    p_s_true: list[float]
-    site_index: int
-    p_mission_est: list[float]
-    p_mission_true: list[float]
-    imu_integration_s: float
-    gyro_counter_s: float
-    tilt_est_deg: float
-    tilt_accel_deg: float
-    hga_error_deg: float
-    hga_margin_deg: float
-    earth_up: bool
-    attitude_error_deg: float
-    position_error_m: float
-    command: str
-    rocker_deg: float
-    bogie_deg: list[float]
-    steer_deg: list[float]
-    sun_ll_true: list[float]
-    earth_ll_true: list[float]
-    hga_boresight_ll_true: list[float]
-    events: list[Event] = field(default_factory=list)
-    estimators: dict[str, dict[str, Any]] = field(default_factory=dict)
-    vo_failures_in_row: int = 0
-    hga_margin_predicted_deg: float = math.nan
+    t_s: Annotated[float, _about("simulated time, TT seconds from J2000")]
+    sol: Annotated[int, _about("the mission's sol number at t_s")]
+    lmst_h: Annotated[float, _about("local mean solar time at the site, hours")]
+    nate_mode: Annotated[str, _about("NATE's mode (estimation.sapp.nate.NateMode)")]
+    aqf: Annotated[str, _about("attitude quality flag: Unknown, Tilt, Coarse or Fine")]
+    q_b_ll_est: Annotated[Quat, _about("estimated attitude, body in Local Level, [x, y, z, w]")]
+    q_b_ll_true: Annotated[Quat, _about("true attitude, body in Local Level, [x, y, z, w]")]
+    p_s_est: Annotated[Vec3, _about("estimated position in the current Site (N, E, D), m")]
+    p_s_true: Annotated[Vec3, _about("true position in the current Site (N, E, D), m")]
+    site_index: Annotated[int, _about("the current Site's index (0: the landing Site)")]
+    p_mission_est: Annotated[Vec3, _about("estimated position in the mission frame, m")]
+    p_mission_true: Annotated[Vec3, _about("true position in the mission frame, m")]
+    imu_integration_s: Annotated[
+        float, _about("IMU integration time since the attitude was last acquired, s")
+    ]
+    gyro_counter_s: Annotated[float, _about("NATE's gyro counter (time propagated on gyros), s")]
+    tilt_est_deg: Annotated[float, _about("tilt of the estimated attitude, deg")]
+    tilt_accel_deg: Annotated[
+        float, _about("tilt from this cycle's accelerometer sample, deg (null: no sample)")
+    ]
+    hga_error_deg: Annotated[
+        float,
+        _about(
+            "error of an HGA pointed now from the estimate and IVP's Earth, against the "
+            "truth, deg (the real error during an HGA pass, the error it would have otherwise)"
+        ),
+    ]
+    hga_margin_deg: Annotated[float, _about("HGA pointing requirement minus hga_error_deg, deg")]
+    earth_up: Annotated[bool, _about("Earth is above the horizon (truth)")]
+    attitude_error_deg: Annotated[
+        float, _about("angle between the estimated and true attitude, deg")
+    ]
+    position_error_m: Annotated[
+        float, _about("distance between the estimated and true mission positions, m")
+    ]
+    command: Annotated[str, _about("the command running (empty: the clock's own wait)")]
+    rocker_deg: Annotated[float, _about("true rocker angle, deg")]
+    bogie_deg: Annotated[list[float], _about("true bogie angles [left, right], deg")]
+    steer_deg: Annotated[list[float], _about("true corner steering (STEERED_WHEELS order), deg")]
+    sun_ll_true: Annotated[Vec3, _about("true sun direction in Local Level, unit vector")]
+    earth_ll_true: Annotated[Vec3, _about("true Earth direction in Local Level, unit vector")]
+    hga_boresight_ll_true: Annotated[
+        Vec3, _about("where the HGA pointed now really points, Local Level, unit vector")
+    ]
+    events: Annotated[list[Event], _about("what happened since the previous frame")] = field(
+        default_factory=list
+    )
+    estimators: Annotated[
+        dict[str, dict[str, Any]],
+        _about(
+            "each side estimator's pose and errors: p_mission (m), q_b_ll (null for a "
+            "position-only one), position_error_m, attitude_error_deg"
+        ),
+    ] = field(default_factory=dict)
+    vo_failures_in_row: Annotated[
+        int, _about("VO steps failed since the last converged one (flight software's status)")
+    ] = 0
+    hga_margin_predicted_deg: Annotated[
+        float,
+        _about(
+            "the HGA margin the rover predicts from its own attitude knowledge, deg "
+            "(estimation.sapp.pointing_knowledge; no truth)"
+        ),
+    ] = math.nan
 
     def as_dict(self) -> dict[str, Any]:
         """The frame as a JSON-ready dict; a figure that does not exist (NaN, e.g. the
@@ -71,6 +109,11 @@ class TelemetryFrame:
             if isinstance(value, float) and not math.isfinite(value):
                 out[key] = None
         return out
+
+
+def telemetry_fields() -> list[str]:
+    """The frame's field names, in order (the CSV columns, the tests' keys)."""
+    return [f.name for f in fields(TelemetryFrame)]
 
 
 def telemetry_schema() -> dict[str, Any]:

@@ -51,9 +51,12 @@ right, so it takes the sign opposite to the cross slope.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -222,11 +225,30 @@ class SlipModel:
     params: SlipParams = field(default_factory=SlipParams)
     no_slip: bool = False
     geometry: RoverGeometry = MER_GEOMETRY
-    state: FloatArray = field(default_factory=lambda: np.zeros(2))  # (slip, creep) noise
+    noise_state: FloatArray = field(default_factory=lambda: np.zeros(2))  # (slip, creep) noise
 
     def __post_init__(self) -> None:
         if not self.no_slip and self.rng is None:
             raise InputError("rng", "a numpy.random.Generator is required unless no_slip")
+
+    def state(self) -> dict[str, Any]:
+        """The noise state, the generator and the parameters (a benchmark may change
+        them) as plain data."""
+        return {
+            "noise_state": self.noise_state.copy(),
+            "rng": None if self.rng is None else self.rng.bit_generator.state,
+            "params": dataclasses.asdict(self.params),
+        }
+
+    def load_state(self, state: Mapping[str, Any]) -> None:
+        """Load ``state`` (``state()``) onto a model built for the same soil."""
+        self.noise_state = np.array(state["noise_state"], dtype=np.float64)
+        if self.rng is not None:
+            self.rng.bit_generator.state = state["rng"]
+        params = dict(state["params"])
+        if params.get("slip_range") is not None:
+            params["slip_range"] = tuple(params["slip_range"])
+        self.params = SlipParams(**params)
 
     @classmethod
     def ideal(cls, soil: Soil, geometry: RoverGeometry = MER_GEOMETRY) -> SlipModel:
@@ -254,7 +276,7 @@ class SlipModel:
         # (steps equal to 1e-9 relative count as equal: a schedule's float round-off).
         change = np.abs(np.diff(d)) > 1e-9 * np.maximum(d[1:], d[:-1])
         starts = np.concatenate([[0], np.flatnonzero(change) + 1, [d.shape[0]]])
-        state = self.state.copy()
+        state = self.noise_state.copy()
         for lo, hi in itertools.pairwise(starts):
             phi = math.exp(-d[lo] / p.correlation_length_m)
             gain = math.sqrt(max(1.0 - phi * phi, 0.0))
@@ -263,7 +285,7 @@ class SlipModel:
                 y, _ = lfilter([1.0], [1.0, -phi], x, zi=[phi * state[j]])
                 out[lo:hi, j] = y
                 state[j] = y[-1]
-        self.state = state
+        self.noise_state = state
         if p.slip_range is not None:
             out[:, 0] = self.rng.uniform(*p.slip_range)
         return out

@@ -150,7 +150,7 @@ def summarize(
     lon_west_deg = (360.0 - sim.site.lon_east_deg) % 360.0
     mission = sim.site.mission  # sols count from the landing of this site's rover
     totals = sim.totals
-    roll, pitch, yaw = Rotation.from_quat(sim.state.q_s_b).as_euler("ZYX")[::-1]
+    roll, pitch, yaw = Rotation.from_quat(sim.drive_state.q_s_b).as_euler("ZYX")[::-1]
     summary: dict[str, Any] = {
         "scenario": scenario.name,
         "description": scenario.description,
@@ -168,7 +168,7 @@ def summarize(
         "idle_s_jumped": totals.idle_s_jumped,
         "wall_s": wall_s,
         "distance_truth_m": totals.distance_truth_m,
-        "final_p_s": [float(v) for v in sim.state.p_s],
+        "final_p_s": [float(v) for v in sim.drive_state.p_s],
         "final_heading_deg": round(math.degrees(yaw), 9) % 360.0,  # -1e-16 is North, not 360
         "final_roll_deg": math.degrees(roll),
         "final_pitch_deg": math.degrees(pitch),

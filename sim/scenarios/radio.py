@@ -121,7 +121,7 @@ def _truth_drive(
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Random legs and arcs until the drive lasts ``DURATION_S``: (t, p_s, q_s_b) samples."""
     t0 = sim.t_s
-    ts, ps, qs = [np.array([t0])], [sim.state.p_s[None, :]], [sim.state.q_s_b[None, :]]
+    ts, ps, qs = [np.array([t0])], [sim.drive_state.p_s[None, :]], [sim.drive_state.q_s_b[None, :]]
     while ts[-1][-1] < t0 + DURATION_S + 1.0:
         if rng.random() < 0.4:
             seg = sim.drive_straight(float(rng.uniform(2.0, 6.0)))

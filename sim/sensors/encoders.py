@@ -21,7 +21,9 @@ forward; steering angles positive turn the wheel's front to the right (about bod
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -101,6 +103,22 @@ class MobilityEncoders:
         self._rng = rng
         self._phase = rng.uniform(0.0, 1.0, 6)
         self._theta_on_rad: FloatArray | None = None
+
+    def state(self) -> dict[str, Any]:
+        """The counts' phase and reference angle and the noise generator (plain data)."""
+        theta = self._theta_on_rad
+        return {
+            "phase": self._phase.copy(),
+            "theta_on_rad": None if theta is None else theta.copy(),
+            "rng": self._rng.bit_generator.state,
+        }
+
+    def load_state(self, state: Mapping[str, Any]) -> None:
+        """Load ``state`` (``state()``) onto encoders built from the same parameters."""
+        self._phase = np.array(state["phase"], dtype=np.float64)
+        theta = state["theta_on_rad"]
+        self._theta_on_rad = None if theta is None else np.array(theta, dtype=np.float64)
+        self._rng.bit_generator.state = state["rng"]
 
     @property
     def params(self) -> EncoderParams:

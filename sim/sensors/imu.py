@@ -41,7 +41,9 @@ delta-angle LSB is far below the 10 urad per-sample ARW) are not modelled.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -123,6 +125,24 @@ class Ln200Imu:
         self._accel_bias_m_s2 = rng.normal(0.0, 1.0, 3) * sigma_acc
         self._arw_rad_per_sqrt_s = params.gyro_arw_deg_per_sqrt_h * DEG_PER_SQRT_H_TO_RAD_PER_SQRT_S
         self._vrw_m_s_per_sqrt_s = params.accel_noise_ug_per_sqrt_hz * 1e-6 * STANDARD_GRAVITY_M_S2
+
+    def state(self) -> dict[str, Any]:
+        """The biases, the time of the last sample and the noise generator (plain data)."""
+        return {
+            "t_s": self._t_s,
+            "gyro_bias_on_rad_s": self._gyro_bias_on_rad_s.copy(),
+            "gyro_bias_gm_rad_s": self._gyro_bias_gm_rad_s.copy(),
+            "accel_bias_m_s2": self._accel_bias_m_s2.copy(),
+            "rng": self._rng.bit_generator.state,
+        }
+
+    def load_state(self, state: Mapping[str, Any]) -> None:
+        """Load ``state`` (``state()``) onto an IMU built from the same parameters."""
+        self._t_s = float(state["t_s"])
+        self._gyro_bias_on_rad_s = np.array(state["gyro_bias_on_rad_s"], dtype=np.float64)
+        self._gyro_bias_gm_rad_s = np.array(state["gyro_bias_gm_rad_s"], dtype=np.float64)
+        self._accel_bias_m_s2 = np.array(state["accel_bias_m_s2"], dtype=np.float64)
+        self._rng.bit_generator.state = state["rng"]
 
     @property
     def t_s(self) -> float:

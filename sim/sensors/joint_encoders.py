@@ -12,7 +12,9 @@ about 0.002 rad/s of joint-rate noise, which the filter's slip noise allows for.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -59,6 +61,14 @@ class JointEncoders:
     def __init__(self, params: JointEncoderParams, rng: np.random.Generator) -> None:
         self._p = params
         self._rng = rng
+
+    def state(self) -> dict[str, Any]:
+        """The noise generator's state (plain data; a checkpoint)."""
+        return {"rng": self._rng.bit_generator.state}
+
+    def load_state(self, state: Mapping[str, Any]) -> None:
+        """Load ``state`` (``state()``) onto a sensor built from the same parameters."""
+        self._rng.bit_generator.state = state["rng"]
 
     def read(self, truth: TruthTrajectory) -> JointSamples:
         """Quantised noisy readings of the truth suspension angles."""

@@ -17,7 +17,9 @@ from sample to sample.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -75,6 +77,14 @@ class WassSunSensor:
     def __init__(self, params: SunSensorParams, rng: np.random.Generator) -> None:
         self._p = params
         self._rng = rng
+
+    def state(self) -> dict[str, Any]:
+        """The noise generator's state (plain data; a checkpoint)."""
+        return {"rng": self._rng.bit_generator.state}
+
+    def load_state(self, state: Mapping[str, Any]) -> None:
+        """Load ``state`` (``state()``) onto a sensor built from the same parameters."""
+        self._rng.bit_generator.state = state["rng"]
 
     def measure(self, t_s: ArrayLike, q_s_b: ArrayLike, sun_s: ArrayLike) -> SunSensorSamples:
         """Readings for the truth attitude ``q_s_b`` (N, 4) and the unit Sun ``sun_s``

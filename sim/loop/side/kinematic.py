@@ -21,9 +21,9 @@ Site: x North, y East, z Down), so Site changes do not concern it. Its noise sen
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -87,6 +87,10 @@ class SideRunner(Protocol):
     def drive(self, seg: Segment, inputs: DriveInputs) -> SideEstimate: ...
 
     def rest_until(self, t_s: float, p_s_true: FloatArray) -> None: ...
+
+    def state(self) -> dict[str, Any]: ...
+
+    def load_state(self, state: Mapping[str, Any]) -> None: ...
 
 
 def starts_with_steering(kind: str, steer_rad: FloatArray) -> bool:
@@ -218,9 +222,7 @@ class KinematicEkfRunner:
         )
         if self.ekf is None:
             p0, q_b_ll0 = inputs.start
-            q_s_b0 = Rotation.from_quat(q_b_ll0).inv().as_quat()
-            # the LN-200 has three axes; the rover drives its wheels at their commanded rates
-            self.ekf = KinematicEkf(q_s_b0, p0, gyro="3axis", noise=RATE_CONTROLLED_WHEELS)
+            self.ekf = _new_ekf(Rotation.from_quat(q_b_ll0).inv().as_quat(), p0)
         ekf = self.ekf
         truth = seg.truth
         t = truth.t_s
@@ -243,7 +245,30 @@ class KinematicEkfRunner:
         ekf.set_command(np.zeros(3), np.zeros(3))  # at rest until the next drive
         return SideEstimate(p, q)
 
+    def state(self) -> dict[str, Any]:
+        """The sensors' generators and the filter (``None`` before the first drive)."""
+        return {
+            "joints": self.joints.state(),
+            "sun_sensor": self.sun_sensor.state(),
+            "ekf": None if self.ekf is None else self.ekf.state(),
+        }
+
+    def load_state(self, state: Mapping[str, Any]) -> None:
+        """Load ``state`` (``state()``) onto a runner built for the same session."""
+        self.joints.load_state(state["joints"])
+        self.sun_sensor.load_state(state["sun_sensor"])
+        self.ekf = None
+        if state["ekf"] is not None:
+            self.ekf = _new_ekf(np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3))
+            self.ekf.load_state(state["ekf"])
+
     def _pose(self) -> tuple[FloatArray, FloatArray]:
         assert self.ekf is not None
         est = self.ekf.estimate()
         return est.p_s, est.q_b_s
+
+
+def _new_ekf(q_s_b0: FloatArray, p0: FloatArray) -> KinematicEkf:
+    """The filter at ``(q_s_b0, p0)``: the LN-200 has three axes; the rover drives its
+    wheels at their commanded rates."""
+    return KinematicEkf(q_s_b0, p0, gyro="3axis", noise=RATE_CONTROLLED_WHEELS)

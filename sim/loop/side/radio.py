@@ -49,6 +49,8 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -166,6 +168,38 @@ class RadioEkfRunner:
             return
         grid = REST_RANGE_EVERY_S * np.arange(first, last + 1, dtype=np.float64)
         self._range_update(grid, np.tile(p_s_true, (grid.size, 1)))
+
+    # ---- checkpoint ------------------------------------------------------------------
+
+    def state(self) -> dict[str, Any]:
+        """The generator, the filter and the pass's beacon (``None`` before they start),
+        as plain data; the maps are caches, rebuilt from the seed."""
+        beacon = self.beacon
+        return {
+            "rng": self.rng.bit_generator.state,
+            "ekf": None if self.ekf is None else self.ekf.state(),
+            "beacon": None
+            if beacon is None
+            else {"state_j2000": beacon.state_j2000(), "t_s": beacon.t_s},
+            "last_seen_t_s": self.last_seen_t_s,
+            "rest_t_s": self.rest_t_s,
+        }
+
+    def load_state(self, state: Mapping[str, Any]) -> None:
+        """Load ``state`` (``state()``) onto a runner built for the same session."""
+        self.rng.bit_generator.state = state["rng"]
+        self.ekf = None
+        if state["ekf"] is not None:
+            self._start(np.zeros(3))
+            assert self.ekf is not None
+            self.ekf.load_state(state["ekf"])
+        beacon = state["beacon"]
+        self.beacon = None
+        if beacon is not None:
+            rv = np.array(beacon["state_j2000"], dtype=np.float64)
+            self.beacon = OrbitingBeacon(rv[:3], rv[3:], float(beacon["t_s"]))
+        self.last_seen_t_s = float(state["last_seen_t_s"])
+        self.rest_t_s = float(state["rest_t_s"])
 
     # ---- driving ---------------------------------------------------------------------
 

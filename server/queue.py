@@ -1,0 +1,188 @@
+"""A rover's queue of accepted sequences (``server.runtime``): its entries, where they may
+move, and their checkpointed form.
+
+Only the head of the queue runs. A sequence that has started, and an immediate command,
+keep their place (nothing moves in front of them): a started sequence's later steps assume
+the rover its earlier steps left, and an immediate command was sent to run next.
+
+In a checkpoint a queued sequence is plain data: its text (``sequences.language.to_text``,
+parsed again on restore) and where it stands.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from collections.abc import Sequence as Seq
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+from sequences.language import Sequence, parse, to_text
+
+
+@dataclass(frozen=True)
+class StepOutcome:
+    """How a step of a queued sequence ended (its command report, in short)."""
+
+    status: str  # "completed", "failed" or "refused"
+    reason: str | None
+    start_t_s: float
+    end_t_s: float
+
+
+@dataclass
+class QueuedSequence:
+    """An accepted sequence in a rover's queue; ``next_step`` indexes ``sequence.steps``."""
+
+    sequence_id: int
+    sequence: Sequence
+    next_step: int = 0
+    immediate: bool = False
+    wait_left_s: float | None = None  # a WAIT under way in chunks: what is left of it
+    problems: list[str] = field(default_factory=list)  # steps that failed or were refused
+    halted: bool = False  # a refused step stopped the sequence
+    started: bool = False  # its first step has been taken up: it keeps its place
+    outcomes: list[StepOutcome] = field(default_factory=list)  # steps done, in order
+
+    @property
+    def has_started(self) -> bool:
+        """A step of it has run or is running (so its place in the queue is fixed)."""
+        return self.started or self.next_step > 0 or self.wait_left_s is not None
+
+    def state(self) -> dict[str, Any]:
+        """The entry as plain data (the sequence as its text)."""
+        return {
+            "sequence_id": self.sequence_id,
+            "text": to_text(self.sequence),
+            "next_step": self.next_step,
+            "immediate": self.immediate,
+            "wait_left_s": self.wait_left_s,
+            "problems": list(self.problems),
+            "halted": self.halted,
+            "started": self.started,
+            "outcomes": [asdict(o) for o in self.outcomes],
+        }
+
+    @classmethod
+    def from_state(cls, state: Mapping[str, Any]) -> QueuedSequence:
+        """The entry of ``state()``."""
+        return cls(
+            sequence_id=int(state["sequence_id"]),
+            sequence=parse(state["text"]),
+            next_step=int(state["next_step"]),
+            immediate=bool(state["immediate"]),
+            wait_left_s=state["wait_left_s"],
+            problems=list(state["problems"]),
+            halted=bool(state["halted"]),
+            started=bool(state["started"]),
+            outcomes=[StepOutcome(**o) for o in state["outcomes"]],
+        )
+
+
+class QueueError(Exception):
+    """A queue change refused; the message says why (``NotQueuedError``: not in it)."""
+
+
+class NotQueuedError(QueueError):
+    """The sequence is not in this rover's queue."""
+
+
+@dataclass(frozen=True)
+class QueueEntry:
+    """A copy of one queued sequence, taken under the runtime's lock (``queue_snapshot``):
+    ``pinned`` says why it cannot move (``None``: it can), ``running_step`` the index of
+    the step executing or playing out now (``None``: none of its steps)."""
+
+    sequence_id: int
+    sequence: Sequence
+    immediate: bool
+    started: bool
+    next_step: int
+    halted: bool
+    outcomes: tuple[StepOutcome, ...]
+    running_step: int | None
+    pinned: str | None
+
+
+@dataclass(frozen=True)
+class Cancelled:
+    """Where a cancelled sequence stopped: the steps done and the one still running (it
+    runs to its end: a command is not interrupted), if any."""
+
+    steps: int
+    done: int
+    running_step: int | None
+
+
+def pinned(item: QueuedSequence) -> str | None:
+    """Why ``item`` keeps its place in the queue (``None``: it may move)."""
+    if item.immediate:
+        return "is an immediate command (it runs before every queued step)"
+    if item.has_started:
+        steps = len(item.sequence.steps)
+        return f"has started (at step {min(item.next_step + 1, steps)} of {steps})"
+    return None
+
+
+def insert(queue: list[QueuedSequence], item: QueuedSequence) -> None:
+    """Put ``item`` in ``queue``: an immediate command before the sequences but after the
+    immediate commands sent before it (commands run in the order sent), a sequence last."""
+    if item.immediate:
+        ahead = next((i for i, q in enumerate(queue) if not q.immediate), None)
+        queue.insert(len(queue) if ahead is None else ahead, item)
+    else:
+        queue.append(item)
+
+
+def moved(
+    items: Seq[QueuedSequence], sequence_id: int, to: int, rover: str
+) -> list[QueuedSequence] | None:
+    """``items`` with sequence ``sequence_id`` at position ``to`` (0 is the head), the others
+    keeping their order; ``None`` if it is there already. Refused (``QueueError`` saying
+    why) for a pinned sequence, in front of one, or past the end (module docstring)."""
+    out = list(items)
+    at = next((i for i, q in enumerate(out) if q.sequence_id == sequence_id), None)
+    if at is None:
+        raise NotQueuedError(f"sequence {sequence_id} is not in {rover}'s queue")
+    why = pinned(out[at])
+    if why is not None:
+        raise QueueError(f"sequence {sequence_id} {why}: it keeps its place")
+    if to >= len(out):
+        raise QueueError(
+            f"position {to} is past the end of the queue (positions 0 to {len(out) - 1})"
+        )
+    fixed = [i for i, q in enumerate(out) if pinned(q) is not None]
+    if fixed and to <= fixed[-1]:
+        head = out[fixed[-1]]
+        raise QueueError(
+            f"position {to} is in front of sequence {head.sequence_id}, which "
+            f"{pinned(head)}: the highest free position is {fixed[-1] + 1}"
+        )
+    if to == at:
+        return None
+    out.insert(to, out.pop(at))
+    return out
+
+
+def merged(
+    saved: Iterable[Mapping[str, Any]], queue: Iterable[QueuedSequence], removed: int | None
+) -> list[dict[str, Any]]:
+    """A checkpoint's queue ``saved`` (entries' ``state()``, an older copy) with the queue
+    changes since applied: sequences that finished since keep their places there (a restart
+    runs them again), ``removed`` goes, one queued since is added as new, and the others take
+    the order they have in ``queue`` now."""
+    out = [dict(q) for q in saved if q["sequence_id"] != removed]
+    now = list(queue)
+    held = {q["sequence_id"] for q in out}
+    for q in now:
+        if q.sequence_id not in held:
+            fresh = QueuedSequence(q.sequence_id, q.sequence, immediate=q.immediate).state()
+            if q.immediate:
+                out.insert(0, fresh)
+            else:
+                out.append(fresh)
+    order = {q.sequence_id: i for i, q in enumerate(now)}
+    slots = [i for i, q in enumerate(out) if q["sequence_id"] in order]
+    ordered = sorted((out[i] for i in slots), key=lambda q: order[q["sequence_id"]])
+    for slot, q in zip(slots, ordered, strict=True):
+        out[slot] = q
+    return out

@@ -1,0 +1,131 @@
+"""What a command handler works on (``sim.loop.handlers``): the simulated rover, its flight
+software, the frame recorder, the side estimators and the VO of ``vo=on`` drives, with the
+ways NATE is stepped on the simulator's samples.
+
+How time passes (docs/DESIGN.md, "One control cycle"). Motion runs at 8 Hz: a drive's
+truth and sensor samples are made as a batch (``sim.loop.rover_sim``) and NATE steps
+through them one cycle at a time with the encoders. NATE's 8 Hz modes (Nadir Update and
+Check, Articulate, the Sungaze gravity window) get every 8 Hz sample. A camera mode waits
+for its image: the clock jumps to the requested time with one aggregated IMU sample, the
+Pancam frame is rendered at the commanded mast pointing from the truth
+(``RoverSim.pancam_sun_image``), and NATE steps with both. Gyrocompassing and Idle waits
+are jumped over the same way. NATE's clock and the simulator's advance together (every
+sample's ``dt``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from estimation.events import Event, Severity
+from estimation.sapp.nate import EncoderSample, ImuSample, Nate, NateOutput
+from estimation.sapp.wheel_odometry import steer_six
+from estimation.vo.odometry import VisualOdometry
+from sim.loop.frames import FrameRecorder
+from sim.loop.rover_sim import RoverSim, Segment
+from sim.loop.side.estimators import SideEstimators
+from sim.loop.vo_drive import EstimatedPose, VoDriveOptions
+from sim.rover.truth import CONTROL_DT_S
+from sim.sensors.imu import ImuSamples
+
+FloatArray = NDArray[np.float64]
+
+WAIT_CHUNK_S = 600.0  # 8 Hz waits are simulated in chunks of this length
+
+
+class CommandRefusedError(Exception):
+    """A command refused before it changed anything."""
+
+
+@dataclass
+class LoopContext:
+    """The rover and its flight software in the loop; ``results`` collects the results of
+    the modes the command running completed (``CommandReport.results``)."""
+
+    sim: RoverSim
+    nate: Nate
+    recorder: FrameRecorder
+    side: SideEstimators
+    vo: VisualOdometry
+    vo_options: VoDriveOptions
+    results: list[Any] = field(default_factory=list)
+
+    def event(self, text: str, kind: str, severity: Severity = "info") -> None:
+        """An event for the next frame."""
+        self.recorder.events.append(Event(text, kind, severity))
+
+    def estimate(self) -> EstimatedPose:
+        """SAPP's pose now in the current Site."""
+        return EstimatedPose(self.nate.p_s, self.nate.q_b_ll)
+
+    def mission_estimate(self) -> tuple[FloatArray, FloatArray]:
+        """SAPP's ``(p_mission, q_b_ll)`` now (where a side estimator starts)."""
+        nate = self.nate
+        p_mission: FloatArray = nate.sites.to_mission(nate.p_s, nate.sites.current.index)
+        return p_mission, nate.q_b_ll
+
+    def run_until_idle(self) -> dict[str, Any]:
+        """Feed NATE until the acquisition, check or gyrocompass it started has ended."""
+        nate, sim, frame = self.nate, self.sim, self.recorder.at_rest
+        aqf_before = nate.aqf
+        results: list[Any] = []
+        while nate.busy:
+            request = nate.camera_request
+            hint = nate.wait_hint_s
+            if request is not None:
+                samples = sim.rest(max(hint, CONTROL_DT_S))  # slew, expose: one cycle at least
+                image = sim.pancam_sun_image(request.az_rad, request.el_rad).image
+                out = nate.step(imu_sample(samples, 0), image=image)
+                results += [out.completed] if out.completed is not None else []
+                frame(out, force=True)
+            elif hint <= CONTROL_DT_S:
+                samples = sim.rest_cycles(1.0)
+                for k in range(len(samples)):
+                    out = nate.step(imu_sample(samples, k))
+                    results += [out.completed] if out.completed is not None else []
+                    frame(out, force=out.completed is not None)
+            else:
+                out = nate.step(imu_sample(sim.rest(hint), 0))
+                results += [out.completed] if out.completed is not None else []
+                frame(out, force=True)
+        details: dict[str, Any] = {"aqf_before": aqf_before.paper_name, "aqf": nate.aqf.paper_name}
+        self.results = results
+        if results and not results[-1].success:
+            details["failure"] = self.recorder.last_event() or "the mode failed"
+        return details
+
+    def wait(self, duration_s: float) -> None:
+        """Let time pass; Articulate keeps propagating at 8 Hz, Idle is jumped over."""
+        nate, sim, frame = self.nate, self.sim, self.recorder.at_rest
+        if nate.busy:
+            raise CommandRefusedError(f"WAIT: refused while {nate.mode.value} runs")
+        if nate.wait_hint_s > CONTROL_DT_S:  # Idle: one jump
+            out = nate.step(imu_sample(sim.rest(duration_s), 0))
+            frame(out, force=True)
+            return
+        remaining = duration_s
+        while remaining > 1e-9:
+            chunk = min(WAIT_CHUNK_S, remaining)
+            samples = sim.rest_cycles(chunk)
+            for k in range(len(samples)):
+                frame(nate.step(imu_sample(samples, k)))
+            remaining -= chunk
+
+    def step_segment(self, seg: Segment) -> list[NateOutput]:
+        """NATE through a drive segment, cycle by cycle with the encoders."""
+        wheel = self.sim.encoders.wheel_angle_rad(seg.encoders.wheel_counts)
+        steer = seg.encoders.steer_rad
+        outputs = []
+        for k in range(len(seg.imu)):
+            enc = EncoderSample(wheel[k + 1], steer_six(steer[k + 1]))
+            outputs.append(self.nate.step(imu_sample(seg.imu, k), enc))
+        return outputs
+
+
+def imu_sample(samples: ImuSamples, k: int) -> ImuSample:
+    """Sample ``k`` of ``samples`` as NATE takes it."""
+    return ImuSample(samples.delta_angle_b[k], samples.delta_velocity_b[k], float(samples.dt_s[k]))

@@ -1,0 +1,192 @@
+"""One handler per command type: what the session does with each command of the dictionary
+(``sequences.commands.COMMANDS``), from one table, ``HANDLERS``.
+
+A handler takes the loop (``sim.loop.context.LoopContext``) and its command, runs it to
+completion and returns the details for its report (``"failure"``: the mode ran and failed,
+with the reason). It refuses, with nothing changed, by raising ``CommandRefusedError``,
+``ValueError`` or ``InputError`` (NATE refuses a wrong mode, an out-of-range parameter, the
+sun too low; the simulator a drive outside its limits). Adding a command: its class in
+``sequences.commands`` and its handler here, in ``HANDLERS``.
+
+The HGA figures of an HGA pass are those of the frames (``sim.loop.frames``): the pass fails
+when its worst error leaves no margin.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from typing import Any
+
+from estimation.events import Event, Severity
+from estimation.ivp import earth_ll
+from estimation.sapp.aqf import AttitudeQuality
+from estimation.sapp.hga_pointing import point_hga
+from estimation.sapp.nate import DriveCommand, Nate
+from estimation.sapp.sun_modes import SunResult
+from estimation.sapp.wheel_odometry import DriveKind
+from sequences import commands as cmd
+from sim.loop import drives
+from sim.loop.context import CommandRefusedError, LoopContext, imu_sample
+from sim.rover.truth import CONTROL_DT_S
+
+Details = dict[str, Any]
+Handler = Callable[[LoopContext, Any], Details]
+
+HGA_FRAME_S = 60.0  # one frame a minute during an Idle HGA pass
+
+# ---- drives (sim.loop.drives) --------------------------------------------------------------
+
+
+def drive_straight(ctx: LoopContext, c: cmd.DriveStraight) -> Details:
+    return drives.move(ctx, DriveCommand(DriveKind.STRAIGHT), "straight", (c.distance_m,), c)
+
+
+def drive_arc(ctx: LoopContext, c: cmd.DriveArc) -> Details:
+    arc = (c.radius_m, math.radians(c.angle_deg))
+    return drives.move(ctx, DriveCommand(DriveKind.ARC, c.radius_m), "arc", arc, c)
+
+
+def turn_in_place(ctx: LoopContext, c: cmd.TurnInPlace) -> Details:
+    turn = (math.radians(c.angle_deg),)
+    return drives.move(ctx, DriveCommand(DriveKind.TURN_IN_PLACE), "turn", turn, c)
+
+
+# ---- NATE's settings and modes at once ----------------------------------------------------
+
+
+def plant_site(ctx: LoopContext, c: cmd.PlantSite) -> Details:
+    index = ctx.nate.plant_site()
+    ctx.recorder.site_origins_true.append(ctx.sim.drive_state.p_s.copy())
+    ctx.event(f"Site {index} planted", "site")
+    ctx.recorder.now(force=True)
+    return {"site_index": index}
+
+
+def set_param(ctx: LoopContext, c: cmd.SetParam) -> Details:
+    ctx.nate.set_param(c.param, c.value)
+    ctx.event(f"parameter {c.param} = {c.value}", "parameter")
+    ctx.recorder.now(force=True)
+    return {}
+
+
+def articulate_start(ctx: LoopContext, c: cmd.ArticulateStart) -> Details:
+    ctx.nate.articulate()
+    ctx.recorder.now(force=True)
+    return {}
+
+
+def articulate_stop(ctx: LoopContext, c: cmd.ArticulateStop) -> Details:
+    ctx.nate.stop()
+    ctx.recorder.now(force=True)
+    return {}
+
+
+def wait(ctx: LoopContext, c: cmd.Wait) -> Details:
+    ctx.wait(c.duration_s)
+    return {}
+
+
+# ---- acquisitions: a NATE mode started, then run until NATE is idle again -----------------
+
+# How each acquisition command starts its NATE mode.
+ACQUISITIONS: Mapping[type[cmd.Command], Callable[[Nate, Any], object]] = {
+    cmd.NadirUpdate: lambda nate, c: nate.nadir_update(c.window_s),
+    cmd.NadirCheck: lambda nate, c: nate.nadir_check(c.window_s, c.tolerance_deg),
+    cmd.Sunfind: lambda nate, c: nate.sunfind(),
+    cmd.Suncheck: lambda nate, c: nate.suncheck(c.tolerance_deg),
+    cmd.Sungaze: lambda nate, c: nate.sungaze(c.use_gravity),
+    cmd.GetTiltAttitude: lambda nate, c: nate.get_tilt_attitude(),
+    cmd.GetCoarseAttitude: lambda nate, c: nate.get_coarse_attitude(),
+    cmd.GetFineAttitude: lambda nate, c: nate.get_fine_attitude(),
+    cmd.SuncheckSungaze: lambda nate, c: nate.suncheck_sungaze(),
+    cmd.Gyrocompass: lambda nate, c: nate.gyrocompass(c.duration_s),
+}
+
+
+def acquisition(ctx: LoopContext, c: cmd.Command) -> Details:
+    ACQUISITIONS[type(c)](ctx.nate, c)
+    return ctx.run_until_idle()
+
+
+def suncheck_sungaze(ctx: LoopContext, c: cmd.SuncheckSungaze) -> Details:
+    """SUNCHECK_SUNGAZE's result names its Suncheck's failure (Ali et al. 2005 sec. 4's
+    practice, ``estimation.sapp.nate``): out of tolerance, the command goes on to Sungaze
+    and, if Sungaze converges, completes (its purpose, a Fine attitude, is reached; the
+    Suncheck only pointed the camera) with ``details["suncheck"]`` saying how far off the
+    estimate was; with no sun in the image, it fails with that as its reason."""
+    details = acquisition(ctx, c)
+    results = ctx.results
+    check = results[0] if results else None
+    if not isinstance(check, SunResult) or check.success:
+        return details
+    said = f"Suncheck failed: {check.outcome.value}"
+    if math.isfinite(check.error_rad):
+        said += f" (error {math.degrees(check.error_rad):.2f} deg)"
+    if len(results) > 1:
+        details["suncheck"] = f"{said}; Sungaze ran on the sun it saw"
+    else:
+        details["failure"] = f"{said}; Sungaze not run, AQF {details['aqf']}"
+    return details
+
+
+# ---- the HGA pass --------------------------------------------------------------------------
+
+
+def hga_pass(ctx: LoopContext, c: cmd.HgaPass) -> Details:
+    """An HGA pass of ``c.duration_min``: a frame a minute (every cycle when NATE runs at
+    8 Hz); the worst pointing error over the frames with Earth up is its figure."""
+    nate, sim, recorder = ctx.nate, ctx.sim, ctx.recorder
+    duration_s = c.duration_min * 60.0
+    if nate.busy:
+        raise CommandRefusedError(f"HGA_PASS: refused while {nate.mode.value} runs")
+    earth = earth_ll(sim.t_s, sim.lat_rad, sim.lon_east_rad)
+    if not point_hga(nate.q_b_ll, earth).earth_above_horizon:
+        raise CommandRefusedError("HGA_PASS: Earth is below the horizon (IVP): no link possible")
+    if nate.aqf < AttitudeQuality.FINE:
+        ctx.event(
+            f"HGA pass with AQF {nate.aqf.paper_name}: pointing not assured", "hga", "warning"
+        )
+    first = len(recorder.frames)
+    recorder.now(force=True)
+    end = sim.t_s + duration_s
+    while sim.t_s < end - 1e-9:
+        step = min(HGA_FRAME_S, end - sim.t_s)
+        if nate.wait_hint_s > CONTROL_DT_S:
+            recorder.at_rest(nate.step(imu_sample(sim.rest(step), 0)), force=True)
+        else:
+            samples = sim.rest_cycles(step)
+            for k in range(len(samples)):
+                recorder.at_rest(nate.step(imu_sample(samples, k)))
+    frames = recorder.frames[first:]
+    errors = [f.hga_error_deg for f in frames if f.earth_up]
+    worst = max(errors) if errors else math.nan
+    margin = 2.0 - worst
+    earth_set = len(errors) != len(frames)
+    text = f"HGA pass: worst error {worst:.2f} deg, margin {margin:.2f} deg" + (
+        ", Earth set during the pass" if earth_set else ""
+    )
+    severity: Severity = "error" if margin < 0.0 else "warning" if earth_set else "info"
+    recorder.frames[-1].events.append(Event(text, "hga", severity))
+    out: Details = {"hga_worst_error_deg": worst, "hga_min_margin_deg": margin}
+    if margin < 0.0:
+        out["failure"] = f"HGA margin gone: worst error {worst:.2f} deg > 2 deg"
+    return out
+
+
+# ---- the table -----------------------------------------------------------------------------
+
+HANDLERS: Mapping[type[cmd.Command], Handler] = {
+    cmd.DriveStraight: drive_straight,
+    cmd.DriveArc: drive_arc,
+    cmd.TurnInPlace: turn_in_place,
+    cmd.DriveTo: drives.drive_to,
+    cmd.PlantSite: plant_site,
+    cmd.SetParam: set_param,
+    cmd.ArticulateStart: articulate_start,
+    cmd.ArticulateStop: articulate_stop,
+    cmd.Wait: wait,
+    cmd.HgaPass: hga_pass,
+    **{kind: acquisition for kind in ACQUISITIONS},
+    cmd.SuncheckSungaze: suncheck_sungaze,
+}
