@@ -153,7 +153,7 @@ class RecordingVO(VisualOdometry):
         start = time.perf_counter()
         base = self.baseline.step(left, right, mast_az_rad, mast_el_rad)
         baseline_s = time.perf_counter() - start
-        state = self.sim.state
+        state = self.sim.drive_state
         motion = result.motion
         self.pairs.append(
             PairRecord(
@@ -210,7 +210,8 @@ def _session(spec: DriveSpec, rng: np.random.Generator) -> tuple[RoverSession, d
         step_max_m=ROCK_STEP_M if spec.kind == "rock" else cmd.VO_STEP_MAX_M, rover_shadow=shadow
     )
     session = RoverSession(spec.site_name, spec.seed, utc, x_m=x, y_m=y, yaw_rad=yaw,
-                           frame_every_s=3600.0, vo_options=options)  # fmt: skip
+                           frame_every_s=3600.0, vo_options=options,
+                           visual_odometry=RecordingVO)  # fmt: skip
     slip_range = {"rock": ROCK_SLIP, "slope": SLOPE_SLIP}.get(spec.kind)
     if slip_range is not None:
         session.sim.slip.params = replace(session.sim.slip.params, slip_range=slip_range)
@@ -256,8 +257,8 @@ def drive_run(spec: DriveSpec) -> dict[str, Any]:
     """One benchmark drive (module docstring): errors, step outcomes and their accuracy."""
     rng = np.random.default_rng([spec.seed, spec.index, KINDS.index(spec.kind)])
     session, out = _session(spec, rng)
-    recorder = RecordingVO(session.sim)
-    session.set_visual_odometry(recorder)
+    recorder = session.vo
+    assert isinstance(recorder, RecordingVO)
     p0_est = session.nate.p_s.copy()
     report = session.execute(cmd.DriveStraight(distance_m=spec.length_m, vo=True))
     pairs = recorder.pairs
@@ -298,9 +299,9 @@ def timing_run(width_px: int, seed: int, repeats: int) -> dict[str, Any]:
     utc = _sun_time(rng, "gusev", SUN_ELEVATION_DEG)
     sim = RoverSim("gusev", seed, utc, yaw_rad=float(rng.uniform(-math.pi, math.pi)))
     rig = NAVCAM.at_resolution(width_px)
-    pair0, state0 = sim.navcam_pair(VO_MAST_AZ_RAD, VO_MAST_EL_RAD, rig=rig), sim.state
+    pair0, state0 = sim.navcam_pair(VO_MAST_AZ_RAD, VO_MAST_EL_RAD, rig=rig), sim.drive_state
     sim.drive_straight(TIMING_STEP_M)
-    pair1, state1 = sim.navcam_pair(VO_MAST_AZ_RAD, VO_MAST_EL_RAD, rig=rig), sim.state
+    pair1, state1 = sim.navcam_pair(VO_MAST_AZ_RAD, VO_MAST_EL_RAD, rig=rig), sim.drive_state
     R_s_b0 = Rotation.from_quat(state0.q_s_b).as_matrix()
     predicted: dict[str, Any] = {
         "R_b0_b1_predicted": np.eye(3), "p_b1_b0_predicted": np.array([TIMING_STEP_M, 0.0, 0.0]),

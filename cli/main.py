@@ -283,6 +283,7 @@ def _cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
 def _validate_on_checkpoint(text: str, args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     """Validate ``text`` against the rover's last checkpoint in the server's database."""
     from sequences.validate import validate
+    from server.checkpoint import CheckpointFormatError
     from server.runtime import ROVERS
     from server.storage import Store
     from server.validation_context import stored_rover_site
@@ -303,6 +304,8 @@ def _validate_on_checkpoint(text: str, args: argparse.Namespace) -> tuple[dict[s
         raise InputError("--database-url", f"cannot open {url}: {error}") from None
     try:
         site = stored_rover_site(store, args.rover)
+    except CheckpointFormatError as error:  # written by an older roverops
+        raise InputError("--rover", str(error)) from None
     finally:
         store.close()
     if site is None:

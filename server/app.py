@@ -20,6 +20,7 @@ import contextlib
 import csv
 import io
 import json
+import logging
 import math
 import time
 from collections.abc import AsyncIterator
@@ -72,6 +73,7 @@ from server.runtime import (
     MAX_SPEED,
     ROVERS,
     Cancelled,
+    CheckpointFormatError,
     NotQueuedError,
     QueueError,
     RoverRuntime,
@@ -328,11 +330,14 @@ class Server:
         self.sinks: list[FrameSink] = [StorageSink(self.writer), self.alarms, self.hub]
         for name, spec in ROVERS.items():
             saved = self.store.load_checkpoint(name)
-            runtime = (
-                RoverRuntime.restore(spec, saved[1])
-                if saved
-                else RoverRuntime(spec, estimators=config.estimators)
-            )
+            try:
+                runtime = RoverRuntime.restore(spec, saved[1]) if saved else None
+            except CheckpointFormatError as error:  # an older format: the rover starts fresh
+                logging.getLogger(__name__).warning("%s", error)
+                saved = None
+            if saved is None:
+                runtime = RoverRuntime(spec, estimators=config.estimators)
+            assert runtime is not None
             if saved is None:
                 runtime.set_clock(speed=config.initial_speed)
             if saved is not None:

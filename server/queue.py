@@ -123,6 +123,28 @@ def pinned(item: QueuedSequence) -> str | None:
     return None
 
 
+def snapshot(
+    queue: Iterable[QueuedSequence], current_step: tuple[int, int] | None
+) -> list[QueueEntry]:
+    """Copies of the entries of ``queue``, ``current_step`` (sequence id, step) the step
+    executing or playing out now."""
+    running = current_step
+    return [
+        QueueEntry(
+            sequence_id=q.sequence_id,
+            sequence=q.sequence,
+            immediate=q.immediate,
+            started=q.has_started,
+            next_step=q.next_step,
+            halted=q.halted,
+            outcomes=tuple(q.outcomes),
+            running_step=running[1] if running and running[0] == q.sequence_id else None,
+            pinned=pinned(q),
+        )
+        for q in queue
+    ]
+
+
 def insert(queue: list[QueuedSequence], item: QueuedSequence) -> None:
     """Put ``item`` in ``queue``: an immediate command before the sequences but after the
     immediate commands sent before it (commands run in the order sent), a sequence last."""
@@ -173,16 +195,16 @@ def merged(
     out = [dict(q) for q in saved if q["sequence_id"] != removed]
     now = list(queue)
     held = {q["sequence_id"] for q in out}
-    for q in now:
-        if q.sequence_id not in held:
-            fresh = QueuedSequence(q.sequence_id, q.sequence, immediate=q.immediate).state()
-            if q.immediate:
-                out.insert(0, fresh)
+    for item in now:
+        if item.sequence_id not in held:
+            fresh = QueuedSequence(item.sequence_id, item.sequence, immediate=item.immediate)
+            if item.immediate:
+                out.insert(0, fresh.state())
             else:
-                out.append(fresh)
-    order = {q.sequence_id: i for i, q in enumerate(now)}
+                out.append(fresh.state())
+    order = {item.sequence_id: i for i, item in enumerate(now)}
     slots = [i for i, q in enumerate(out) if q["sequence_id"] in order]
     ordered = sorted((out[i] for i in slots), key=lambda q: order[q["sequence_id"]])
-    for slot, q in zip(slots, ordered, strict=True):
-        out[slot] = q
+    for slot, entry in zip(slots, ordered, strict=True):
+        out[slot] = entry
     return out

@@ -15,26 +15,25 @@ its queue of accepted sequences, and a thread that runs the clock:
   and its frames are then *played out*: published (WebSocket subscribers, storage) as the
   clock reaches their time. So what is stored and shown never runs ahead of the clock.
 - Immediate commands (``POST .../commands``) run before the next queued step, in the order sent.
-- Operators reorder the queue (``move``) and cancel from it (``cancel``). Only the head
-  of the queue runs, and a step starts only if its sequence is still at the head when the
-  clock thread takes it up (checked under ``lock``), so a move or a cancel never races a
-  starting step. A sequence that has started, and an immediate command, keep their place
-  (nothing moves in front of them): a started sequence's later steps assume the rover its
-  earlier steps left, and an immediate command was sent to run next. Every queue change
-  is applied to the last checkpoint at once (``_checkpoint_queue``), so a restart keeps
-  the order the operators saw, and an ``on_queue`` hook hears of it (``server.queue_view``).
+- Operators reorder the queue (``move``) and cancel from it (``cancel``) within the rules of
+  ``server.queue``. A step starts only if its sequence is still at the head when the clock
+  thread takes it up (checked under ``lock``), so a move or a cancel never races a starting
+  step. Every queue change is applied to the last checkpoint at once
+  (``_checkpoint_queue``), so a restart keeps the order the operators saw, and an
+  ``on_queue`` hook hears of it (``server.queue_view``).
 - A step that fails (its mode ran and failed, e.g. a Sunfind that saw no sun) is reported
   and the sequence goes on; a step that is refused (it could not run, e.g. a drive while
   articulating) stops the sequence, whose later steps assumed it: the sequence ends
   ``failed``. A sequence that ran to the end is ``completed``, with the failed steps in
   its ``detail``.
 
-The whole runtime state (session, queue, clock, frames still to play out) is checkpointed
-(pickled, about 10 kB) once per wall second through the storage writer, in the same
-transaction as the frames published before it. A runtime restored from a checkpoint
-resumes there; frames it publishes again up to the last stored one (``watermark_t_s``) are
-dropped, so storage has no duplicates. Steps it runs again (those after the checkpoint)
-report again, and storage keeps one row per step (``server.storage``).
+The runtime's state (session, queue, clock, frames still to play out) is checkpointed as
+plain data (``server.checkpoint``, versioned; ``checkpoint_state``) once per wall second
+through the storage writer, in the same transaction as the frames published before it. A
+runtime restored from a checkpoint resumes there; frames it publishes again up to the last
+stored one (``watermark_t_s``) are dropped, so storage has no duplicates. Steps it runs
+again (those after the checkpoint) report again, and storage keeps one row per step
+(``server.storage``).
 
 The clock is the operators' intent, so it survives any restart (issue 13, defect 7): a
 clock change (pause, resume, speed) is checkpointed at once, as the last checkpoint with
@@ -47,17 +46,29 @@ from __future__ import annotations
 
 import logging
 import math
-import pickle
 import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from datetime import UTC, datetime
 from typing import Any
 
 from sequences import commands as cmd
 from sequences.language import Sequence, TimeTag
+from server.checkpoint import CheckpointFormatError, decode, encode
+from server.queue import (
+    Cancelled,
+    NotQueuedError,
+    QueuedSequence,
+    QueueEntry,
+    QueueError,
+    StepOutcome,
+    insert,
+    merged,
+    moved,
+    snapshot,
+)
 from server.sinks import FrameSink
 from sim.loop.session import RoverSession
 from sim.world.marsclock import (
@@ -68,6 +79,9 @@ from sim.world.marsclock import (
     t_s_for_sol_lmst,
     t_s_to_utc,
 )
+
+# the queue's types are the runtime's vocabulary too (``server.queue``)
+__all__ = ["Cancelled", "CheckpointFormatError", "NotQueuedError", "QueueEntry", "QueueError"]
 
 log = logging.getLogger(__name__)
 
@@ -108,75 +122,6 @@ ROVERS: dict[str, RoverSpec] = {
 }
 
 
-@dataclass(frozen=True)
-class StepOutcome:
-    """How a step of a queued sequence ended (its command report, in short)."""
-
-    status: str  # "completed", "failed" or "refused"
-    reason: str | None
-    start_t_s: float
-    end_t_s: float
-
-
-@dataclass
-class QueuedSequence:
-    """An accepted sequence in a rover's queue; ``next_step`` indexes ``sequence.steps``."""
-
-    sequence_id: int
-    sequence: Sequence
-    next_step: int = 0
-    immediate: bool = False
-    wait_left_s: float | None = None  # a WAIT under way in chunks: what is left of it
-    problems: list[str] = field(default_factory=list)  # steps that failed or were refused
-    halted: bool = False  # a refused step stopped the sequence
-    started: bool = False  # its first step has been taken up: it keeps its place
-    outcomes: list[StepOutcome] = field(default_factory=list)  # steps done, in order
-
-    def __setstate__(self, state: dict[str, Any]) -> None:
-        # a checkpoint of an older version lacks the newer fields
-        self.__dict__.update({"started": False, "outcomes": [], **state})
-
-    @property
-    def has_started(self) -> bool:
-        """A step of it has run or is running (so its place in the queue is fixed)."""
-        return self.started or self.next_step > 0 or self.wait_left_s is not None
-
-
-class QueueError(Exception):
-    """A queue change refused; the message says why (``NotQueuedError``: not in it)."""
-
-
-class NotQueuedError(QueueError):
-    """The sequence is not in this rover's queue."""
-
-
-@dataclass(frozen=True)
-class QueueEntry:
-    """A copy of one queued sequence, taken under the runtime's lock (``queue_snapshot``):
-    ``pinned`` says why it cannot move (``None``: it can), ``running_step`` the index of
-    the step executing or playing out now (``None``: none of its steps)."""
-
-    sequence_id: int
-    sequence: Sequence
-    immediate: bool
-    started: bool
-    next_step: int
-    halted: bool
-    outcomes: tuple[StepOutcome, ...]
-    running_step: int | None
-    pinned: str | None
-
-
-@dataclass(frozen=True)
-class Cancelled:
-    """Where a cancelled sequence stopped: the steps done and the one still running (it
-    runs to its end: a command is not interrupted), if any."""
-
-    steps: int
-    done: int
-    running_step: int | None
-
-
 @dataclass
 class ClockState:
     """The clock: ``running`` and ``speed`` (simulated s per wall s; ``inf`` = max)."""
@@ -185,18 +130,11 @@ class ClockState:
     speed: float = 1.0
 
 
-@dataclass
-class Playout:
-    """Frames of the last command still to be published as the clock reaches them."""
-
-    frames: deque[dict[str, Any]] = field(default_factory=deque)
-
-
 class RoverRuntime:
     """One rover on its own clock (module docstring). ``sinks`` receive every frame
     batch as it is played out (``server.sinks``: storage, alarms, WebSocket hub, 3D view);
     ``on_command`` every command report; ``on_sequence`` sequence status changes; ``on_checkpoint``
-    pickled state (called under ``lock``, so checkpoints arrive in the order they were taken);
+    the encoded state (called under ``lock``, so checkpoints arrive in the order they were taken);
     ``commit`` stores what ``on_checkpoint`` queued, at once (a clock change)."""
 
     def __init__(
@@ -206,6 +144,7 @@ class RoverRuntime:
         estimators: tuple[str, ...] = ("sapp",),
     ) -> None:
         self.spec = spec
+        self.estimators = tuple(estimators)
         self.session = session or RoverSession(
             spec.site, spec.seed, spec.start_utc, frame_every_s=FRAME_EVERY_S, estimators=estimators
         )
@@ -226,7 +165,7 @@ class RoverRuntime:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._last_checkpoint_wall = 0.0
-        self._last_blob: bytes | None = None  # the last checkpoint taken (or restored)
+        self._last_state: dict[str, Any] | None = None  # the last checkpoint taken (or restored)
         self._clock_changed = False  # since the clock thread's last checkpoint
         self.last_frame: dict[str, Any] | None = None
         self.watermark_t_s = -math.inf  # frames up to here are stored already (restore)
@@ -261,7 +200,7 @@ class RoverRuntime:
     def set_clock(self, running: bool | None = None, speed: float | None = None) -> None:
         """Pause/resume and set the speed (validated by the caller). A change is stored
         before this returns: the last checkpoint again, with the new clock (the session
-        may be mid-command in the clock thread, so it is not pickled from here); the clock
+        may be mid-command in the clock thread, so its state is not taken from here); the clock
         thread checkpoints the state the change took effect in at its next tick."""
         with self.lock:
             before = (self.clock.running, self.clock.speed)
@@ -272,11 +211,9 @@ class RoverRuntime:
             if (self.clock.running, self.clock.speed) == before:
                 return
             self._clock_changed = True
-            if self._last_blob is None or self.on_checkpoint is None:
+            if self._last_state is None or self.on_checkpoint is None:
                 return
-            state = pickle.loads(self._last_blob)
-            state["clock"] = ClockState(self.clock.running, self.clock.speed)
-            self._save(state)
+            self._save({**self._last_state, "clock": self._clock_state()})
         if self.commit is not None:
             self.commit()
 
@@ -284,12 +221,9 @@ class RoverRuntime:
         """Queue an accepted sequence. An immediate command goes before the sequences but
         after the immediate commands sent before it, so commands run in the order sent."""
         with self.lock:
-            item = QueuedSequence(sequence_id, sequence, immediate=immediate)
-            if immediate:
-                ahead = next((i for i, q in enumerate(self.queue) if not q.immediate), None)
-                self.queue.insert(len(self.queue) if ahead is None else ahead, item)
-            else:
-                self.queue.append(item)
+            items = list(self.queue)
+            insert(items, QueuedSequence(sequence_id, sequence, immediate=immediate))
+            self.queue = deque(items)
             self._checkpoint_queue()
         self._queue_changed()
 
@@ -317,28 +251,9 @@ class RoverRuntime:
         that has started or an immediate command, in front of one, or past the end
         (module docstring). Stored before this returns."""
         with self.lock:
-            items = list(self.queue)
-            at = next((i for i, q in enumerate(items) if q.sequence_id == sequence_id), None)
-            if at is None:
-                raise NotQueuedError(f"sequence {sequence_id} is not in {self.spec.name}'s queue")
-            why = _pinned(items[at])
-            if why is not None:
-                raise QueueError(f"sequence {sequence_id} {why}: it keeps its place")
-            if to >= len(items):
-                raise QueueError(
-                    f"position {to} is past the end of the queue (positions 0 to {len(items) - 1})"
-                )
-            pinned = [i for i, q in enumerate(items) if _pinned(q) is not None]
-            if pinned and to <= pinned[-1]:
-                head = items[pinned[-1]]
-                raise QueueError(
-                    f"position {to} is in front of sequence {head.sequence_id}, which "
-                    f"{_pinned(head)}: the highest free position is {pinned[-1] + 1}"
-                )
-            if to == at:
+            items = moved(self.queue, sequence_id, to, self.spec.name)
+            if items is None:
                 return
-            item = items.pop(at)
-            items.insert(to, item)
             self.queue = deque(items)
             self._checkpoint_queue()
         self._queue_changed(commit=True)
@@ -351,52 +266,20 @@ class RoverRuntime:
     def queue_snapshot(self) -> list[QueueEntry]:
         """The queue in order, copied under the lock (safe to read from any thread)."""
         with self.lock:
-            running = self.current_step
-            return [
-                QueueEntry(
-                    sequence_id=q.sequence_id,
-                    sequence=q.sequence,
-                    immediate=q.immediate,
-                    started=q.has_started,
-                    next_step=q.next_step,
-                    halted=q.halted,
-                    outcomes=tuple(q.outcomes),
-                    running_step=running[1] if running and running[0] == q.sequence_id else None,
-                    pinned=_pinned(q),
-                )
-                for q in self.queue
-            ]
+            return snapshot(self.queue, self.current_step)
 
     def _checkpoint_queue(self, removed: int | None = None) -> None:
         """Apply a queue change to the last checkpoint and store it (the caller holds
         ``lock``), as ``set_clock`` does a clock change: the session may be mid-command in
-        the clock thread, so it is not pickled from here. The checkpoint's queue is an
-        older copy: sequences that finished since keep their places there (a restart runs
-        them again, as before), ``removed`` goes, one queued since is added as new, and
-        the others take the order they have now."""
-        if self._last_blob is None or self.on_checkpoint is None:
+        the clock thread, so its state is not taken from here (``server.queue.merged``)."""
+        if self._last_state is None or self.on_checkpoint is None:
             return
-        state = pickle.loads(self._last_blob)
-        saved: list[QueuedSequence] = [q for q in state["queue"] if q.sequence_id != removed]
-        held = {q.sequence_id for q in saved}
-        for q in self.queue:
-            if q.sequence_id not in held:
-                fresh = QueuedSequence(q.sequence_id, q.sequence, immediate=q.immediate)
-                if q.immediate:
-                    saved.insert(0, fresh)
-                else:
-                    saved.append(fresh)
-        order = {q.sequence_id: i for i, q in enumerate(self.queue)}
-        slots = [i for i, q in enumerate(saved) if q.sequence_id in order]
-        ordered = sorted((saved[i] for i in slots), key=lambda q: order[q.sequence_id])
-        for slot, q in zip(slots, ordered, strict=True):
-            saved[slot] = q
-        state["queue"] = saved
-        self._save(state)
+        queue = merged(self._last_state["queue"], self.queue, removed)
+        self._save({**self._last_state, "queue": queue})
 
     def _queue_changed(self, commit: bool = False) -> None:
         """Store a queue change at once (``commit``) and tell ``on_queue``."""
-        if commit and self.commit is not None and self._last_blob is not None:
+        if commit and self.commit is not None and self._last_state is not None:
             self.commit()
         if self.on_queue is not None:
             self.on_queue(self.spec.name)
@@ -650,50 +533,59 @@ class RoverRuntime:
             return
         with self.lock:
             self._clock_changed = False
-            self._save(
-                {
-                    "session": self.session,
-                    "queue": list(self.queue),
-                    "clock": self.clock,
-                    "last_done_t_s": self._last_done_t_s,
-                    "playout": list(self._playout),
-                    "clock_t_s": self._clock_t_s,
-                    "executing": self.executing,
-                    "current_step": self.current_step,
-                }
-            )
+            self._save(self.checkpoint_state())
+
+    def checkpoint_state(self) -> dict[str, Any]:
+        """The runtime's state as plain data (``server.checkpoint``): the session's, the
+        queue (each sequence as its text), the clock, the frames still to play out and the
+        step executing. The caller holds ``lock``, between commands."""
+        return {
+            "estimators": list(self.estimators),
+            "session": self.session.state(),
+            "queue": [q.state() for q in self.queue],
+            "clock": self._clock_state(),
+            "last_done_t_s": self._last_done_t_s,
+            "playout": list(self._playout),
+            "clock_t_s": self._clock_t_s,
+            "executing": self.executing,
+            "current_step": None if self.current_step is None else list(self.current_step),
+        }
+
+    def _clock_state(self) -> dict[str, Any]:
+        return {"running": self.clock.running, "speed": self.clock.speed}
 
     def _save(self, state: dict[str, Any]) -> None:
-        """Pickle ``state`` and hand it to ``on_checkpoint`` (the caller holds ``lock``)."""
+        """Encode ``state`` and hand it to ``on_checkpoint`` (the caller holds ``lock``)."""
         assert self.on_checkpoint is not None
-        blob = pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
-        self._last_blob = blob
-        self.on_checkpoint(self.spec.name, state["session"].sim.t_s, blob)
+        blob = encode(self.spec.name, state)
+        self._last_state = state
+        self.on_checkpoint(self.spec.name, float(state["session"]["sim"]["t_s"]), blob)
 
     @classmethod
     def restore(cls, spec: RoverSpec, blob: bytes) -> RoverRuntime:
-        """A runtime from a checkpoint blob (written by this module only: trusted)."""
-        state = pickle.loads(blob)
-        runtime = cls(spec, state["session"])
-        runtime.queue = deque(state["queue"])
-        runtime.clock = state["clock"]
-        runtime._last_done_t_s = state["last_done_t_s"]
-        runtime._playout = deque(state["playout"])
-        runtime._clock_t_s = state["clock_t_s"]
-        runtime.executing = state["executing"]
-        runtime.current_step = state.get("current_step")
-        runtime._last_blob = blob
+        """A runtime from a checkpoint blob (``server.checkpoint``). Raises
+        ``CheckpointFormatError`` for a blob it cannot read (an older format, a newer one,
+        or not a checkpoint): the caller starts the rover fresh."""
+        state = decode(spec.name, blob)
+        try:
+            runtime = cls(spec, estimators=tuple(state["estimators"]))
+            runtime.session.load_state(state["session"])
+            runtime.queue = deque(QueuedSequence.from_state(q) for q in state["queue"])
+            runtime.clock = ClockState(bool(state["clock"]["running"]), state["clock"]["speed"])
+            runtime._last_done_t_s = float(state["last_done_t_s"])
+            runtime._playout = deque(state["playout"])
+            runtime._clock_t_s = float(state["clock_t_s"])
+            runtime.executing = str(state["executing"])
+            step = state["current_step"]
+            runtime.current_step = None if step is None else (int(step[0]), int(step[1]))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise CheckpointFormatError(
+                f"checkpoint of rover {spec.name} does not hold the state this roverops "
+                f"needs ({type(exc).__name__}: {exc}); the rover starts fresh, its stored "
+                "telemetry stays"
+            ) from exc
+        runtime._last_state = state
         return runtime
-
-
-def _pinned(item: QueuedSequence) -> str | None:
-    """Why ``item`` keeps its place in the queue (``None``: it may move)."""
-    if item.immediate:
-        return "is an immediate command (it runs before every queued step)"
-    if item.has_started:
-        steps = len(item.sequence.steps)
-        return f"has started (at step {min(item.next_step + 1, steps)} of {steps})"
-    return None
 
 
 def _speed_json(speed: float) -> float | str:

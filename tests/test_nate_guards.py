@@ -14,6 +14,7 @@ from estimation.sapp.nate import DriveCommand, ImuSample, NateMode
 from estimation.sapp.wheel_odometry import DriveKind
 from sequences import commands as cmd
 from sim.errors import InputError
+from sim.loop import drives
 from sim.loop.session import RoverSession
 from sim.sensors.imu import Ln200Params
 from tests.test_nate_camera import DAY, q_true, rover, run
@@ -68,7 +69,7 @@ def test_a_drive_the_simulator_refuses_leaves_nate_untouched() -> None:
     # no command reaches this (DRIVE_ARC refuses radii under 0.6 m), so call the session's
     # drive directly: the simulator refuses an arc tighter than half the track
     with pytest.raises(InputError, match="radius_m"):
-        session._drive(DriveCommand(DriveKind.ARC, 0.5), "arc", 0.5, 0.2)
+        drives.drive(session.loop, DriveCommand(DriveKind.ARC, 0.5), "arc", 0.5, 0.2)
     assert (nate.mast, nate.q_b_ll.tolist(), nate.aqf, nate.mode, session.sim.t_s) == before
     assert session.execute(cmd.Sungaze()).status == "completed"  # the mast is still on the sun
     assert nate.aqf is Aqf.FINE

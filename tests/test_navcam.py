@@ -338,7 +338,7 @@ def test_bad_inputs_name_the_parameter(change: dict[str, object], parameter: str
 def test_rover_sim_renders_from_its_truth_pose_and_sun() -> None:
     sim = RoverSim("gusev", 3, datetime(2004, 3, 1, 18, 0, tzinfo=UTC))  # Sun 43° up
     pair = sim.navcam_pair(0.5, rig=RIG_256)
-    np.testing.assert_array_equal(pair.p_s, sim.state.p_s)
+    np.testing.assert_array_equal(pair.p_s, sim.drive_state.p_s)
     np.testing.assert_allclose(pair.sun_s, sim.sun_ll(), atol=1e-12)
     assert pair.az_rad == pytest.approx(0.5 + sim.mast_bias_rad[0], abs=1e-12)
     assert pair.el_rad == pytest.approx(math.radians(-35.0) + sim.mast_bias_rad[1], abs=1e-12)

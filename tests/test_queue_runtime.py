@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import contextlib
 import math
-import pickle
 import random
 import re
 import time
@@ -19,7 +18,6 @@ from sequences.validate import validate
 from server.runtime import (
     ROVERS,
     NotQueuedError,
-    QueuedSequence,
     QueueError,
     RoverRuntime,
 )
@@ -221,14 +219,6 @@ def test_the_snapshot_says_each_steps_outcome_and_which_runs() -> None:
     assert entry.started and entry.running_step == 1
     assert [o.status for o in entry.outcomes] == ["completed"]
     assert entry.outcomes[0].end_t_s > entry.outcomes[0].start_t_s
-
-
-def test_a_queued_sequence_from_an_older_checkpoint_restores() -> None:
-    item = QueuedSequence(5, _seq(), next_step=1)
-    del item.__dict__["started"], item.__dict__["outcomes"]  # as an older version pickled it
-    restored = pickle.loads(pickle.dumps(item))
-    assert restored.started is False and restored.outcomes == []
-    assert restored.has_started  # it is past its first step
 
 
 def test_immediate_commands_run_in_the_order_they_were_sent() -> None:

@@ -25,7 +25,7 @@ START = datetime(2004, 4, 14, 15, 0, tzinfo=UTC)
 
 
 def _runner(session: RoverSession) -> RadioEkfRunner:
-    (runner,) = [r for r in session.side if isinstance(r, RadioEkfRunner)]
+    (runner,) = [r for r in session.side.runners if isinstance(r, RadioEkfRunner)]
     return runner
 
 
@@ -138,7 +138,7 @@ def test_a_failing_estimator_beside_sapp_stops_without_refusing_the_drive(
     assert report.status == "completed"
     assert report.details["distance_truth_m"] > 0.9
     assert any(e.text.startswith("radio_ekf stopped: tile_cells") for e in report.events)
-    assert session.side == [] and session.frames[-1].estimators == {}
+    assert session.side.runners == [] and session.frames[-1].estimators == {}
 
 
 def test_parked_frames_use_no_range_from_after_their_own_time() -> None:

@@ -41,7 +41,7 @@ def test_no_slip_straight_drive_on_flat_covers_the_commanded_distance() -> None:
     sim = RoverSim("flat", 0, START, slip=False)
     sim.drive_straight(12.5)
     assert abs(sim.totals.distance_truth_m - 12.5) < 1e-9
-    np.testing.assert_allclose(sim.state.p_s[:2], [12.5, 0.0], atol=1e-9)
+    np.testing.assert_allclose(sim.drive_state.p_s[:2], [12.5, 0.0], atol=1e-9)
     # the encoders agree to within one count (34 um of travel)
     assert abs(sim.totals.distance_odometry_m - 12.5) < 40e-6
 

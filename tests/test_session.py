@@ -22,16 +22,13 @@ from estimation.events import Event
 from estimation.sapp.aqf import AttitudeQuality as Aqf
 from sequences import commands as cmd
 from sim.loop.session import CommandReport, RoverSession
+from sim.loop.telemetry import telemetry_fields
 
 DAY = datetime(2004, 4, 14, 16, 30, tzinfo=UTC)
 NIGHT = datetime(2004, 4, 14, 4, 0, tzinfo=UTC)
 SEED = 1
 # docs/DESIGN.md, "Contracts": the telemetry frame
-TELEMETRY_KEYS = {
-    "t_s", "sol", "lmst_h", "nate_mode", "aqf", "q_b_ll_est", "q_b_ll_true", "p_s_est",
-    "p_s_true", "site_index", "imu_integration_s", "gyro_counter_s", "tilt_est_deg",
-    "tilt_accel_deg", "hga_error_deg", "hga_margin_deg", "command", "events",
-}  # fmt: skip
+TELEMETRY_KEYS = set(telemetry_fields())  # the frame's one definition
 
 
 def nate_state(s: RoverSession) -> tuple[object, ...]:
