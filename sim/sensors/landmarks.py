@@ -191,8 +191,8 @@ class LandmarkTiles:
     """A site's orbital landmark map for a rover that may drive anywhere: square tiles of
     ``tile_cells`` landmark cells, each built (``build_landmark_map``) the first time the
     rover comes within reach of it, from its own seed, so that a tile's landmarks and map
-    errors are the same however often it is built. The built tiles are a cache: they are
-    left out of a pickle (a session's checkpoint) and rebuilt on demand."""
+    errors are the same however often it is built. The built tiles are a cache, not part of
+    a session's checkpoint."""
 
     def __init__(
         self,
@@ -214,11 +214,6 @@ class LandmarkTiles:
         self.spacing_m = float(spacing_m)
         self.tile_m = self.spacing_m * tile_cells
         self._tiles: dict[tuple[int, int], LandmarkMap] = {}
-
-    def __getstate__(self) -> dict[str, object]:
-        state = dict(self.__dict__)
-        state["_tiles"] = {}
-        return state
 
     def around(self, p_s_m: FloatArray, reach_m: float) -> LandmarkMap:
         """The landmarks of every tile within ``reach_m`` of ``p_s_m`` (North, East)."""
@@ -249,7 +244,7 @@ class OrbitalDem:
     """The site's orbital elevation model onboard: ground heights (m, up; no rocks, as
     ``ground_height_m``) on posts ``post_m`` apart (HiRISE stereo DEMs: ~1 m), read
     bilinearly. Built in square tiles of ``tile_posts`` posts the first time a height there
-    is asked for; the tiles are a cache, left out of a pickle."""
+    is asked for; the tiles are a cache, not part of a session's checkpoint."""
 
     def __init__(self, terrain: Terrain, post_m: float = 1.0, tile_posts: int = 64) -> None:
         if not (math.isfinite(post_m) and 0.05 <= post_m <= 100.0):
@@ -260,11 +255,6 @@ class OrbitalDem:
         self.post_m = float(post_m)
         self.tile_posts = tile_posts
         self._tiles: dict[tuple[int, int], FloatArray] = {}
-
-    def __getstate__(self) -> dict[str, object]:
-        state = dict(self.__dict__)
-        state["_tiles"] = {}
-        return state
 
     def height_m(self, north_m: float, east_m: float) -> float:
         """Ground height (m, up) at Site-frame ``(north_m, east_m)``, bilinear in the posts."""

@@ -137,16 +137,6 @@ class AlbedoTexture:
         self._sin = np.sin(angles)
         self._offsets = rng.uniform(0.0, _P, (n_oct + len(style.grains), 2))
 
-    def __getstate__(self) -> dict[str, object]:
-        """Pickle without the 7.5 MB lattice table: it is rebuilt from the seed."""
-        state = self.__dict__.copy()
-        del state["_table"]
-        return state
-
-    def __setstate__(self, state: dict[str, object]) -> None:
-        self.__dict__.update(state)
-        self._table = _lattice_table(np.random.default_rng(derive_key(self._seed, 0xA1BED0)))
-
     def __call__(self, x_m: FloatArray, y_m: FloatArray) -> FloatArray:
         return self.evaluate(x_m, y_m)
 

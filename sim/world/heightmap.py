@@ -108,22 +108,6 @@ class HeightmapTerrain:
         self._lock = threading.Lock()
         self.tiles_built = 0  # a counter for diagnostics and tests
 
-    def __getstate__(self) -> dict[str, object]:
-        """Pickle without the lock and the tile cache: tiles are rebuilt on demand, bit for
-        bit (they are a pure function of the seed), so a checkpoint stays small."""
-        state = self.__dict__.copy()
-        del state["_lock"]
-        state["_pool"] = None
-        state["_slot_of"] = OrderedDict()
-        state["_free"] = []
-        return state
-
-    def __setstate__(self, state: dict[str, object]) -> None:
-        self.__dict__.update(state)
-        self._pool = np.empty((self._capacity, self._m, self._m))
-        self._free = list(range(self._capacity - 1, -1, -1))
-        self._lock = threading.Lock()
-
     @property
     def texture(self) -> AlbedoField:
         """The reflectance texture ``albedo`` evaluates: a renderer can ask it for detail

@@ -263,17 +263,6 @@ class RockField:
         self._cache_cells = cache_cells
         self._lock = threading.Lock()
 
-    def __getstate__(self) -> dict[str, object]:
-        """Pickle without the lock and the cache (cells are regenerated from the seed)."""
-        state = self.__dict__.copy()
-        del state["_lock"]
-        state["_cache"] = OrderedDict()
-        return state
-
-    def __setstate__(self, state: dict[str, object]) -> None:
-        self.__dict__.update(state)
-        self._lock = threading.Lock()
-
     def rocks_in_cell(self, ci: int, cj: int) -> Rocks:
         """The rocks centred in cell ``(ci, cj)`` (deterministic from the seed)."""
         key = (int(ci), int(cj))
