@@ -22,7 +22,7 @@ from estimation.events import Event
 from estimation.sapp.aqf import AttitudeQuality as Aqf
 from sequences import commands as cmd
 from sim.loop.session import CommandReport, RoverSession
-from sim.loop.telemetry import telemetry_fields
+from sim.loop.telemetry import telemetry_fields, telemetry_schema
 
 DAY = datetime(2004, 4, 14, 16, 30, tzinfo=UTC)
 NIGHT = datetime(2004, 4, 14, 4, 0, tzinfo=UTC)
@@ -171,3 +171,9 @@ def test_at_night_an_hga_pass_and_the_sun_commands_are_refused() -> None:
     assert fine.status == "refused" and "below the 5.0 deg minimum" in str(fine.reason)
     assert nate_state(s) == before and s.sim.t_s == t0
     assert [f.aqf for f in s.frames] == ["Fine", "Fine"]  # one frame per refusal
+
+
+def test_every_telemetry_field_says_what_it_is_in_the_schema() -> None:
+    schema = telemetry_schema()
+    assert list(schema["properties"]) == telemetry_fields()
+    assert all(p.get("description") for p in schema["properties"].values())
