@@ -162,9 +162,11 @@ class RoverSession:
     def execute(self, command: cmd.Command, label: str | None = None) -> CommandReport:
         """Execute one command to completion and report it. ``label`` replaces the
         command's text in the telemetry frames (``""`` for a wait no operator commanded)."""
-        handler = HANDLERS.get(type(command))
-        if handler is None:
+        if not isinstance(command, cmd.Command):
             raise InputError("command", f"must be a sequences.commands.Command, got {command!r}")
+        handler = HANDLERS.get(type(command))
+        if handler is None:  # a command added to the dictionary without its handler
+            raise InputError("command", f"{command.name} has no handler in sim.loop.handlers")
         loop, recorder = self.loop, self.loop.recorder
         recorder.command = command.describe() if label is None else label
         report = CommandReport(recorder.command, "completed", loop.sim.t_s, loop.sim.t_s)
