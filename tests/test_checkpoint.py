@@ -114,3 +114,47 @@ def test_a_runtime_restored_from_its_checkpoint_has_its_queue_and_clock() -> Non
     assert restored.queued_ids() == [7]
     assert restored.queue[0].sequence == runtime.queue[0].sequence
     assert restored.clock.speed == float("inf") and restored.t_s == runtime.t_s
+
+
+class _Collect:
+    """A frame sink that keeps what it is given."""
+
+    def __init__(self) -> None:
+        self.frames: list[dict[str, Any]] = []
+
+    def publish(self, rover: str, frames: list[dict[str, Any]]) -> None:
+        self.frames.extend(frames)
+
+
+def _run_queue_out(runtime: RoverRuntime) -> list[dict[str, Any]]:
+    sink = _Collect()
+    runtime.sinks.append(sink)
+    for _ in range(200):
+        if not runtime.queue and not runtime._playout:
+            break
+        runtime._tick(0.25)
+    return sink.frames
+
+
+def test_a_runtime_restored_mid_sequence_runs_on_as_if_never_stopped() -> None:
+    from sequences.language import parse
+
+    text = (
+        "SEQUENCE drive\nGET_FINE_ATTITUDE\nDRIVE_STRAIGHT distance_m=0.8 vo=on\n"
+        "DRIVE_ARC radius_m=3 angle_deg=15\nWAIT duration_s=60\n"
+    )
+    runtime = RoverRuntime(ROVERS["spirit"], estimators=ESTIMATORS)
+    blobs: list[bytes] = []
+    runtime.on_checkpoint = lambda rover, t_s, blob: blobs.append(blob)
+    runtime.set_clock(speed=float("inf"))
+    runtime.enqueue(1, parse(text))
+    for _ in range(100):  # up to the end of the second step, its frames played out
+        if runtime.queue[0].next_step == 2 and not runtime._playout:
+            break
+        runtime._tick(0.25)
+    runtime.checkpoint()
+    restored = RoverRuntime.restore(ROVERS["spirit"], blobs[-1])
+    assert restored.queue[0].next_step == 2
+    frames = _run_queue_out(runtime)
+    assert len(frames) > 10 and frames[-1]["command"] == "WAIT duration_s=60"  # to the end
+    assert _run_queue_out(restored) == frames
