@@ -106,6 +106,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from estimation.checks import finite_vector, is_real_number
+from estimation.geometry import N_WHEELS
 from estimation.ivp import earth_ll
 from estimation.quaternion import quat_canonical
 from estimation.sapp.aqf import AttitudeQuality
@@ -135,7 +136,6 @@ from estimation.sapp.sun_modes import (
     SuncheckParams,
 )
 from estimation.sapp.wheel_odometry import (
-    N_WHEELS,
     DriveKind,
 )
 

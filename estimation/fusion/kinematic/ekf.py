@@ -48,13 +48,14 @@ from estimation.fusion.kinematic.process import (
     jacobian,
     noise_density,
 )
-from estimation.fusion.kinematic.rover_kinematics import FLIGHT_GEOMETRY, FlightGeometry, suspension
+from estimation.fusion.kinematic.rover_kinematics import suspension
 from estimation.fusion.kinematic.slip_constraint import (
     ROWS_PER_WHEEL,
     JointRates,
     deterministic_slip,
     slip_constraint,
 )
+from estimation.geometry import FLIGHT_GEOMETRY, FlightGeometry
 from estimation.quaternion import quat_multiply
 
 FloatArray = NDArray[np.float64]
