@@ -6,13 +6,15 @@ Attitude Acquisition Machine), 2.3.1 (Nadir Check), 2.4 (the gyro counter), 2.4.
 (Articulate), 2.4.2 and 2.5 (Mobility, eqs. 5-7), sec. 5 (gyrocompassing). The documented
 choices are in ``estimation.sapp.nate``'s docstring; ``Nate`` (there) adds the commands,
 their checks and the control cycle's dispatch to the state and procedures kept here.
-``state()`` and ``load_state()`` (``estimation.sapp.nate_state``) checkpoint all of it.
+``state()`` and ``load_state()`` checkpoint all of it as plain data (``estimation.state``).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -59,6 +61,7 @@ from estimation.sapp.wheel_odometry import (
     propagate_heading,
     propagate_position,
 )
+from estimation.state import array_copy, load_params, params_state
 
 FloatArray = NDArray[np.float64]
 
@@ -123,6 +126,95 @@ class NateProcedures:
         self._gyro_sum_s = 0.0
         self._gyro_span_s = 0.0
         self._events: list[Event] = []
+
+    # ---- checkpoints (estimation.state) ----------------------------------------------
+
+    def state(self) -> dict[str, Any]:
+        """Everything NATE will need after a restart, as plain data: the parameters (they
+        change with SET_PARAM), the mode, estimate, flag, Sites, clock and counters, and
+        whatever a mode holds mid-way (an accelerometer window, a camera procedure, the
+        rest of an acquisition command, a gyrocompass span, Mobility's drive)."""
+        procedure = self._procedure
+        return {
+            "params": params_state(self._params),
+            "t_s": self._t_s,
+            "mode": self._mode.name,
+            "q_b_ll": self._q_b_ll.copy(),
+            "p_s": self._p_s.copy(),
+            "sites": self._sites.state(),
+            "aqf": self._aqf.name,
+            "gyro_counter_s": self._gyro_counter_s,
+            "imu_integration_s": self._imu_integration_s,
+            "averager": None if self._averager is None else self._averager.state(),
+            "check_tolerance_rad": self._check_tolerance_rad,
+            "ref_down_ll": array_copy(self._ref_down_ll),
+            "q_entry_b_ll": self._q_entry_b_ll.copy(),
+            "drive_kind": self._drive.kind.name,
+            "drive_radius_m": self._drive.radius_m,
+            "use_gyros": self._use_gyros,
+            "last_wheel_rad": array_copy(self._last_wheel_rad),
+            "procedure": None if procedure is None else procedure.state(),
+            "mast": None if self._mast is None else list(self._mast),
+            "acquisition": self._acquisition,
+            "pending": [mode.name for mode in self._pending],
+            "gyro_sum_b": self._gyro_sum_b.copy(),
+            "gyro_sum_s": self._gyro_sum_s,
+            "gyro_span_s": self._gyro_span_s,
+        }
+
+    def load_state(self, state: Mapping[str, Any]) -> None:
+        """Load ``state()``'s output onto a NATE built with the same site and start time."""
+        self._params = load_params(self._params, state["params"])
+        self._t_s = float(state["t_s"])
+        self._mode = NateMode[state["mode"]]
+        self._q_b_ll = np.array(state["q_b_ll"], dtype=np.float64)
+        self._p_s = np.array(state["p_s"], dtype=np.float64)
+        self._sites.load_state(state["sites"])
+        self._aqf = AttitudeQuality[state["aqf"]]
+        self._gyro_counter_s = float(state["gyro_counter_s"])
+        self._imu_integration_s = float(state["imu_integration_s"])
+        self._averager = None
+        if state["averager"] is not None:
+            self._averager = AccelAverager(self._params.nadir)
+            self._averager.load_state(state["averager"])
+        self._check_tolerance_rad = float(state["check_tolerance_rad"])
+        self._ref_down_ll = array_copy(state["ref_down_ll"])
+        self._q_entry_b_ll = np.array(state["q_entry_b_ll"], dtype=np.float64)
+        kind = DriveKind[state["drive_kind"]]
+        self._drive = DriveCommand(kind, float(state["drive_radius_m"]))
+        self._use_gyros = bool(state["use_gyros"])
+        self._last_wheel_rad = array_copy(state["last_wheel_rad"])
+        self._procedure = None
+        if state["procedure"] is not None:
+            self._procedure = self._procedure_from(state["procedure"])
+        mast = state["mast"]
+        self._mast = None if mast is None else (float(mast[0]), float(mast[1]))
+        self._acquisition = state["acquisition"]
+        self._pending = [NateMode[name] for name in state["pending"]]
+        self._gyro_sum_b = np.array(state["gyro_sum_b"], dtype=np.float64)
+        self._gyro_sum_s = float(state["gyro_sum_s"])
+        self._gyro_span_s = float(state["gyro_span_s"])
+        self._events = []
+
+    def _procedure_from(self, state: Mapping[str, Any]) -> Sunfind | Sungaze | Suncheck:
+        """The camera mode's procedure rebuilt from its constructor arguments, then loaded;
+        the mode says which procedure it is."""
+        q, t0 = state["q_b_ll"], float(state["start_t_s"])
+        procedure: Sunfind | Sungaze | Suncheck
+        if self._mode is NateMode.SUNFIND:
+            params = load_params(self._params.sunfind, state["params"])
+            procedure = Sunfind(q, t0, self.sun_ll_at, params)
+        elif self._mode is NateMode.SUNGAZE:
+            gaze = load_params(self._params.sungaze, state["params"])
+            mast = (float(state["mast"][0]), float(state["mast"][1]))
+            procedure = Sungaze(q, t0, mast, self.sun_ll_at, gaze, state["down_b"])
+        elif self._mode is NateMode.SUNCHECK:
+            check = load_params(self._params.suncheck, state["params"])
+            procedure = Suncheck(q, t0, self.sun_ll_at, check)
+        else:
+            raise ValueError(f"state: a camera procedure in mode {self._mode.name}")
+        procedure.load_state(state)
+        return procedure
 
     def sun_ll_at(self, t_s: float) -> FloatArray:
         """IVP's sun in LL at ``t_s`` (unit (3,))."""

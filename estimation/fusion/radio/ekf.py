@@ -3,11 +3,11 @@
 State ``X = [L, λ, v_N, v_E]``: planetographic latitude and East longitude of the body
 origin (rad), North and East velocity (m/s) (sec. 4.1; models in ``radio_models``).
 
-- Time update (eqs. 26-27): the state by RK4 through eq. 2 (``rk4.py``) with the
+- Time update (eqs. 26-27): the state by RK4 through eq. 2 (``ekf_core.rk4``) with the
   accelerometers' specific force, rotated by eq. 1, held over the step; the covariance by
   ``Φ = I + F Δt`` (eq. 19, ``F`` of eq. 22 at the previous state) and
   ``P = Φ P Φ^T + Q`` (eq. 27).
-- Measurement updates (eqs. 28-30, Joseph form, ``joseph.py``), one sensor at a time
+- Measurement updates (eqs. 28-30, Joseph form, ``ekf_core.joseph_update``), one sensor at a time
   (the paper stacks them in eq. 13; with uncorrelated noises, eq. 18, sequential updates
   are the same filter): gyro yaw rate (eq. 4), range to an orbiting beacon (eqs. 7-9), and
   the pixels of matched landmarks (eqs. 10-11).
@@ -33,9 +33,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from estimation.fusion.joseph import joseph_update
+from estimation.fusion.ekf_core import joseph_update, rk4
 from estimation.fusion.radio import models as rm
-from estimation.fusion.rk4 import rk4_step
 
 FloatArray = NDArray[np.float64]
 
@@ -158,7 +157,7 @@ class RadioEkf:
         h = _height(height_m)
         a_ne = rm.horizontal_accel_ne(f_b, b_a, _euler(euler_rad))  # eqs. 1-2
         F = rm.dynamics_jacobian(self._x, h)  # eq. 22, at X_{k-1}
-        self._x = rk4_step(lambda _t, x: rm.dynamics(x, a_ne, h), 0.0, self._x, dt)  # eq. 26
+        self._x = rk4(lambda x: rm.dynamics(x, a_ne, h), self._x, dt)  # eq. 26
         Phi = np.eye(4) + F * dt  # eq. 19
         Q = self._metres_to_state(
             self.tuning.q_position_m2_per_s * dt, self.tuning.q_velocity_m2_s2_per_s * dt, h
