@@ -62,3 +62,12 @@ def finite_vector(value: ArrayLike, name: str, n: int) -> FloatArray:
     if out.shape != (n,) or not np.all(np.isfinite(out)):
         raise ValueError(f"{name}: must be finite with shape ({n},), got {out.shape}")
     return out
+
+
+def finite_array(value: ArrayLike, name: str, shape: tuple[int, ...]) -> FloatArray:
+    """``value`` as a finite float64 array of ``shape`` (not copied when it already is
+    one); ``ValueError`` naming ``name`` otherwise."""
+    a = np.asarray(value, dtype=np.float64)
+    if a.shape != shape or not np.all(np.isfinite(a)):
+        raise ValueError(f"{name}: must be finite with shape {shape}, got shape {a.shape}")
+    return a

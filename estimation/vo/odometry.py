@@ -170,7 +170,7 @@ class VisualOdometry:
         self._previous = None
         if previous is not None:
             self._previous = _Frame(
-                build_pyramid(previous["left_px"], self.levels, self.pad_px),
+                build_pyramid(np.array(previous["left_px"], np.float32), self.levels, self.pad_px),
                 np.array(previous["uv_px"], dtype=np.float64),
                 np.array(previous["p_b"], dtype=np.float64),
                 np.array(previous["cov_b"], dtype=np.float64),
