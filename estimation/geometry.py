@@ -29,8 +29,7 @@ from numpy.typing import NDArray
 FloatArray = NDArray[np.float64]
 
 N_WHEELS = 6
-WHEEL_NAMES = ("LF", "LM", "LR", "RF", "RM", "RR")
-STEERED_INDEX = (0, 2, 3, 5)  # LF, LR, RF, RR in WHEEL_NAMES order
+STEERED_INDEX = (0, 2, 3, 5)  # LF, LR, RF, RR in the wheel order (module docstring)
 
 DRIVE_SPEED_M_S = 0.0375  # Ali et al. 2005 sec. 2.5: MER drives at ~3.75 cm/s
 TURN_RATE_DEG_S = 2.1  # Ali et al. 2005 sec. 2.4.2: turns at ~2.1 deg/s

@@ -13,7 +13,11 @@ as one command, the operators' practice of sec. 4; gyrocompassing).
 Each command declares its arguments once, in ``specs`` (an ``ArgSpec`` per argument: kind,
 unit, range, note); construction checks them and the server publishes them, so the console
 form and the validation cannot disagree. Rules that tie arguments together stay as code in
-``_check_rules`` and are described by the spec's ``note``.
+``_check_rules`` and are described by the spec's ``note``. Each command also says what NATE
+does with it (``in_articulate``, ``images_sun``, ``aqf_after``), which the validator's walk
+reads instead of lists of its own. The numbers come from their owners: NATE's defaults and
+the rover's geometry from the flight software (``estimation``), the drive and visual
+odometry limits the ground shares with the simulator from ``sequences.limits``.
 
 >>> DriveStraight(distance_m=2.0).name
 'DRIVE_STRAIGHT'
@@ -37,8 +41,12 @@ from typing import ClassVar, Literal
 from estimation.geometry import FLIGHT_GEOMETRY
 from estimation.sapp.nadir import NadirParams
 from estimation.sapp.nate_io import CONTROL_DT_S
-from sequences.limits import MAX_DRIVE_M, VO_STEP_MAX_DEG, VO_STEP_MAX_M
-from sequences.limits import VO_PROCESSING_S as VO_PROCESSING_S  # the dictionary's, for its users
+
+# The shared limits, re-exported: the dictionary's users read them as ``cmd.MAX_DRIVE_M``.
+from sequences.limits import MAX_DRIVE_M as MAX_DRIVE_M
+from sequences.limits import VO_PROCESSING_S as VO_PROCESSING_S
+from sequences.limits import VO_STEP_MAX_DEG as VO_STEP_MAX_DEG
+from sequences.limits import VO_STEP_MAX_M as VO_STEP_MAX_M
 
 MAX_WAIT_S = 2 * 88775.244  # two sols
 MAX_HGA_PASS_MIN = 120.0

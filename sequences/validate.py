@@ -10,11 +10,12 @@ from ``sim``) it also walks the sequence predicting when each command starts and
 Attitude Quality Flag (Ali et al. 2005 sec. 2.1) and IMU integration time (sec. 4) will be, and
 warns where the plan is risky. The predictions are estimates, made without the simulator:
 
-- Durations (one row per command in ``_DURATION_S``): drives at 0.0375 m/s along the path and
-  turns at 2.1 deg/s (Ali et al. 2005 sec. 2.4.2 and 2.5, ``estimation.geometry``); NADIR_UPDATE/NADIR_CHECK their window (10 s by default); SUNFIND
-  5 min (its upper bound); SUNCHECK 1 min; SUNGAZE 10 min (its timer); GET_TILT_ATTITUDE
-  10 s; GET_COARSE_ATTITUDE 10 s + 5 min; GET_FINE_ATTITUDE 15 min; SUNCHECK_SUNGAZE
-  11 min; GYROCOMPASS, HGA_PASS and WAIT their duration; the others take no time.
+- Durations (one row per command in ``_DURATION_S``): drives at 0.0375 m/s along the path
+  and turns at 2.1 deg/s (Ali et al. 2005 sec. 2.4.2 and 2.5, ``estimation.geometry``);
+  NADIR_UPDATE/NADIR_CHECK their window (10 s by default); SUNFIND 5 min (its upper bound);
+  SUNCHECK 1 min; SUNGAZE 10 min (its timer); GET_TILT_ATTITUDE 10 s; GET_COARSE_ATTITUDE
+  10 s + 5 min; GET_FINE_ATTITUDE 15 min; SUNCHECK_SUNGAZE 11 min; GYROCOMPASS, HGA_PASS
+  and WAIT their duration; the others take no time.
 - Every acquisition succeeds: NADIR_UPDATE/GET_TILT_ATTITUDE give TiltOnly, SUNFIND/
   GET_COARSE_ATTITUDE and GYROCOMPASS give Coarse, SUNGAZE/GET_FINE_ATTITUDE/
   SUNCHECK_SUNGAZE give Fine and reset the IMU time; checks leave the flag alone.

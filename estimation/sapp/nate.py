@@ -8,7 +8,11 @@ subtracted, tilt corrections against the reference vertical), 2.4.2 (Mobility, a
 off-nominal wheel-odometry attitude submode), 2.5 (position, eqs. 5-7), sec. 1 / Table 1
 (Site frames) and sec. 4 (the operators' "IMU integration time since the last Sungaze").
 The math lives in ``nadir``, ``gyro_propagation``, ``wheel_odometry`` and ``site_frames``;
-this module sequences it, one 8 Hz control cycle per ``Nate.step``.
+NATE sequences it, one 8 Hz control cycle per ``Nate.step``, in three modules:
+``nate_io`` (the modes, ``NateParams``, the samples it takes and ``NateOutput``),
+``nate_modes`` (the state, what each mode does on entry and per cycle, the flag rules, and
+the checkpoint ``state()``/``load_state()``) and this one (the commands with their
+refusals, the read-only properties and the control cycle's dispatch).
 
 Design. ``Nate.step(imu, encoders, image)`` takes only sensor data (``ImuSample``: delta
 angles, delta velocities, dt, validity; ``EncoderSample``: wheel angles since power-on,
