@@ -1,7 +1,7 @@
 """The NATE state machine: SAPP's Navigation/Attitude Estimator (Ali et al. 2005 Figure 1).
 
-Ali et al. 2005, "Attitude and Position Estimation on the Mars Exploration Rovers" (seed
-000): Figure 1 (the NATE modes), sec. 2.1 (Attitude Quality Flag), 2.2.1 (Nadir Update,
+Ali et al. 2005, "Attitude and Position Estimation on the Mars Exploration Rovers":
+Figure 1 (the NATE modes), sec. 2.1 (Attitude Quality Flag), 2.2.1 (Nadir Update,
 eq. 1), 2.3 and 2.3.1 (Nadir Check), 2.4 (propagation never improves the flag; Fine drops
 to Coarse after 15 min of gyro counter), 2.4.1 (Articulate: gyros with Mars rotation
 subtracted, tilt corrections against the reference vertical), 2.4.2 (Mobility, and its

@@ -1,7 +1,7 @@
 """Sunfind, Sungaze and Suncheck: NATE's camera modes as image-by-image procedures.
 
-Ali et al. 2005, "Attitude and Position Estimation on the Mars Exploration Rovers" (seed
-000): sec. 2.2.2 (Sunfind: search phase eqs. 2-3, confirmation phase, final update eq. 4,
+Ali et al. 2005, "Attitude and Position Estimation on the Mars Exploration Rovers":
+sec. 2.2.2 (Sunfind: search phase eqs. 2-3, confirmation phase, final update eq. 4,
 the near-zenith case), 2.2.3 (Sungaze: QUEST on observed and expected sun vectors in LL,
 ten-minute timer, early stop at 1.5 deg 3σ, and a variation with an additional sensor),
 2.3.2 (Suncheck). The geometry is in ``estimation.sapp.sunfind_search``, QUEST in
