@@ -39,8 +39,7 @@ from dataclasses import MISSING, dataclass, fields
 from typing import ClassVar, Literal
 
 from estimation.geometry import FLIGHT_GEOMETRY
-from estimation.sapp.nadir import NadirParams
-from estimation.sapp.nate_io import CONTROL_DT_S
+from estimation.sapp.nate_io import CONTROL_DT_S, NateParams
 
 # The shared limits, re-exported: the dictionary's users read them as ``cmd.MAX_DRIVE_M``.
 from sequences.limits import MAX_DRIVE_M as MAX_DRIVE_M
@@ -51,7 +50,8 @@ from sequences.limits import VO_STEP_MAX_M as VO_STEP_MAX_M
 MAX_WAIT_S = 2 * 88775.244  # two sols
 MAX_HGA_PASS_MIN = 120.0
 MIN_ARC_RADIUS_M = 0.5 * FLIGHT_GEOMETRY.track_m  # sim.rover.drive refuses a tighter arc
-_NADIR = NadirParams()  # NATE's defaults, for the notes
+_NATE = NateParams()  # NATE's defaults, for the notes
+_NADIR = _NATE.nadir
 
 
 ArgKind = Literal["number", "boolean", "string", "number_or_boolean"]
@@ -483,7 +483,12 @@ class Gyrocompass(Command):
     aqf_after: ClassVar[str | None] = "Coarse"
     specs: ClassVar[Mapping[str, ArgSpec]] = {
         "duration_s": ArgSpec(
-            "number", "s", 0.0, 6 * 3600.0, lo_open=True, note="omit: the parameter (1800 s)"
+            "number",
+            "s",
+            0.0,
+            6 * 3600.0,
+            lo_open=True,
+            note=f"omit: the parameter ({_NATE.gyrocompass_duration_s:g} s)",
         ),
     }
     duration_s: float | None = None
