@@ -41,7 +41,8 @@ from estimation.ivp import earth_ll
 from estimation.sapp.sun_modes import SunResult
 from sequences import commands as cmd
 from sim.errors import InputError
-from sim.loop.session import RoverSession, TelemetryFrame
+from sim.loop.session import RoverSession
+from sim.loop.telemetry import TelemetryFrame
 from sim.world.mars_frames import earth_ll_truth, elevation_rad, sun_ll_truth
 from sim.world.marsclock import utc_to_t_s
 from sim.world.sites import site
