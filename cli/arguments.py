@@ -1,7 +1,8 @@
 """The ``roverops`` arguments every subcommand shares: checked types (a bad value is an
 argparse error naming the option) and where the server keeps its database.
 
-Each option may also come from an environment variable ``ROVEROPS_<NAME>`` (``env``).
+The options of ``serve`` and the database options default to an environment variable
+``ROVEROPS_<NAME>`` where one is set (``env``).
 """
 
 from __future__ import annotations
@@ -16,6 +17,8 @@ from sim.errors import InputError
 
 
 def finite_float(name: str) -> Callable[[str], float]:
+    """An argparse type: a finite number (``name`` is the option, for the message)."""
+
     def parse(text: str) -> float:
         try:
             value = float(text)
@@ -29,6 +32,8 @@ def finite_float(name: str) -> Callable[[str], float]:
 
 
 def non_negative_int(name: str) -> Callable[[str], int]:
+    """An argparse type: an integer >= 0."""
+
     def parse(text: str) -> int:
         try:
             value = int(text)
@@ -42,10 +47,12 @@ def non_negative_int(name: str) -> Callable[[str], int]:
 
 
 def env(name: str, default: str) -> str:
+    """The environment variable ``ROVEROPS_<name>``, else ``default``."""
     return os.environ.get(f"ROVEROPS_{name}", default)
 
 
 def port_number(text: str) -> int:
+    """An argparse type: a TCP port, 1-65535."""
     try:
         value = int(text)
     except ValueError:
@@ -56,6 +63,7 @@ def port_number(text: str) -> int:
 
 
 def estimator_names(text: str) -> tuple[str, ...]:
+    """An argparse type: comma-separated estimator names, ``sapp`` among them."""
     from sim.loop.side.kinematic import ESTIMATORS
 
     names = tuple(n.strip() for n in text.split(",") if n.strip())
@@ -68,6 +76,8 @@ def estimator_names(text: str) -> tuple[str, ...]:
 
 
 def on_off(name: str) -> Callable[[str], bool]:
+    """An argparse type: on/off (true/false, 1/0, yes/no)."""
+
     def parse(text: str) -> bool:
         value = text.strip().lower()
         if value in ("on", "true", "1", "yes"):
@@ -80,6 +90,7 @@ def on_off(name: str) -> Callable[[str], bool]:
 
 
 def database_url(args: argparse.Namespace) -> str:
+    """The server database's URL: ``--database-url``, else SQLite in ``--data-dir``."""
     from server.app import data_dir_url
 
     try:

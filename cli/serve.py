@@ -86,6 +86,7 @@ def add_users(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def cmd_serve(args: argparse.Namespace) -> dict[str, Any]:
+    """``roverops serve``: the server under uvicorn until stopped; its URLs printed first."""
     import uvicorn
 
     from server.app import ServerConfig, create_app
@@ -173,6 +174,7 @@ def cmd_users(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def print_users(result: dict[str, Any], as_json: bool) -> None:
+    """``users list`` as a table; any other answer as ``print_result`` prints it."""
     if as_json or "users" not in result:
         print_result(result, as_json)
         return
