@@ -19,7 +19,7 @@ from typing import Any
 
 import pytest
 
-from cli.main import NO_ROVER_NOTE
+from cli.validate import NO_ROVER_NOTE
 from sequences import commands as cmd
 from sequences.language import (
     NO_TAG,
