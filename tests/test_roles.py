@@ -14,7 +14,7 @@ from fastapi.testclient import TestClient
 from starlette.routing import WebSocketRoute
 from starlette.websockets import WebSocketDisconnect
 
-from server.accounts import ROLES
+from server.access.accounts import ROLES
 from server.app import ServerConfig, create_app, data_dir_url
 
 BOOTSTRAP = "roles-bootstrap-token"
