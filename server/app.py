@@ -15,7 +15,7 @@ Request bodies are validated: every 422's ``detail`` is a list of ``{"loc", "msg
 "type"}`` (FastAPI's shape), except a rejected upload, which is stored and answered with
 its diagnostics (``SequenceReport``). Bodies above ``max_upload_bytes`` get 413 while they
 stream in; a client running ``max_concurrent_validations`` validations at once gets 429
-(``server.api.uploads``). OpenAPI at ``/docs``.
+(``server.validation.uploads``). OpenAPI at ``/docs``.
 """
 
 from __future__ import annotations

@@ -22,7 +22,6 @@ from sequences.validate import ValidationContext, validate
 from server.access.accounts import Accounts
 from server.access.audit import AuditLog
 from server.alarms import AlarmEngine
-from server.api.uploads import ValidationSlots
 from server.hub import TelemetryHub
 from server.queue_view import QueueNotices, queue_json
 from server.runtime import ROVERS, RoverRuntime
@@ -32,6 +31,7 @@ from server.storage import BatchWriter, Store
 from server.timeline import stored_command
 from server.validation.context import rover_site, validation_context
 from server.validation.pool import ValidationPool
+from server.validation.uploads import ValidationSlots
 from sim.world.marsclock import t_s_to_utc
 
 MAX_UPLOAD_BYTES = 1_000_000
@@ -74,7 +74,7 @@ class Server:
         self.writer = BatchWriter(self.store)
         self.hub = TelemetryHub()
         self.validation = ValidationPool(config.validation_processes)
-        # a client's validations at once (429 past them; server.api.uploads)
+        # a client's validations at once (429 past them; server.validation.uploads)
         self.slots = ValidationSlots(config.max_concurrent_validations)
         self.rovers: dict[str, RoverRuntime] = {}
         self.queue_notices = QueueNotices(

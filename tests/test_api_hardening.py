@@ -25,8 +25,8 @@ from fastapi.testclient import TestClient
 import server.validation.pool as pool_module
 from bench.fuzz import live_server
 from server.api.deps import MAX_ID, MAX_SOL
-from server.api.uploads import MAX_JSON_DEPTH
 from server.app import ServerConfig, create_app, data_dir_url
+from server.validation.uploads import MAX_JSON_DEPTH
 
 TOKEN = "hardening-token"
 AUTH = {"Authorization": f"Bearer {TOKEN}"}

@@ -1,6 +1,6 @@
 """``server.api.routing.AuthFirstRoute`` on a small app of its own: the auth check runs before
 the body is read, once per request (FastAPI's own call reuses its result), and a JSON body
-is read through ``server.api.uploads`` (size, depth)."""
+is read through ``server.validation.uploads`` (size, depth)."""
 
 from __future__ import annotations
 

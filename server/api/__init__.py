@@ -1,4 +1,4 @@
-"""The HTTP and WebSocket API: one router per resource (``routes`` in each module), the
-dependencies they share (``deps``), and the request plumbing under them: the token checked
-before the body is read (``routing``), the body's size and shape (``uploads``), the origin
-of a WebSocket (``origin``)."""
+"""The HTTP and WebSocket API: one router per resource (``routes`` in each module) and the
+dependencies they share (``deps``); the token checked before the body is read
+(``routing``) and the origin of a WebSocket (``origin``). An upload's body is read and
+parsed by ``server.validation.uploads``."""

@@ -22,8 +22,8 @@ from server.api.deps import (
     error_doc,
     router,
 )
-from server.api.uploads import request_error
 from server.limits import LimitsError
+from server.validation.uploads import request_error
 
 LimitLevel = float | str | list[str] | None
 

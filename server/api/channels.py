@@ -9,7 +9,6 @@ from fastapi import HTTPException, Query
 
 from server.access.auth import Viewer
 from server.api.deps import MAX_SOL, ServerDep, router
-from server.api.uploads import request_error
 from server.channels import (
     DEFAULT_POINTS,
     MAX_POINTS,
@@ -19,6 +18,7 @@ from server.channels import (
     channel_series,
     channels_of,
 )
+from server.validation.uploads import request_error
 from sim.world.marsclock import t_s_for_sol_lmst
 
 # this router's own error descriptions (a channel, not a record, may be unknown)

@@ -20,9 +20,9 @@ from starlette.requests import HTTPConnection
 from server.access.auth import websocket_principal
 from server.api.origin import origin_allowed
 from server.api.routing import AuthFirstRoute
-from server.api.uploads import request_error
 from server.runtime import ROVERS
 from server.state import Server
+from server.validation.uploads import request_error
 
 MAX_ID = 2**31 - 1  # ids are PostgreSQL's int4 (storage: Integer columns)
 MAX_SOL = 100_000  # 270 Earth years of a mission; the bundled ephemeris covers fewer

@@ -16,8 +16,8 @@ from server.api.deps import (
     ServerDep,
     router,
 )
-from server.api.uploads import request_error
 from server.eventlog import LOG_KINDS, MAX_LIMIT, EventFilter, FilterError, event_log
+from server.validation.uploads import request_error
 
 routes = router()
 

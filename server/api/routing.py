@@ -4,7 +4,7 @@ FastAPI reads and parses a route's body before it solves the route's dependencie
 request without a token but with bad JSON got a 422 (the body's fault) instead of a 401,
 and a stranger could make the server parse whatever they sent. ``AuthFirstRoute`` runs the
 route's auth checks (dependencies marked with ``auth_check``) first, then reads a JSON body
-itself through ``server.api.uploads`` (size limit while streaming, nesting and number limits,
+itself through ``server.validation.uploads`` (size limit while streaming, nesting and number limits,
 parsed in the threadpool), and only then hands the request to FastAPI's own handler, which
 reuses both: the check's result is cached on ``request.state`` and the body on the request.
 """
@@ -24,7 +24,7 @@ from starlette.concurrency import run_in_threadpool
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.responses import Response
 
-from server.api.uploads import parse_json, read_body
+from server.validation.uploads import parse_json, read_body
 
 DEFAULT_MAX_BODY_BYTES = 1_000_000  # when the app sets no ``state.max_body_bytes``
 

@@ -22,7 +22,7 @@ from server.api.deps import (
     ServerDep,
     router,
 )
-from server.api.sequences import _diagnostics, _request_errors, _steps_json
+from server.api.sequences import diagnostics_json, request_errors, steps_json
 from server.runtime import MAX_SPEED
 
 
@@ -108,7 +108,7 @@ def immediate_command(
     }
     result = validate(source, server.context(runtime))
     if result.errors or result.sequence is None:
-        raise HTTPException(422, _request_errors(result))
+        raise HTTPException(422, request_errors(result))
     seq_id = server.store.add_sequence(
         rover,
         f"immediate_{body.command}",
@@ -116,13 +116,13 @@ def immediate_command(
         "command",
         "queued",
         [],
-        _diagnostics(result)["warnings"],
-        _steps_json(result.sequence),
+        diagnostics_json(result)["warnings"],
+        steps_json(result.sequence),
         who.name,
     )
     runtime.enqueue(seq_id, result.sequence, immediate=True)
     request.state.audit_action = f"immediate command {body.command} (#{seq_id}): queued"
-    return {"id": seq_id, "status": "queued", **_diagnostics(result)}
+    return {"id": seq_id, "status": "queued", **diagnostics_json(result)}
 
 
 @routes.post(

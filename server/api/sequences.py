@@ -26,10 +26,11 @@ from server.api.deps import (
     error_doc,
     router,
 )
-from server.api.uploads import read_body
 from server.runtime import Cancelled, RoverRuntime
+from server.state import Server
 from server.validation.context import rover_site
 from server.validation.pool import Checked
+from server.validation.uploads import read_body
 
 
 class Diagnostic(BaseModel):
@@ -63,7 +64,7 @@ SEQUENCE_BODY: dict[str, Any] = {
     "required": True,
     "description": 'A sequence: its text, JSON, or a file. JSON may be `{"text": ...}`, '
     '`{"sequence": ...}`, a sequence object (`name`, `steps`), or a list of steps; JSON '
-    "nested deeper than server.api.uploads.MAX_JSON_DEPTH is refused.",
+    "nested deeper than server.validation.uploads.MAX_JSON_DEPTH is refused.",
     "content": {
         "text/plain": {"schema": {"type": "string"}},
         "application/json": {
@@ -93,7 +94,7 @@ SEQUENCE_BODY: dict[str, Any] = {
 }
 
 
-def _diagnostics(result: ValidationResult) -> dict[str, Any]:
+def diagnostics_json(result: ValidationResult) -> dict[str, Any]:
     def as_list(items: list[Any]) -> list[dict[str, Any]]:
         return [
             {"line": d.line, "column": d.column, "code": d.code, "message": d.message}
@@ -115,7 +116,7 @@ def _rejected(errors: list[dict[str, Any]]) -> str:
     return f"rejected: {count}: " + "; ".join(quoted + more) if errors else "rejected"
 
 
-def _request_errors(result: ValidationResult) -> list[dict[str, Any]]:
+def request_errors(result: ValidationResult) -> list[dict[str, Any]]:
     """A sequence's errors as a 422 ``detail`` (``RequestErrors``): the diagnostic's code as
     ``type``, its message as ``msg``."""
     return [
@@ -137,11 +138,11 @@ def cancelled_where(stopped: Cancelled) -> str:
     return f"after step {stopped.done} of {stopped.steps} ({stopped.steps - stopped.done} not run)"
 
 
-def _steps_json(sequence: Sequence) -> list[dict[str, Any]]:
-    return [_step_json(s) for s in sequence.steps]
+def steps_json(sequence: Sequence) -> list[dict[str, Any]]:
+    return [step_json(s) for s in sequence.steps]
 
 
-def _step_json(step: SequenceStep) -> dict[str, Any]:
+def step_json(step: SequenceStep) -> dict[str, Any]:
     return {
         "line": step.line,
         "command": step.command.name,
@@ -154,7 +155,7 @@ routes = router()
 
 
 async def read_and_check(
-    server: ServerDep, request: Request, runtime: RoverRuntime | None, named: bool = False
+    server: Server, request: Request, runtime: RoverRuntime | None, named: bool = False
 ) -> Checked:
     """The body read (413 past the limit) and checked in a validation process
     (``server.validation.pool``), in one of the client's validation slots (429 when it
@@ -191,7 +192,7 @@ async def upload_sequence(
     request.state.audit_action = "upload a sequence"
     checked = await read_and_check(server, request, runtime, named=True)
     name = checked.name
-    result, diags = checked.result, _diagnostics(checked.result)
+    result, diags = checked.result, diagnostics_json(checked.result)
     if result.errors or result.sequence is None:
 
         def store_rejected() -> int:
@@ -205,7 +206,7 @@ async def upload_sequence(
         seq_id = await run_in_threadpool(store_rejected)
         request.state.audit_action = f"upload sequence {name} (#{seq_id}): rejected"
         return JSONResponse({"id": seq_id, "status": "rejected", **diags}, status_code=422)
-    steps = _steps_json(result.sequence)
+    steps = steps_json(result.sequence)
     seq_id = await run_in_threadpool(
         server.store.add_sequence,
         rover, name, checked.text, checked.fmt, "queued", [], diags["warnings"], steps,
@@ -234,7 +235,7 @@ async def validate_only(
     """Validation only: nothing stored. ``?rover=`` adds that rover's warnings."""
     runtime = server.rover(rover) if rover is not None else None
     checked = await read_and_check(server, request, runtime)
-    return {"valid": not checked.result.errors, **_diagnostics(checked.result)}
+    return {"valid": not checked.result.errors, **diagnostics_json(checked.result)}
 
 
 @routes.get("/api/rovers/{rover}/sequences", responses=NOT_FOUND)

@@ -26,9 +26,9 @@ from server.api.deps import (
     websocket_allowed,
 )
 from server.api.telemetry_csv import frames_csv
-from server.api.uploads import request_error
 from server.hub import MAX_RATE_HZ, next_message
 from server.timeline import sol_timeline
+from server.validation.uploads import request_error
 from sim.loop.telemetry import telemetry_schema
 
 routes = router()

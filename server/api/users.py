@@ -26,7 +26,7 @@ from server.api.deps import (
     error_doc,
     router,
 )
-from server.api.uploads import request_error
+from server.validation.uploads import request_error
 
 
 class SessionBody(BaseModel):
