@@ -71,7 +71,8 @@ from bench.server import measure_sol
 from bench.server_process import RunningServer, running_server
 from sequences import commands as cmd
 from server.runtime import ROVERS, RoverRuntime
-from server.scene3d import TERRAIN_RECUT_M, TERRAIN_STEP_M, VIEW_RATE_HZ, RoverScene, terrain_patch
+from server.scene3d.model import TERRAIN_STEP_M, terrain_patch
+from server.scene3d.scene import TERRAIN_RECUT_M, VIEW_RATE_HZ, RoverScene
 from server.storage import Store
 from sim.errors import InputError
 

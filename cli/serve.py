@@ -137,7 +137,7 @@ def cmd_serve(args: argparse.Namespace) -> dict[str, Any]:
 def cmd_users(args: argparse.Namespace) -> dict[str, Any]:
     """``roverops users add|list|revoke|token|role`` on the server's database (a running
     server sees the change at once: it reads users and tokens on every request)."""
-    from server.accounts import AccountError, Accounts
+    from server.access.accounts import AccountError, Accounts
     from server.storage import Store
 
     store = Store(database_url(args))

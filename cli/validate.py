@@ -59,7 +59,7 @@ def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
       rover=NAME``, nothing stored) against the rover's state now, so the answer is the
       server's by construction: the same code, state and moment as an upload's.
     - otherwise the server's database (``--data-dir``/``--database-url``): the rover's last
-      checkpoint, validated here (``server.validation_context.stored_rover_site``). No
+      checkpoint, validated here (``server.validation.context.stored_rover_site``). No
       server need run; the state is the one a server restarted on that database resumes,
       and validates uploads against (a running server's is at most a second ahead).
     """
@@ -93,7 +93,7 @@ def _validate_on_checkpoint(text: str, args: argparse.Namespace) -> tuple[dict[s
     from sequences.validate import validate
     from server.runtime import ROVERS
     from server.storage import Store
-    from server.validation_context import stored_rover_site
+    from server.validation.context import stored_rover_site
 
     if args.rover not in ROVERS:
         known = ", ".join(ROVERS)

@@ -28,7 +28,7 @@ warns where the plan is risky. The predictions are estimates, made without the s
   GET_FINE_ATTITUDE, SUNCHECK_SUNGAZE) are refused by NATE when the sun is lower than its
   ``min_sun_elevation_rad`` as the command starts (the camera modes' sanity check). With
   the context's ``sun_elevation_deg`` and ``min_sun_elevation_deg`` (the rover's own
-  parameter, which ``server.validation_context`` reads from the rover's NATE) the walk
+  parameter, which ``server.validation.context`` reads from the rover's NATE) the walk
   warns (``sun-too-low``), and follows a
   ``SET_PARAM param=min_sun_elevation_rad``.
 - SUNCHECK_SUNGAZE is meant for an AQF of Coarse or better (Ali et al. 2005 sec. 4: the
