@@ -164,7 +164,7 @@ def bench_fusion_kinematic(n_runs: int = 10, first_seed: int = 1) -> dict[str, A
     """The kinematic EKF's figures over ``n_runs`` seeds of each experiment.
 
     Returns ``{"metrics": {...}, "targets": {...}}`` (units in the keys; targets as
-    ``bench.sim``: ``{"le": x}``). Distance errors are the mean of ``|error|`` over the
+    ``bench.result``: ``{"le": x}``). Distance errors are the mean of ``|error|`` over the
     runs; the attitude figures are the max and the RMS over every sample of every turn.
     """
     if not (isinstance(n_runs, int) and 1 <= n_runs <= 1000):

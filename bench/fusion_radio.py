@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from bench.sim import _result
+from bench.result import bench_result
 from estimation.fusion.radio.beacon import OrbitingBeacon
 from estimation.fusion.radio.ekf import RadioEkf, RadioEkfTuning
 from sim.errors import InputError
@@ -185,7 +185,7 @@ def _case_metrics(runs: list[dict[int, dict[str, Any]]], suffix: str) -> dict[st
 
 
 def bench_fusion_radio(n_seeds: int = 20, workers: int | None = None) -> dict[str, Any]:
-    """The radio EKF's figures (module docstring) as ``bench.sim``'s result object."""
+    """The radio EKF's figures (module docstring) as ``bench.result``'s object."""
     if isinstance(n_seeds, bool) or not isinstance(n_seeds, int) or not 1 <= n_seeds <= 500:
         raise InputError("n_seeds", f"must be an integer in [1, 500], got {n_seeds!r}")
     orbiter = RelayOrbiter(KeplerOrbit(epoch_t_s=utc_to_t_s(ORBIT_EPOCH)))
@@ -204,4 +204,4 @@ def bench_fusion_radio(n_seeds: int = 20, workers: int | None = None) -> dict[st
     errs = np.array([r["true_attitude"][4]["err_m"] for r in runs])[:, settled]
     metrics["radio_case4_err_m_true_attitude"] = float(np.sqrt(np.mean(errs**2)))
     targets = {f"radio_case{c}_err_m": {"le": PAPER_ERR_M[c]} for c in CASES}
-    return _result("fusion_radio", metrics, targets)
+    return bench_result("fusion_radio", metrics, targets)

@@ -19,15 +19,14 @@ meet (``EXCLUDED_CHECKS``, each with why).
   accepted, auth ignored, unsupported method, ...), reported without a target.
 
 The sequence language's own fuzzer (``bench.fuzz_language``, hypothesis mutations of the
-example sequences) is merged in by ``language_metrics`` when that module exists.
+example sequences) is merged in by ``language_metrics``.
 
-Output contract: ``bench.sim._result`` (docs/DESIGN.md "Benchmarks").
+Output contract: ``bench.result``.
 """
 
 from __future__ import annotations
 
 import contextlib
-import importlib
 import json
 import logging
 import shutil
@@ -41,7 +40,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from bench.sim import _result
+from bench.result import bench_result
+from bench.server_process import START_TIMEOUT_S, free_port
 
 # check name -> why this API rightly does not meet its assumption
 EXCLUDED_CHECKS: dict[str, str] = {
@@ -65,7 +65,6 @@ TARGETS: dict[str, dict[str, float]] = {
     "fuzz_schema_violations": {"le": 0},
 }
 TOKEN = "fuzz-operator-token"
-START_TIMEOUT_S = 60.0
 
 
 class StatusCounter:
@@ -98,7 +97,6 @@ def live_server(
     counter."""
     import uvicorn
 
-    from bench.server import free_port
     from server.app import ServerConfig, create_app, data_dir_url
 
     config = ServerConfig(
@@ -196,13 +194,10 @@ def fuzz_api(max_examples: int = 200, seed: int = 1) -> dict[str, Any]:
 
 
 def language_metrics(n_inputs: int, seed: int) -> dict[str, Any]:
-    """The sequence language fuzzer's metrics (``bench.fuzz_language.fuzz_language``),
-    or none while that module does not exist."""
-    if not (Path(__file__).parent / "fuzz_language.py").exists():
-        return {}
-    module = importlib.import_module("bench.fuzz_language")
-    found: dict[str, Any] = module.fuzz_language(n_inputs, seed)
-    return found
+    """The sequence language fuzzer's metrics (``bench.fuzz_language.fuzz_language``)."""
+    from bench.fuzz_language import fuzz_language
+
+    return fuzz_language(n_inputs, seed)
 
 
 def bench_fuzz(
@@ -212,9 +207,9 @@ def bench_fuzz(
     targets stay the issue's)."""
     api = fuzz_api(max_examples, seed)
     metrics = dict(api["metrics"])
-    # the language fuzzer's figures (and, once merged, its targets beside TARGETS)
+    # the language fuzzer's figures
     metrics.update(language_metrics(language_inputs, seed))
-    result = _result("fuzz", metrics, TARGETS)
+    result = bench_result("fuzz", metrics, TARGETS)
     # what to look at when a target is missed (beside the contract's keys)
     result["details"] = {
         "excluded_checks": EXCLUDED_CHECKS,

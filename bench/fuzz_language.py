@@ -1,7 +1,7 @@
 """A hypothesis fuzzer of the sequence language: mutations of ``sequences/examples``.
 
 Every input goes to ``sequences.validate.validate`` twice, without a context and with a
-light one for Spirit built from ``sim`` (``server.validation_context.site_context``, sol 42,
+light one for Spirit built from ``sim`` (``server.validation.context.site_context``, sol 42,
 AQF Fine), so the predicting walk and the sampled elevations are fuzzed too. Inputs are
 the examples, text and JSON (and each in the other form), after one to four mutations:
 characters inserted (ASCII punctuation, digits, no-break spaces, fullwidth digits, line
@@ -288,7 +288,7 @@ def fuzz_language(n_inputs: int, seed: int) -> dict[str, Any]:
     import hypothesis
     from hypothesis import strategies as st
 
-    from server.validation_context import site_context
+    from server.validation.context import site_context
     from sim.world.marsclock import MISSIONS, t_s_for_sol_lmst
 
     spirit = MISSIONS["spirit"]

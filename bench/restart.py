@@ -25,7 +25,7 @@ reader never blocks the server). The delays come from one seeded ``random.Random
   ``SIGTERM_SPEED``, the ``t_s`` of its last stored frame (target: at most one frame,
   ``FRAME_EVERY_S``).
 
-Output contract: ``bench.sim._result`` (docs/DESIGN.md "Benchmarks").
+Output contract: ``bench.result``.
 """
 
 from __future__ import annotations
@@ -43,8 +43,8 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from bench.server import RunningServer, running_server, upload, wait_for
-from bench.sim import _result
+from bench.result import bench_result
+from bench.server_process import RunningServer, running_server, upload, wait_for
 from sequences.validate import validate
 from server.runtime import FRAME_EVERY_S, ROVERS, RoverRuntime
 from server.storage import Store
@@ -345,4 +345,4 @@ def bench_restart(
             "restart_restarts": len(restart_s),
         }
     )
-    return _result("restart", metrics, TARGETS)
+    return bench_result("restart", metrics, TARGETS)

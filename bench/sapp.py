@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from bench.sim import _result
+from bench.result import bench_result
 from estimation.ivp import earth_ll
 from estimation.sapp.sun_modes import SunResult
 from sequences import commands as cmd
@@ -353,4 +353,4 @@ def bench_sapp(
         "nadir_tilt_err_deg": {"le": 0.1},
         "odometry_err_pct_of_distance": {"le": 2.0},
     }
-    return _result("sapp", metrics, targets)
+    return bench_result("sapp", metrics, targets)

@@ -1,16 +1,10 @@
-"""``roverops bench``: speed figures of the simulator, as medians over repeats.
+"""``roverops bench sim``: speed figures of the simulator, as medians over repeats.
 
-Output contract (docs/DESIGN.md): ``{"bench": NAME, "metrics": {...}, "targets": {...},
-"ok": bool}``, every metric with its unit in its key. A target ``{"le": x}`` holds when
-the metric is at most ``x``, ``{"ge": x}`` when it is at least ``x``. Wall-clock figures
-depend on the machine; the ``machine`` entry says which one ran them.
+Output contract: ``bench.result``.
 """
 
 from __future__ import annotations
 
-import math
-import os
-import platform
 import statistics
 import time
 from collections.abc import Callable
@@ -19,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from sim.errors import InputError
+from bench.result import bench_result
 from sim.loop.rover_sim import RoverSim
 from sim.rover.settle import settle
 from sim.world.marsclock import SOL_S
@@ -73,76 +67,4 @@ def bench_sim(repeats: int = 3) -> dict[str, Any]:
         "repeats": repeats,
     }
     targets = {"drive_100m_wall_s": {"le": 5.0}, "idle_sol_wall_s": {"le": 0.5}}
-    return _result("sim", metrics, targets)
-
-
-def _meets(value: float, target: dict[str, float]) -> bool:
-    """``{"le": x}``: at most x; ``{"ge": x}``: at least x (NaN meets neither)."""
-    ok = True
-    if "le" in target:
-        ok = ok and value <= target["le"]
-    if "ge" in target:
-        ok = ok and value >= target["ge"]
-    return bool(ok)
-
-
-def _json_safe(value: Any) -> Any:
-    """NaN and infinities (a figure that does not exist, e.g. a margin never lost) as
-    ``None``: JSON has no NaN."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _json_safe(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_json_safe(v) for v in value]
-    return value
-
-
-def _result(
-    name: str, metrics: dict[str, Any], targets: dict[str, dict[str, float]]
-) -> dict[str, Any]:
-    ok = all(_meets(metrics[key], target) for key, target in targets.items())
-    return {
-        "bench": name,
-        "metrics": _json_safe(metrics),
-        "targets": targets,
-        "ok": ok,
-        "machine": {
-            "cpus": os.cpu_count(),
-            "python": platform.python_version(),
-            "platform": platform.platform(),
-        },
-    }
-
-
-def _bench_sapp() -> dict[str, Any]:
-    from bench.sapp import bench_sapp  # imports this module's _result
-
-    return bench_sapp()
-
-
-def _bench_vo() -> dict[str, Any]:
-    from bench.vo import bench_vo  # imports this module's _result
-
-    return bench_vo()
-
-
-def _bench_fusion() -> dict[str, Any]:
-    from bench.fusion import bench_fusion  # imports this module's _result
-
-    return bench_fusion()
-
-
-BENCHES: dict[str, Callable[[], dict[str, Any]]] = {
-    "sim": bench_sim,
-    "sapp": _bench_sapp,
-    "vo": _bench_vo,
-    "fusion": _bench_fusion,
-}
-
-
-def run_bench(name: str) -> dict[str, Any]:
-    """Run benchmark ``name``; InputError('name', ...) naming the choices."""
-    if name not in BENCHES:
-        raise InputError("name", f"unknown benchmark {name!r}; choose one of {', '.join(BENCHES)}")
-    return BENCHES[name]()
+    return bench_result("sim", metrics, targets)

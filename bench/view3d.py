@@ -40,7 +40,7 @@ by calling ``_draw`` directly, so a timing is the scene thread's work for one fr
   ``view_sol_frames_drawn``: how many frames the server's scene had drawn when the sol
   completed (median).
 
-Output contract: ``bench.sim._result`` (docs/DESIGN.md "Benchmarks").
+Output contract: ``bench.result``.
 """
 
 from __future__ import annotations
@@ -66,11 +66,13 @@ from numpy.typing import NDArray
 from websockets.exceptions import ConnectionClosed
 from websockets.typing import Subprotocol
 
-from bench.server import RunningServer, measure_sol, running_server
-from bench.sim import _result
+from bench.result import bench_result
+from bench.server import measure_sol
+from bench.server_process import RunningServer, running_server
 from sequences import commands as cmd
 from server.runtime import ROVERS, RoverRuntime
-from server.scene3d import TERRAIN_RECUT_M, TERRAIN_STEP_M, VIEW_RATE_HZ, RoverScene, terrain_patch
+from server.scene3d.model import TERRAIN_STEP_M, terrain_patch
+from server.scene3d.scene import TERRAIN_RECUT_M, VIEW_RATE_HZ, RoverScene
 from server.storage import Store
 from sim.errors import InputError
 
@@ -426,4 +428,4 @@ def bench_view3d(
     _check_inputs(drive_m, recuts, sol_drive_m, sol_repeats)
     metrics = measure_scene(drive_m, recuts)
     metrics.update(measure_sol_walls(sol_drive_m, sol_hga_min, sol_repeats))
-    return _result("view3d", metrics, TARGETS)
+    return bench_result("view3d", metrics, TARGETS)

@@ -52,7 +52,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
-from bench.sim import _result
+from bench.result import bench_result
 from bench.vo_baseline import OrbPnpBaseline
 from estimation.sapp.aqf import AttitudeQuality
 from estimation.vo.odometry import VisualOdometry, VoResult, VoStatus
@@ -499,4 +499,4 @@ def bench_vo(
         "vo_step_s_1024": {"le": 0.5},
         "vo_step_s_256": {"le": 0.05},
     }
-    return _result("vo", metrics, targets)
+    return bench_result("vo", metrics, targets)

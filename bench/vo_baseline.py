@@ -1,12 +1,14 @@
 """A visual-odometry baseline from OpenCV's own parts, to set beside MER's method in
 ``roverops bench vo`` (a benchmark tool, not flight software).
 
-Per stereo pair: ORB features on the left image (``cv2.ORB``), a dense disparity map from
-``cv2.StereoSGBM`` and, for each feature with a disparity, its 3D point in the left camera
-by the rectified pinhole relation ``z = f B / d``. Per step: the previous pair's features
-are matched to the new left image's by their ORB descriptors (Hamming distance, mutual best
-matches), and ``cv2.solvePnPRansac`` finds the camera motion that puts the previous 3D
-points on the new pixels (RANSAC, then a refinement on the inliers). No prediction from
+Per stereo pair: ORB features on the left image (``cv2.ORB``; Rublee, Rabaud, Konolige and
+Bradski 2011), a dense disparity map from ``cv2.StereoSGBM`` (OpenCV's variant of the
+semi-global matching of Hirschmüller 2008) and, for each feature with a disparity, its 3D
+point in the left camera by the rectified pinhole relation ``z = f B / d``. Per step: the
+previous pair's features are matched to the new left image's by their ORB descriptors
+(Hamming distance, mutual best matches), and ``cv2.solvePnPRansac`` finds the camera motion
+that puts the previous 3D points on the new pixels (RANSAC, Fischler and Bolles 1981, then
+a refinement on the inliers). No prediction from
 wheel odometry, no covariances, no sanity checks: what MER's method adds (Cheng, Maimone and
 Matthies 2005 sec. 2) is what this lacks.
 

@@ -1,9 +1,11 @@
 """The report behind ``roverops ephem``: Mars time, and the Sun and Earth seen from a site.
 
-One UTC instant and one site give three answers side by side: Mars24's almanac
-(``sim.world.marsclock``), the truth (DE421 + IAU rotation + ellipsoid, ``sim.world.mars_frames``)
-and the onboard conic approximation (``estimation.ivp``). Angles in degrees (this is an
-edge of the system); vectors are unit vectors in the Local-Level frame (N, E, Down).
+One UTC instant and one site give three answers side by side: Mars24's almanac (Allison and
+McEwen 2000, ``sim.world.marsclock``), the truth (DE421, Folkner, Williams and Boggs 2008, with
+the IAU 2009 rotation of Archinal et al. 2011 and the IAU/IAG 2000 ellipsoid,
+``sim.world.mars_frames``) and the onboard conic approximation (Standish's Keplerian elements,
+``estimation.ivp``). Angles in degrees (this is an edge of the system); vectors are unit
+vectors in the Local-Level frame (N, E, Down).
 
 The site is a planetographic latitude and a West longitude in [0, 360), Mars24's
 convention. Every bad input raises ``InputError`` naming ``utc``, ``lat_deg``,

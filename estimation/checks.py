@@ -7,6 +7,7 @@ Flight software cannot import the simulator's ``InputError``; a bad argument rai
 from __future__ import annotations
 
 import math
+import numbers
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -45,3 +46,28 @@ def angle_between_rad(u: FloatArray, v: FloatArray) -> float:
     1.570796326795
     """
     return math.atan2(float(np.linalg.norm(np.cross(u, v))), float(np.dot(u, v)))
+
+
+def is_real_number(value: object) -> bool:
+    """A real number that is not a bool (``True`` is not 1 deg)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
+def finite_vector(value: ArrayLike, name: str, n: int) -> FloatArray:
+    """``value`` as a finite float array of shape ``(n,)``; ``ValueError`` naming ``name``."""
+    try:
+        out = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name}: must be numeric with shape ({n},)") from exc
+    if out.shape != (n,) or not np.all(np.isfinite(out)):
+        raise ValueError(f"{name}: must be finite with shape ({n},), got {out.shape}")
+    return out
+
+
+def finite_array(value: ArrayLike, name: str, shape: tuple[int, ...]) -> FloatArray:
+    """``value`` as a finite float64 array of ``shape`` (not copied when it already is
+    one); ``ValueError`` naming ``name`` otherwise."""
+    a = np.asarray(value, dtype=np.float64)
+    if a.shape != shape or not np.all(np.isfinite(a)):
+        raise ValueError(f"{name}: must be finite with shape {shape}, got shape {a.shape}")
+    return a

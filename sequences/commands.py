@@ -13,7 +13,11 @@ as one command, the operators' practice of sec. 4; gyrocompassing).
 Each command declares its arguments once, in ``specs`` (an ``ArgSpec`` per argument: kind,
 unit, range, note); construction checks them and the server publishes them, so the console
 form and the validation cannot disagree. Rules that tie arguments together stay as code in
-``_check_rules`` and are described by the spec's ``note``.
+``_check_rules`` and are described by the spec's ``note``. Each command also says what NATE
+does with it (``in_articulate``, ``images_sun``, ``aqf_after``), which the validator's walk
+reads instead of lists of its own. The numbers come from their owners: NATE's defaults and
+the rover's geometry from the flight software (``estimation``), the drive and visual
+odometry limits the ground shares with the simulator from ``sequences.limits``.
 
 >>> DriveStraight(distance_m=2.0).name
 'DRIVE_STRAIGHT'
@@ -34,10 +38,20 @@ from collections.abc import Mapping
 from dataclasses import MISSING, dataclass, fields
 from typing import ClassVar, Literal
 
-MAX_DRIVE_M = 100.0  # one drive command; matches sim.rover.drive.MAX_PATH_M
+from estimation.geometry import FLIGHT_GEOMETRY
+from estimation.sapp.nate_io import CONTROL_DT_S, NateParams
+
+# The shared limits, re-exported: the dictionary's users read them as ``cmd.MAX_DRIVE_M``.
+from sequences.limits import MAX_DRIVE_M as MAX_DRIVE_M
+from sequences.limits import VO_PROCESSING_S as VO_PROCESSING_S
+from sequences.limits import VO_STEP_MAX_DEG as VO_STEP_MAX_DEG
+from sequences.limits import VO_STEP_MAX_M as VO_STEP_MAX_M
+
 MAX_WAIT_S = 2 * 88775.244  # two sols
 MAX_HGA_PASS_MIN = 120.0
-MIN_ARC_RADIUS_M = 0.6  # half the track; sim.rover.drive refuses a tighter arc
+MIN_ARC_RADIUS_M = 0.5 * FLIGHT_GEOMETRY.track_m  # sim.rover.drive refuses a tighter arc
+_NATE = NateParams()  # NATE's defaults, for the notes
+_NADIR = _NATE.nadir
 
 
 ArgKind = Literal["number", "boolean", "string", "number_or_boolean"]
@@ -157,6 +171,13 @@ class Command:
 
     name: ClassVar[str] = ""
     specs: ClassVar[Mapping[str, ArgSpec]] = {}
+    # What NATE does with the command (Ali et al. 2005; ``estimation.sapp.nate``), for the
+    # ground's checks and predictions (``sequences.validate``): accepted while articulating
+    # (sec. 2.4.1), refused with the sun below its minimum elevation (the camera modes'
+    # sanity check), and the Attitude Quality Flag a success leaves (sec. 2.1).
+    in_articulate: ClassVar[bool] = False
+    images_sun: ClassVar[bool] = False
+    aqf_after: ClassVar[str | None] = None
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -203,15 +224,16 @@ _WINDOW_S = ArgSpec(
     0.0,
     600.0,
     lo_open=True,
-    note="omit: the parameter (10 s); the rover refuses a window holding fewer than "
-    "min_valid_samples 8 Hz samples (5 s by default)",
+    note=f"omit: the parameter ({_NADIR.window_s:g} s); the rover refuses a window holding "
+    f"fewer than min_valid_samples 8 Hz samples "
+    f"({_NADIR.min_valid_samples * CONTROL_DT_S:g} s by default)",
 )
 _TOLERANCE_DEG = ArgSpec("number", "deg", 0.0, 90.0, lo_open=True, note="omit: the parameter")
-_DRIVE_TO_NOTE = "the goal must be 0.01-100 m from the estimated position when it starts"
+_DRIVE_TO_NOTE = (
+    f"the goal must be 0.01-{MAX_DRIVE_M:g} m from the estimated position when it starts"
+)
 
 
-VO_STEP_MAX_M = 0.75  # Cheng, Maimone and Matthies 2005 sec. 4: at most 75 cm per step
-VO_STEP_MAX_DEG = 18.0  # and at most 18 deg of turn, for 60 % overlap between pairs
 VO_SPECS: Mapping[str, ArgSpec] = {
     "vo": ArgSpec(
         "boolean",
@@ -220,9 +242,6 @@ VO_SPECS: Mapping[str, ArgSpec] = {
     ),
     "vo_attitude": ArgSpec("boolean", note="with vo=on: VO updates the attitude too"),
 }
-
-
-VO_PROCESSING_S = 150.0  # onboard time per VO step, the rover standing (MER: 2-3 min)
 
 
 def vo_step_count(
@@ -367,6 +386,7 @@ class NadirUpdate(Command):
     """Nadir Update over ``window_s`` (default: the parameter, 10 s)."""
 
     name: ClassVar[str] = "NADIR_UPDATE"
+    aqf_after: ClassVar[str | None] = "TiltOnly"
     specs: ClassVar[Mapping[str, ArgSpec]] = {"window_s": _WINDOW_S}
     window_s: float | None = None
 
@@ -389,6 +409,8 @@ class Sunfind(Command):
     """Sunfind: search for the sun along its elevation cone and correct the heading."""
 
     name: ClassVar[str] = "SUNFIND"
+    images_sun: ClassVar[bool] = True
+    aqf_after: ClassVar[str | None] = "Coarse"
 
 
 @dataclass(frozen=True)
@@ -396,6 +418,7 @@ class Suncheck(Command):
     """Suncheck with an optional ``tolerance_deg``."""
 
     name: ClassVar[str] = "SUNCHECK"
+    images_sun: ClassVar[bool] = True
     specs: ClassVar[Mapping[str, ArgSpec]] = {"tolerance_deg": _TOLERANCE_DEG}
     tolerance_deg: float | None = None
 
@@ -405,6 +428,8 @@ class Sungaze(Command):
     """Sungaze; ``use_gravity`` selects the variation with the accelerometers."""
 
     name: ClassVar[str] = "SUNGAZE"
+    images_sun: ClassVar[bool] = True
+    aqf_after: ClassVar[str | None] = "Fine"
     specs: ClassVar[Mapping[str, ArgSpec]] = {
         "use_gravity": ArgSpec(
             "boolean", note="true: the variation with the accelerometers; omit: the parameter"
@@ -418,6 +443,7 @@ class GetTiltAttitude(Command):
     """GetTiltAttitude (Ali et al. 2005 sec. 2.2.4)."""
 
     name: ClassVar[str] = "GET_TILT_ATTITUDE"
+    aqf_after: ClassVar[str | None] = "TiltOnly"
 
 
 @dataclass(frozen=True)
@@ -425,6 +451,8 @@ class GetCoarseAttitude(Command):
     """GetCoarseAttitude (Ali et al. 2005 sec. 2.2.4)."""
 
     name: ClassVar[str] = "GET_COARSE_ATTITUDE"
+    images_sun: ClassVar[bool] = True
+    aqf_after: ClassVar[str | None] = "Coarse"
 
 
 @dataclass(frozen=True)
@@ -432,6 +460,8 @@ class GetFineAttitude(Command):
     """GetFineAttitude (Ali et al. 2005 sec. 2.2.4)."""
 
     name: ClassVar[str] = "GET_FINE_ATTITUDE"
+    images_sun: ClassVar[bool] = True
+    aqf_after: ClassVar[str | None] = "Fine"
 
 
 @dataclass(frozen=True)
@@ -441,6 +471,8 @@ class SuncheckSungaze(Command):
     better (the validator warns below); Sungaze follows a Suncheck that saw the sun."""
 
     name: ClassVar[str] = "SUNCHECK_SUNGAZE"
+    images_sun: ClassVar[bool] = True
+    aqf_after: ClassVar[str | None] = "Fine"
 
 
 @dataclass(frozen=True)
@@ -448,9 +480,15 @@ class Gyrocompass(Command):
     """Gyrocompass at rest for ``duration_s`` (default: the parameter, 1800 s)."""
 
     name: ClassVar[str] = "GYROCOMPASS"
+    aqf_after: ClassVar[str | None] = "Coarse"
     specs: ClassVar[Mapping[str, ArgSpec]] = {
         "duration_s": ArgSpec(
-            "number", "s", 0.0, 6 * 3600.0, lo_open=True, note="omit: the parameter (1800 s)"
+            "number",
+            "s",
+            0.0,
+            6 * 3600.0,
+            lo_open=True,
+            note=f"omit: the parameter ({_NATE.gyrocompass_duration_s:g} s)",
         ),
     }
     duration_s: float | None = None
@@ -468,6 +506,7 @@ class ArticulateStop(Command):
     """Leave Articulate."""
 
     name: ClassVar[str] = "ARTICULATE_STOP"
+    in_articulate: ClassVar[bool] = True
 
 
 @dataclass(frozen=True)
@@ -475,6 +514,7 @@ class HgaPass(Command):
     """Point the HGA at Earth for ``duration_min`` minutes (re-pointed every minute)."""
 
     name: ClassVar[str] = "HGA_PASS"
+    in_articulate: ClassVar[bool] = True
     specs: ClassVar[Mapping[str, ArgSpec]] = {
         "duration_min": ArgSpec("number", "min", 0.0, MAX_HGA_PASS_MIN, lo_open=True),
     }
@@ -486,6 +526,7 @@ class Wait(Command):
     """Do nothing for ``duration_s`` (NATE keeps its mode: Articulate keeps propagating)."""
 
     name: ClassVar[str] = "WAIT"
+    in_articulate: ClassVar[bool] = True
     specs: ClassVar[Mapping[str, ArgSpec]] = {
         "duration_s": ArgSpec(
             "number", "s", 0.0, MAX_WAIT_S, lo_open=True, note="two sols at most"

@@ -10,11 +10,12 @@ from ``sim``) it also walks the sequence predicting when each command starts and
 Attitude Quality Flag (Ali et al. 2005 sec. 2.1) and IMU integration time (sec. 4) will be, and
 warns where the plan is risky. The predictions are estimates, made without the simulator:
 
-- Durations: drives at 0.0375 m/s along the path and turns at 2.1 deg/s (Ali et al. 2005 sec. 2.4.2
-  and 2.5, ``sim.rover.drive``); NADIR_UPDATE/NADIR_CHECK their window (10 s by default); SUNFIND
-  5 min (its upper bound); SUNCHECK 1 min; SUNGAZE 10 min (its timer); GET_TILT_ATTITUDE
-  10 s; GET_COARSE_ATTITUDE 10 s + 5 min; GET_FINE_ATTITUDE 15 min; SUNCHECK_SUNGAZE
-  11 min; GYROCOMPASS, HGA_PASS and WAIT their duration; the others take no time.
+- Durations (one row per command in ``_DURATION_S``): drives at 0.0375 m/s along the path
+  and turns at 2.1 deg/s (Ali et al. 2005 sec. 2.4.2 and 2.5, ``estimation.geometry``);
+  NADIR_UPDATE/NADIR_CHECK their window (10 s by default); SUNFIND 5 min (its upper bound);
+  SUNCHECK 1 min; SUNGAZE 10 min (its timer); GET_TILT_ATTITUDE 10 s; GET_COARSE_ATTITUDE
+  10 s + 5 min; GET_FINE_ATTITUDE 15 min; SUNCHECK_SUNGAZE 11 min; GYROCOMPASS, HGA_PASS
+  and WAIT their duration; the others take no time.
 - Every acquisition succeeds: NADIR_UPDATE/GET_TILT_ATTITUDE give TiltOnly, SUNFIND/
   GET_COARSE_ATTITUDE and GYROCOMPASS give Coarse, SUNGAZE/GET_FINE_ATTITUDE/
   SUNCHECK_SUNGAZE give Fine and reset the IMU time; checks leave the flag alone.
@@ -27,8 +28,8 @@ warns where the plan is risky. The predictions are estimates, made without the s
   GET_FINE_ATTITUDE, SUNCHECK_SUNGAZE) are refused by NATE when the sun is lower than its
   ``min_sun_elevation_rad`` as the command starts (the camera modes' sanity check). With
   the context's ``sun_elevation_deg`` and ``min_sun_elevation_deg`` (the rover's own
-  parameter: ``server.validation_context`` reads it from the flight software, since this
-  package imports none of it) the walk warns (``sun-too-low``), and follows a
+  parameter, which ``server.validation.context`` reads from the rover's NATE) the walk
+  warns (``sun-too-low``), and follows a
   ``SET_PARAM param=min_sun_elevation_rad``.
 - SUNCHECK_SUNGAZE is meant for an AQF of Coarse or better (Ali et al. 2005 sec. 4: the
   propagated attitude points the camera at the sun): below that it warns
@@ -46,6 +47,10 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
+from estimation.geometry import DRIVE_SPEED_M_S, TURN_RATE_DEG_S
+from estimation.sapp.nadir import NadirParams
+from estimation.sapp.nate_io import FINE_TO_COARSE_S, NateParams
+from estimation.sapp.sun_modes import SungazeParams
 from sequences import commands as cmd
 from sequences.language import (
     Diagnostic,
@@ -105,16 +110,17 @@ CODES: dict[str, str] = {
 AqfName = Literal["Unknown", "TiltOnly", "Coarse", "Fine"]
 AQF_RANK: dict[str, int] = {"Unknown": 0, "TiltOnly": 1, "Coarse": 2, "Fine": 3}
 
-DRIVE_SPEED_M_S = 0.0375  # Ali et al. 2005 sec. 2.5, sim.rover.drive.DEFAULT_SPEED_M_S
-TURN_RATE_DEG_S = 2.1  # Ali et al. 2005 sec. 2.4.2, sim.rover.drive.DEFAULT_TURN_RATE_RAD_S
-NADIR_WINDOW_S = 10.0  # Ali et al. 2005 sec. 2.2.1, NATE's default window
+# The flight software's numbers, read from it (the ground learns them from the rover):
+# drive rates (Ali et al. 2005 sec. 2.5, 2.4.2), NATE's Nadir window (sec. 2.2.1), the
+# Sungaze timer (sec. 2.2.3), the gyrocompass span and Fine's 15 minutes (sec. 2.4).
+NADIR_WINDOW_S = NadirParams().window_s
+SUNGAZE_S = SungazeParams().timer_s
+GYROCOMPASS_S = NateParams().gyrocompass_duration_s
+# The ground's own estimates and the operators' limit.
 SUNFIND_S = 300.0  # upper bound of a Sunfind search (estimate)
 SUNCHECK_S = 60.0  # one pointed image (estimate)
-SUNGAZE_S = 600.0  # the Sungaze timer, sec. 2.2.3
 GET_FINE_ATTITUDE_S = 900.0  # estimate: Nadir Update, Sunfind, Sungaze
 SUNCHECK_SUNGAZE_S = 660.0  # estimate: Suncheck then Sungaze
-GYROCOMPASS_S = 1800.0  # NATE's gyrocompass_duration_s default
-FINE_TO_COARSE_S = 900.0  # Ali et al. 2005 sec. 2.4: "currently 15 minutes"
 IMU_TIME_LIMIT_S = 10_000.0  # Ali et al. 2005 sec. 4: the operators' limit since the last Sungaze
 _EPS_S = 1e-6
 MAX_EPHEMERIS_SOL = 17_668
@@ -126,33 +132,35 @@ would refuse it. ``sequences`` may not import ``sim``, so this is a constant;
 tests/test_validation_context.py ties it to the ephemeris and both missions' clocks."""
 
 _DRIVES = (cmd.DriveStraight, cmd.DriveArc, cmd.TurnInPlace, cmd.DriveTo)
-_ALLOWED_IN_ARTICULATE = (cmd.ArticulateStop, cmd.Wait, cmd.HgaPass)
-_NEEDS_SUN = (  # NATE checks the sun's elevation when these start (estimation.sapp.nate)
-    cmd.Sunfind,
-    cmd.Sungaze,
-    cmd.Suncheck,
-    cmd.GetCoarseAttitude,
-    cmd.GetFineAttitude,
-    cmd.SuncheckSungaze,
-)
-_FIXED_S: dict[type[cmd.Command], float] = {
-    cmd.Sunfind: SUNFIND_S,
-    cmd.Suncheck: SUNCHECK_S,
-    cmd.Sungaze: SUNGAZE_S,
-    cmd.GetTiltAttitude: NADIR_WINDOW_S,
-    cmd.GetCoarseAttitude: NADIR_WINDOW_S + SUNFIND_S,
-    cmd.GetFineAttitude: GET_FINE_ATTITUDE_S,
-    cmd.SuncheckSungaze: SUNCHECK_SUNGAZE_S,
-}
-_AQF_AFTER: dict[type[cmd.Command], str] = {
-    cmd.NadirUpdate: "TiltOnly",
-    cmd.GetTiltAttitude: "TiltOnly",
-    cmd.Sunfind: "Coarse",
-    cmd.GetCoarseAttitude: "Coarse",
-    cmd.Gyrocompass: "Coarse",
-    cmd.Sungaze: "Fine",
-    cmd.GetFineAttitude: "Fine",
-    cmd.SuncheckSungaze: "Fine",
+
+
+def _fixed(duration_s: float) -> Callable[[Any, float], float]:
+    return lambda _c, _gyrocompass_s: duration_s
+
+
+# One row per command of the dictionary: its expected duration, s, from the command and the
+# gyrocompass span in force (the module docstring's estimates).
+_DURATION_S: dict[type[cmd.Command], Callable[[Any, float], float]] = {
+    cmd.DriveStraight: lambda c, _g: sum(_drive_times_s(c)),
+    cmd.DriveArc: lambda c, _g: sum(_drive_times_s(c)),
+    cmd.TurnInPlace: lambda c, _g: sum(_drive_times_s(c)),
+    cmd.DriveTo: lambda c, _g: sum(_drive_times_s(c)),
+    cmd.PlantSite: _fixed(0.0),
+    cmd.NadirUpdate: lambda c, _g: NADIR_WINDOW_S if c.window_s is None else float(c.window_s),
+    cmd.NadirCheck: lambda c, _g: NADIR_WINDOW_S if c.window_s is None else float(c.window_s),
+    cmd.Sunfind: _fixed(SUNFIND_S),
+    cmd.Suncheck: _fixed(SUNCHECK_S),
+    cmd.Sungaze: _fixed(SUNGAZE_S),
+    cmd.GetTiltAttitude: _fixed(NADIR_WINDOW_S),
+    cmd.GetCoarseAttitude: _fixed(NADIR_WINDOW_S + SUNFIND_S),
+    cmd.GetFineAttitude: _fixed(GET_FINE_ATTITUDE_S),
+    cmd.SuncheckSungaze: _fixed(SUNCHECK_SUNGAZE_S),
+    cmd.Gyrocompass: lambda c, g: g if c.duration_s is None else float(c.duration_s),
+    cmd.ArticulateStart: _fixed(0.0),
+    cmd.ArticulateStop: _fixed(0.0),
+    cmd.HgaPass: lambda c, _g: float(c.duration_min) * 60.0,
+    cmd.Wait: lambda c, _g: float(c.duration_s),
+    cmd.SetParam: _fixed(0.0),
 }
 
 
@@ -333,7 +341,7 @@ def _check_articulate(
     opened: SequenceStep | None = None
     for step in sequence.steps:
         c = step.command
-        if articulating and not isinstance(c, _ALLOWED_IN_ARTICULATE):
+        if articulating and not c.in_articulate:
             where = f" (ARTICULATE_START on line {opened.line})" if opened and opened.line else ""
             text = f"{c.name} is refused in Articulate{where}: ARTICULATE_STOP first"
             result.errors.append(_diag(step, "error", "refused-in-articulate", text))
@@ -357,18 +365,7 @@ def estimate_duration_s(command: cmd.Command, gyrocompass_s: float = GYROCOMPASS
     >>> estimate_duration_s(cmd.HgaPass(duration_min=15))
     900.0
     """
-    c = command
-    if isinstance(c, _DRIVES):
-        return sum(_drive_times_s(c))
-    if isinstance(c, cmd.NadirUpdate | cmd.NadirCheck):
-        return NADIR_WINDOW_S if c.window_s is None else float(c.window_s)
-    if isinstance(c, cmd.Gyrocompass):
-        return gyrocompass_s if c.duration_s is None else float(c.duration_s)
-    if isinstance(c, cmd.HgaPass):
-        return float(c.duration_min) * 60.0
-    if isinstance(c, cmd.Wait):
-        return float(c.duration_s)
-    return _FIXED_S.get(type(c), 0.0)
+    return _DURATION_S[type(command)](command, gyrocompass_s)
 
 
 def _drive_times_s(
@@ -488,7 +485,7 @@ class _Prediction:
             )
             self.warn(step, "suncheck-not-coarse", text)
         limit = self.min_sun_elevation_deg
-        if isinstance(c, _NEEDS_SUN) and ctx.sun_elevation_deg is not None and limit is not None:
+        if c.images_sun and ctx.sun_elevation_deg is not None and limit is not None:
             sun = ctx.sun_elevation_deg(start)
             if sun < limit:
                 text = (
@@ -500,7 +497,7 @@ class _Prediction:
 
     def advance(self, step: SequenceStep, duration: float) -> None:
         c = step.command
-        after = _AQF_AFTER.get(type(c))
+        after = c.aqf_after
         if after == "Fine":
             self.aqf, self.imu_s, self.imu_warned = "Fine", 0.0, False
         elif after is not None:

@@ -18,21 +18,15 @@ import math
 import typing
 from collections.abc import Callable
 from dataclasses import dataclass, fields
-from typing import Annotated, Any
+from typing import Any
 
-from fastapi import FastAPI, HTTPException, Query
-
-from server.auth import Viewer
-from server.uploads import request_error
 from sim.loop.telemetry import TelemetryFrame
 from sim.rover.truth import STEERED_WHEELS
-from sim.world.marsclock import t_s_for_sol_lmst
 
 MAX_SOLS = 7  # sols per request: a sol is up to ~90 000 stored frames at 1 Hz
 MAX_POINTS = 10_000
 DEFAULT_POINTS = 2000
 MIN_POINTS = 4  # two buckets of min and max
-MAX_SOL = 100_000  # as server.app
 AXES = ("t_s", "sol", "lmst_h")  # the x axis, not channels
 # Components of the list fields (TelemetryFrame's docstring: quaternions [x, y, z, w],
 # positions and unit vectors [x, y, z] in their frame, bogies [left, right]).
@@ -65,7 +59,8 @@ def _unit(field_name: str) -> str:
     return ""  # quaternion components, unit vectors, counts
 
 
-def _length(field_name: str) -> int:
+def vector_length(field_name: str) -> int:
+    """How many components a list field of the frame has (``LENGTHS``, by its name)."""
     for key, n in LENGTHS.items():
         if field_name.startswith(key) or field_name.endswith(key):
             return n
@@ -109,7 +104,7 @@ def frame_channels() -> dict[str, Channel]:
         if hint in (float, int):
             out[f.name] = Channel(f.name, _unit(f.name), _is_truth(f.name), _scalar(f.name))
         elif typing.get_origin(hint) is list and typing.get_args(hint) == (float,):
-            for i in range(_length(f.name)):
+            for i in range(vector_length(f.name)):
                 name = f"{f.name}_{i}"
                 out[name] = Channel(name, _unit(f.name), _is_truth(f.name), _component(f.name, i))
     return out
@@ -189,58 +184,3 @@ def channel_series(
         "lmst_h": [float(frames[i]["lmst_h"]) for i in keep],
         "values": [values[i] for i in keep],
     }
-
-
-NOT_FOUND: dict[int | str, dict[str, Any]] = {
-    404: {"description": "no such rover or channel (the answer names the known channels)"}
-}
-BAD_REQUEST: dict[int | str, dict[str, Any]] = {422: {"description": "the request's problems"}}
-
-
-def add_routes(api: FastAPI, server: Any) -> None:
-    """The channel routes, on the app ``api`` over ``server`` (``server.app.Server``)."""
-
-    def known(rover: str) -> dict[str, Channel]:
-        runtime = server.rover(rover)
-        return channels_of(runtime.last_frame)
-
-    @api.get("/api/rovers/{rover}/channels", responses=NOT_FOUND)
-    def list_channels(rover: str, _: Viewer) -> list[dict[str, Any]]:
-        """The numeric telemetry channels: name, unit, and whether it is scored against
-        the simulator's truth (a view no real operator has)."""
-        return [c.describe() for c in known(rover).values()]
-
-    @api.get("/api/rovers/{rover}/channels/{channel}", responses={**NOT_FOUND, **BAD_REQUEST})
-    def channel_values(
-        rover: str,
-        channel: str,
-        _: Viewer,
-        sol_from: Annotated[int | None, Query(ge=0, le=MAX_SOL)] = None,
-        sol_to: Annotated[int | None, Query(ge=0, le=MAX_SOL)] = None,
-        max_points: Annotated[int, Query(ge=MIN_POINTS, le=MAX_POINTS)] = DEFAULT_POINTS,
-    ) -> dict[str, Any]:
-        """One channel over sols ``sol_from``-``sol_to`` (default: the rover's sol now; at
-        most MAX_SOLS sols), as ``t_s``, ``sol``, ``lmst_h`` and ``values`` arrays (null:
-        no value), at most ``max_points`` long: decimated keeping each bucket's min and
-        max."""
-        runtime = server.rover(rover)
-        channels = known(rover)
-        if channel not in channels:
-            raise HTTPException(404, f"unknown channel {channel!r}; known: {', '.join(channels)}")
-        now = runtime.sol(runtime.t_s)
-        lo = now if sol_from is None else sol_from
-        hi = lo if sol_to is None else sol_to
-        if hi < lo:
-            raise request_error(("query", "sol_to"), "sol_to: must be >= sol_from", "range")
-        if hi - lo + 1 > MAX_SOLS:
-            raise request_error(
-                ("query", "sol_to"), f"at most {MAX_SOLS} sols at once, asked {hi - lo + 1}",
-                "range",
-            )  # fmt: skip
-        server.writer.flush()
-        mission = runtime.spec.mission
-        t0 = t_s_for_sol_lmst(mission, lo, 0.0)
-        t1 = t_s_for_sol_lmst(mission, hi + 1, 0.0)
-        frames = [f for f in server.store.frames(rover, t0, t1) if lo <= int(f["sol"]) <= hi]
-        return {"rover": rover, "sol_from": lo, "sol_to": hi,
-                **channel_series(frames, channels[channel], max_points)}  # fmt: skip

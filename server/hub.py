@@ -90,8 +90,8 @@ class TelemetryHub:
             return len(self._clients.get(rover, set()))
 
     def publish(self, rover: str, frames: list[dict[str, Any]]) -> None:
-        """Hand frames to every client of ``rover`` (thread-safe, never blocks), each a
-        copy stamped with ``published_wall``."""
+        """A frame sink (``server.sinks``): hand frames to every client of ``rover``
+        (thread-safe, never blocks), each a copy stamped with ``published_wall``."""
         with self._lock:
             clients = list(self._clients.get(rover, set()))
         if not clients:

@@ -108,7 +108,7 @@ def queue_json(runtime: RoverRuntime, store: Store | None = None) -> list[dict[s
 
 
 def _stored_command(step: dict[str, Any]) -> str:
-    """``NAME arg=value ...`` of a stored step (``server.app._step_json``)."""
+    """``NAME arg=value ...`` of a stored step (``server.api.sequences.step_json``)."""
     args = " ".join(
         f"{k}={str(v).lower() if isinstance(v, bool) else v}"
         for k, v in (step.get("args") or {}).items()

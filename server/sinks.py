@@ -4,6 +4,10 @@ A ``RoverRuntime`` plays its frames out as its clock reaches them and hands each
 order, to every sink in its ``sinks`` list: storage (frames and their events), the alarm
 engine, the WebSocket hub and the 3D view. A frame is ``TelemetryFrame.as_dict()``
 (``sim.loop.telemetry``), the one definition of its fields.
+
+``server.state.Server`` wires them: every runtime gets ``StorageSink``, the alarm engine
+(``server.alarms.AlarmEngine``) and the hub (``server.hub.TelemetryHub``), in that order,
+and a 3D view (``server.scene3d.scene.RoverScene``) joins its rover's sinks when it starts.
 """
 
 from __future__ import annotations

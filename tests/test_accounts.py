@@ -1,4 +1,4 @@
-"""Users, roles and tokens (server.accounts) on SQLite and PostgreSQL: tokens are stored only
+"""Users, roles and tokens (server.access.accounts) on SQLite and PostgreSQL: tokens are stored only
 as hashes, expired and revoked tokens are refused, roles are ordered, the local admin is
 created once, and a database from before accounts is upgraded in place."""
 
@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from sqlalchemy import create_engine, inspect, select, text, update
 
-from server.accounts import (
+from server.access.accounts import (
     ROLES,
     AccountError,
     Accounts,

@@ -22,10 +22,11 @@ import httpx
 import pytest
 from fastapi.testclient import TestClient
 
-import server.validation_pool as pool_module
+import server.validation.pool as pool_module
 from bench.fuzz import live_server
-from server.app import MAX_ID, MAX_SOL, ServerConfig, create_app, data_dir_url
-from server.uploads import MAX_JSON_DEPTH
+from server.api.deps import MAX_ID, MAX_SOL
+from server.app import ServerConfig, create_app, data_dir_url
+from server.validation.uploads import MAX_JSON_DEPTH
 
 TOKEN = "hardening-token"
 AUTH = {"Authorization": f"Bearer {TOKEN}"}

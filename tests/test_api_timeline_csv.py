@@ -15,7 +15,8 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from server.app import CSV_COLUMNS, ServerConfig, create_app, data_dir_url
+from server.api.telemetry_csv import CSV_COLUMNS
+from server.app import ServerConfig, create_app, data_dir_url
 from tests.test_api import _wait
 
 TOKEN = "csv-test-token"

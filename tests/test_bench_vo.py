@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from bench.sim import BENCHES
+from bench.registry import BENCHES
 from bench.vo import bench_vo
 from bench.vo_baseline import body_motion_from_camera
 from sim.errors import InputError

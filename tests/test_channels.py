@@ -13,7 +13,8 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from server.app import CSV_COLUMNS, CSV_VECTORS, ServerConfig, create_app, data_dir_url
+from server.api.telemetry_csv import CSV_COLUMNS, CSV_VECTORS
+from server.app import ServerConfig, create_app, data_dir_url
 from server.channels import MAX_POINTS, MAX_SOLS, decimate, frame_channels, side_channels
 from tests.test_server_restart import _wait
 

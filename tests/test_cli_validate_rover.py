@@ -20,7 +20,7 @@ from typing import Any
 import httpx
 import pytest
 
-from cli.main import NO_ROVER_NOTE
+from cli.validate import NO_ROVER_NOTE
 from server.storage import Store
 from tests.test_cli import _run
 from tests.test_server_restart import AUTH, TOKEN, _free_port, _start, _wait

@@ -15,7 +15,8 @@ from estimation.fusion.kinematic.attitude_sensors import (
     sun_vector_from_measurement,
 )
 from estimation.fusion.kinematic.encoder_rates import interval_rates
-from estimation.fusion.kinematic.rover_kinematics import FLIGHT_GEOMETRY, suspension
+from estimation.fusion.kinematic.rover_kinematics import suspension
+from estimation.geometry import FLIGHT_GEOMETRY
 from sim.rover.compliant_wheels import compliant_wheel_angles
 from sim.rover.drive import drive_straight, initial_state
 from sim.rover.geometry import MER_GEOMETRY, wheel_kinematics

@@ -81,7 +81,7 @@ def test_estimate_reports_its_frames() -> None:
     assert est.P.shape == (18, 18) and est.p_s.tolist() == [1.0, 2.0, 0.0]
     with pytest.raises(ValueError, match="gyro must be"):
         KinematicEkf(q, [0.0, 0.0, 0.0], gyro="two")
-    with pytest.raises(ValueError, match="omega_m must be"):
+    with pytest.raises(ValueError, match="omega_m: must be"):
         ekf.update_gyro([0.0, 0.0])
 
 

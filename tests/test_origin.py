@@ -1,4 +1,4 @@
-"""The same-origin check of WebSocket routes (``server.origin``), alone and on the relayed
+"""The same-origin check of WebSocket routes (``server.api.origin``), alone and on the relayed
 viser socket: a browser page of another site is refused before the socket is accepted; a
 client without ``Origin`` (a script) is not."""
 
@@ -11,8 +11,8 @@ import viser
 from fastapi.testclient import TestClient
 from starlette.websockets import WebSocketDisconnect
 
+from server.api.origin import origin_allowed
 from server.app import ServerConfig, create_app, data_dir_url
-from server.origin import origin_allowed
 
 HOST = "rover.example:8000"
 

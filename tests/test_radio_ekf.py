@@ -11,10 +11,9 @@ import pytest
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from estimation.fusion.joseph import joseph_update
+from estimation.fusion.ekf_core import joseph_update, rk4
 from estimation.fusion.radio import models as rm
 from estimation.fusion.radio.ekf import RadioEkf, RadioEkfTuning
-from estimation.fusion.rk4 import rk4_step
 
 FloatArray = NDArray[np.float64]
 
@@ -100,14 +99,14 @@ def test_pixel_jacobians_match_finite_differences() -> None:
 
 
 def test_rk4_is_fourth_order_on_the_harmonic_oscillator() -> None:
-    def oscillator(_t: float, s: FloatArray) -> FloatArray:
+    def oscillator(s: FloatArray) -> FloatArray:
         return np.array([s[1], -s[0]])
 
     def error(h: float) -> float:
         s = np.array([1.0, 0.0])
         n = round(10.0 / h)
-        for k in range(n):
-            s = rk4_step(oscillator, k * h, s, h)
+        for _ in range(n):
+            s = rk4(oscillator, s, h)
         return float(np.hypot(s[0] - math.cos(10.0), s[1] + math.sin(10.0)))
 
     coarse, fine = error(0.1), error(0.05)
@@ -241,7 +240,7 @@ def test_landmark_behind_the_camera_is_left_out() -> None:
             lambda: joseph_update(np.zeros(2), np.eye(2), np.zeros(1), np.ones((1, 2)), np.eye(2)),
             "R",
         ),
-        (lambda: rk4_step(lambda t, s: s, 0.0, np.zeros(1), float("nan")), "dt_s"),
+        (lambda: rk4(lambda s: s, np.zeros(1), float("nan")), "dt_s"),
     ],
 )
 def test_bad_inputs_raise_value_error_naming_them(call: Callable[[], object], name: str) -> None:

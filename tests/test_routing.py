@@ -1,6 +1,6 @@
-"""``server.routing.AuthFirstRoute`` on a small app of its own: the auth check runs before
+"""``server.api.routing.AuthFirstRoute`` on a small app of its own: the auth check runs before
 the body is read, once per request (FastAPI's own call reuses its result), and a JSON body
-is read through ``server.uploads`` (size, depth)."""
+is read through ``server.validation.uploads`` (size, depth)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from fastapi import Depends, FastAPI, HTTPException, Request
 from fastapi.testclient import TestClient
 from pydantic import BaseModel
 
-from server.routing import AuthFirstRoute, auth_check
+from server.api.routing import AuthFirstRoute, auth_check
 
 calls: list[str] = []
 

@@ -26,14 +26,12 @@ from scipy.spatial.transform import Rotation
 from sequences import commands as cmd
 from server.app import ServerConfig, create_app, data_dir_url
 from server.runtime import ROVERS, RoverRuntime
-from server.scene3d import (
-    HISTORY_EVERY_S,
+from server.scene3d.model import (
     TERRAIN_HALF_M,
     TERRAIN_STEP_M,
     TRACK_CHUNK,
     TRACK_RGB,
     RoverPose,
-    RoverScene,
     Track,
     compact,
     status_text,
@@ -41,8 +39,9 @@ from server.scene3d import (
     wheel_poses_b,
     wxyz_from_q,
 )
+from server.scene3d.proxy import MAX_VIEWER_MESSAGE_BYTES, refusal
+from server.scene3d.scene import HISTORY_EVERY_S, RoverScene
 from server.storage import Store
-from server.viser_proxy import MAX_VIEWER_MESSAGE_BYTES, refusal
 from sim.rover.geometry import MER_GEOMETRY, wheel_kinematics
 from sim.world.sites import make_terrain
 from tests.test_server_restart import _free_port

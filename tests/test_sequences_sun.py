@@ -18,7 +18,7 @@ from estimation.sapp.nate import NateParams
 from sequences.commands import SetParam, Sunfind, Wait
 from sequences.validate import CODES, ValidationContext, ValidationResult, validate
 from server.runtime import ROVERS, RoverRuntime
-from server.validation_context import rover_site, site_context
+from server.validation.context import rover_site, site_context
 from sim.loop.session import RoverSession
 from sim.world.marsclock import get_mission, mars24, t_s_for_sol_lmst, t_s_to_utc, utc_to_t_s
 from sim.world.sites import site

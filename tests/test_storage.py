@@ -228,7 +228,7 @@ def test_missing_columns_are_added_to_any_table(store_url: str) -> None:
     metadata has and the database lacks is added, existing rows taking its default."""
     from sqlalchemy import Column, Integer, MetaData, String, Table, Text, insert, select
 
-    from server.storage import _add_missing_columns
+    from server.storage.schema import add_missing_columns
 
     def gadgets(*extra: Column[Any]) -> tuple[MetaData, Table]:
         meta = MetaData()
@@ -246,15 +246,15 @@ def test_missing_columns_are_added_to_any_table(store_url: str) -> None:
             Column("count", Integer, nullable=False, server_default="7"),
             Column("note", Text),
         )
-        assert _add_missing_columns(store.engine, v2) == ["gadgets.count", "gadgets.note"]
-        assert _add_missing_columns(store.engine, v2) == []
+        assert add_missing_columns(store.engine, v2) == ["gadgets.count", "gadgets.note"]
+        assert add_missing_columns(store.engine, v2) == []
         with store.engine.begin() as conn:
             conn.execute(insert(table).values(name="new", note="n"))
             rows = conn.execute(select(table).order_by(table.c.id)).all()
         assert [tuple(r) for r in rows] == [(1, "old", 7, None), (2, "new", 7, "n")]
         v3, _ = gadgets(Column("name", String(16)), Column("size", Integer, nullable=False))
         with pytest.raises(ValueError, match=r"gadgets\.size"):
-            _add_missing_columns(store.engine, v3)
+            add_missing_columns(store.engine, v3)
     finally:
         store.close()
 

@@ -8,13 +8,13 @@ import io
 from datetime import UTC, datetime
 
 from sequences import commands as cmd
-from server.app import (
+from server.api.telemetry_csv import (
     CSV_COLUMNS,
     CSV_SIDE_ESTIMATORS,
     CSV_SIDE_FIELDS,
     CSV_SIDE_VECTORS,
     CSV_VECTORS,
-    _csv,
+    frames_csv,
 )
 from sim.loop.session import RoverSession
 
@@ -24,7 +24,7 @@ def test_rows_keep_their_columns_with_old_and_new_frames() -> None:
     session.execute(cmd.DriveStraight(distance_m=0.5))
     new = session.frames[-1].as_dict()
     old = {k: v for k, v in new.items() if k not in ("sun_ll_true", "steer_deg", "rocker_deg")}
-    rows = list(csv.reader(io.StringIO(_csv([new, old]))))
+    rows = list(csv.reader(io.StringIO(frames_csv([new, old]))))
     header = rows[0]
     per_side = len(CSV_SIDE_FIELDS) + sum(CSV_SIDE_VECTORS.values())
     side_columns = len(CSV_SIDE_ESTIMATORS) * per_side
@@ -42,7 +42,7 @@ def test_the_estimators_beside_sapp_have_their_columns_empty_where_they_did_not_
     )
     session.execute(cmd.DriveStraight(distance_m=0.5))
     frame = session.frames[-1].as_dict()
-    rows = list(csv.reader(io.StringIO(_csv([frame]))))
+    rows = list(csv.reader(io.StringIO(frames_csv([frame]))))
     row = dict(zip(rows[0], rows[1], strict=True))
     radio = frame["estimators"]["radio_ekf"]
     assert float(row["radio_ekf_position_error_m"]) == radio["position_error_m"]

@@ -1,4 +1,4 @@
-"""The rover's validation context (``server.validation_context``): sampled elevations and
+"""The rover's validation context (``server.validation.context``): sampled elevations and
 the ephemeris' end (issue 13, defects 3 and 5).
 
 Reference: the direct DE421 functions of ``sim.world.mars_frames``; the interpolated elevations
@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-import server.validation_context as vc
+import server.validation.context as vc
 from sequences.validate import MAX_EPHEMERIS_SOL, validate
 from server.app import ServerConfig, create_app, data_dir_url
-from server.validation_context import SampledElevation, site_context
+from server.validation.context import SampledElevation, site_context
 from sim.world.ephemeris import (
     astrometric_from_mars_j2000_km,
     coverage_t_s,

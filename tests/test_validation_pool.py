@@ -1,4 +1,4 @@
-"""Uploads validated in a worker process (``server.validation_pool``; issue 13, the
+"""Uploads validated in a worker process (``server.validation.pool``; issue 13, the
 ``event_loop_stall_ms_during_upload`` figure): the same answers as the threadpool path, the
 work really done in the worker, and a dead worker never the server's problem (the request
 retried in a new pool, then in a thread; no worker outliving the server).
@@ -22,10 +22,10 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-import server.validation_pool as pool_module
+import server.validation.pool as pool_module
 from server.app import ServerConfig, create_app, data_dir_url
-from server.validation_context import RoverSite
-from server.validation_pool import ValidationPool, check_upload
+from server.validation.context import RoverSite
+from server.validation.pool import ValidationPool, check_upload
 
 TOKEN = "validation-pool-token"
 AUTH = {"Authorization": f"Bearer {TOKEN}"}
@@ -220,7 +220,7 @@ def test_a_worker_ends_when_the_server_is_killed() -> None:
     """A worker waits on a queue it holds both ends of: without its watch it would live on."""
     program = (
         "import time\n"
-        "from server.validation_pool import ValidationPool\n"
+        "from server.validation.pool import ValidationPool\n"
         "pool = ValidationPool(1)\n"
         "pool.start()\n"
         "print(pool.worker_pids()[0], flush=True)\n"

@@ -318,3 +318,28 @@ def test_images_and_poses_are_validated(pairs_256: Pairs) -> None:
     assert vo.step(left, right, **kw).status is VoStatus.INITIALISED
     vo.reset()
     assert vo.step(left, right, **kw).status is VoStatus.INITIALISED
+
+
+def test_a_checkpoint_between_pairs_resumes_bit_for_bit(pairs_256: Pairs) -> None:
+    """``state()`` after the first pair, through JSON, onto a fresh ``VisualOdometry``: the
+    second step (tracking, RANSAC's samples, the ML refinement) gives the same result."""
+    from tests.test_nate_state import assert_same, through_json
+
+    original = VisualOdometry(pairs_256.rig)
+    original.step(*pairs_256.first, R_b0_b1_predicted=np.eye(3), p_b1_b0_predicted=np.zeros(3),
+                  R_s_b0=R_S_B0, mast_az_rad=AZ0, mast_el_rad=EL0)  # fmt: skip
+    original.rng.random(3)  # the generator has moved: its position must travel too
+    restored = VisualOdometry(pairs_256.rig)
+    restored.load_state(through_json(original.state()))
+    assert_same(restored.state(), original.state())
+    kw: dict[str, Any] = {
+        "R_b0_b1_predicted": R_WHEELS,
+        "p_b1_b0_predicted": P_WHEELS,
+        "R_s_b0": R_S_B0,
+        "mast_az_rad": pairs_256.az1,
+        "mast_el_rad": EL0,
+    }
+    second_r = restored.step(*pairs_256.second, **kw)
+    second_o = original.step(*pairs_256.second, **kw)
+    assert second_o.status is VoStatus.CONVERGED
+    assert_same(second_r, second_o)

@@ -9,11 +9,12 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from estimation.geometry import FLIGHT_GEOMETRY, FlightGeometry
 from estimation.sapp import wheel_odometry as wo
 from estimation.sapp.wheel_odometry import DriveKind
 
-XY = wo.MER_WHEEL_GEOMETRY.wheel_xy_b()
-RADIUS = wo.MER_WHEEL_GEOMETRY.wheel_radius_m
+XY = FLIGHT_GEOMETRY.wheel_xy_b()
+RADIUS = FLIGHT_GEOMETRY.wheel_radius_m
 IDENTITY = np.array([0.0, 0.0, 0.0, 1.0])
 
 
@@ -258,7 +259,7 @@ def test_classification_and_centre() -> None:
         (lambda: wo.arc_centre_b(math.inf), "radius_m"),
         (lambda: wo.steer_six([0.0] * 6), "steer_corner_rad"),
         (lambda: wo.is_straight([0.0] * 6, tol_rad=-1.0), "tol_rad"),
-        (lambda: wo.WheelGeometry(track_m=0.0), "track_m"),
+        (lambda: FlightGeometry(track_m=0.0), "track_m"),
         (lambda: wo.straight_step(["a"] * 6, [0.0] * 6), "arc_m"),
     ],
 )

@@ -9,7 +9,7 @@ client. Three clients read all along; a fourth reads like them, then stops readi
 the sender blocks, and its bounded queue drops the oldest frames: when it reads again it is
 told how many (``dropped``). Meanwhile the others receive as before.
 
-The buffers are made small on both ends (``bench.server.serve_with_small_buffers``;
+The buffers are made small on both ends (``bench.server_process.serve_with_small_buffers``;
 the slow client asks for a small receive buffer and no compression), as on a slow link: on
 loopback the kernel and asyncio would otherwise buffer a few hundred kB, a minute of frames.
 
@@ -29,7 +29,8 @@ from typing import Any
 import pytest
 from websockets.asyncio.client import connect
 
-from bench.server import WS_SEQUENCE, Received, listen, running_server, upload
+from bench.server import WS_SEQUENCE, Received, listen
+from bench.server_process import running_server, upload
 from server.hub import MAX_RATE_HZ
 from server.runtime import FRAME_EVERY_S
 

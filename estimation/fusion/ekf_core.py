@@ -1,4 +1,5 @@
-"""The continuous-discrete extended Kalman filter, model-agnostic (Balaram 2000, sec. 3).
+"""The continuous-discrete extended Kalman filter, model-agnostic (Balaram 2000, sec. 3;
+Jiang, Li et al. 2014, eqs. 26-30): the one RK4 and the one Joseph-form update of both filters.
 
 Balaram's step (ii) is "the standard continuous-discrete EKF algorithm" (Gelb, *Applied
 Optimal Estimation*, 1974, p. 188, Balaram 2000 ref. 12): between measurements the state
@@ -11,6 +12,14 @@ follows ``Ẋ = f(X)`` and the covariance ``Ṗ = F P + P Fᵀ + Q``; at a measu
   exponential"): ``Φ = exp(F dt)``, ``Q_d = ∫ Φ(s) Q Φ(s)ᵀ ds``, ``P⁺ = Φ P Φᵀ + Q_d``.
 - ``update``: ``K = P Hᵀ (H P Hᵀ + R)⁻¹``, ``X⁺ = X + K (Y - h(X))`` and the Joseph form
   ``P⁺ = (I - K H) P (I - K H)ᵀ + K R Kᵀ``, symmetric and positive by construction.
+- The radio filter (``estimation.fusion.radio``) uses the same pieces as Jiang, Li et al.
+  2014 write them: ``rk4`` is the "four-order Runge-Kutta algorithm" of its sec. 5 for the
+  dynamics (eq. 26), and ``joseph_update`` its eqs. 28-30. The Joseph form keeps ``P⁺``
+  symmetric and positive semi-definite for any gain, which matters when the state mixes
+  radians of latitude (~1e-6) with metres per second; it equals the textbook ``(I - K H) P``
+  for the optimal gain. The two updates differ only in how they solve for the gain: the
+  kinematic filter by Cholesky (it also needs ``S⁻¹`` for the NIS), the radio filter by LU,
+  as each always has (a checkpointed run replays bit for bit).
 
 On a linear model these are exactly the linear Kalman filter's equations (the test in
 ``tests/test_kinematic_ekf_core.py``).
@@ -19,6 +28,7 @@ On a linear model these are exactly the linear Kalman filter's equations (the te
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -78,7 +88,16 @@ def discretise(F: FloatArray, Q: FloatArray, dt_s: float) -> tuple[FloatArray, F
 
 
 def rk4(f: Dynamics, x: FloatArray, dt_s: float, substeps: int = 1) -> FloatArray:
-    """``x(t + dt)`` of ``ẋ = f(x)`` by classical Runge-Kutta in ``substeps`` equal steps."""
+    """``x(t + dt)`` of ``ẋ = f(x)`` by classical Runge-Kutta in ``substeps`` equal steps
+    (local error ``O(dt⁵)``). ``x`` any shape, ``f`` returns the same shape; ``dt_s`` may be
+    negative (backwards) but must be finite, else ``ValueError`` naming ``dt_s``.
+
+    >>> x1 = rk4(lambda x: -x, np.array([1.0]), 0.1)
+    >>> round(float(x1[0]), 8), round(float(np.exp(-0.1)), 8)
+    (0.9048375, 0.90483742)
+    """
+    if not np.isfinite(dt_s):
+        raise ValueError(f"dt_s: must be finite, got {dt_s!r}")
     h = dt_s / substeps
     for _ in range(substeps):
         k1 = f(x)
@@ -116,7 +135,44 @@ def update(
     S = H @ P @ H.T + R
     factor = cho_factor(0.5 * (S + S.T))
     K = cho_solve(factor, H @ P).T  # K = P Hᵀ S⁻¹ (P and S symmetric)
-    IKH = np.eye(n) - K @ H
-    P_next = IKH @ P @ IKH.T + K @ R @ K.T
     nis = float(residual @ cho_solve(factor, residual))
-    return x + K @ residual, 0.5 * (P_next + P_next.T), nis
+    return (*_joseph(x, P, K, residual, H, R), nis)
+
+
+def joseph_update(
+    x: FloatArray, P: FloatArray, innovation: FloatArray, H: FloatArray, R: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Jiang, Li et al. 2014 eqs. 28-30: updated state and covariance; ``x`` (n,), ``P``
+    (n, n), ``innovation`` (m,) the measurement minus its prediction ``y - h(x)``, ``H``
+    (m, n), ``R`` (m, m). The gain by an LU solve (module docstring).
+
+    Raises ``ValueError`` naming the argument whose shape or values are wrong.
+    """
+    n, m = x.shape[0], innovation.shape[0]
+    if x.ndim != 1 or P.shape != (n, n):
+        raise ValueError(f"P: must be ({n}, {n}) for a state of {n}, got {P.shape}")
+    if innovation.ndim != 1 or H.shape != (m, n):
+        raise ValueError(f"H: must be ({m}, {n}), got {H.shape}")
+    if R.shape != (m, m):
+        raise ValueError(f"R: must be ({m}, {m}), got {R.shape}")
+    for name, a in (("x", x), ("P", P), ("innovation", innovation), ("H", H), ("R", R)):
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"{name}: must be finite")
+    S = H @ P @ H.T + R
+    K = cast(FloatArray, np.linalg.solve(S, H @ P).T)  # eq. 28 (S symmetric: S^-1 H P = K^T)
+    return _joseph(x, P, K, innovation, H, R)
+
+
+def _joseph(
+    x: FloatArray,
+    P: FloatArray,
+    K: FloatArray,
+    innovation: FloatArray,
+    H: FloatArray,
+    R: FloatArray,
+) -> tuple[FloatArray, FloatArray]:
+    """``x + K r`` (eq. 29) and ``(I - K H) P (I - K H)ᵀ + K R Kᵀ`` (eq. 30), symmetrised."""
+    x_new: FloatArray = x + K @ innovation
+    I_KH = np.eye(x.shape[0]) - K @ H
+    P_new: FloatArray = I_KH @ P @ I_KH.T + K @ R @ K.T
+    return x_new, 0.5 * (P_new + P_new.T)

@@ -62,7 +62,9 @@ from __future__ import annotations
 
 import enum
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -72,6 +74,7 @@ from estimation.checks import angle_between_rad, unit_quaternion, unit_vector
 from estimation.mars_constants import MARS_GRAVITY_M_S2
 from estimation.quaternion import quat_canonical, quat_from_rotvec, quat_multiply
 from estimation.sapp.aqf import AttitudeQuality
+from estimation.state import load_params, params_state
 
 FloatArray = NDArray[np.float64]
 
@@ -199,6 +202,26 @@ class AccelAverager:
         """The average so far: ``f_b = sum(dv_b) / sum(dt)`` over the valid samples."""
         f_b = self._sum_dv_b / self._sum_dt_s if self._n_valid else np.full(3, np.nan)
         return AccelAverage(f_b, self._n_valid, self._n_rejected, self._elapsed_s)
+
+    def state(self) -> dict[str, Any]:
+        """The window so far and its parameters, as plain data (``estimation.state``)."""
+        return {
+            "params": params_state(self._p),
+            "sum_dv_b": self._sum_dv_b.copy(),
+            "sum_dt_s": self._sum_dt_s,
+            "n_valid": self._n_valid,
+            "n_rejected": self._n_rejected,
+            "elapsed_s": self._elapsed_s,
+        }
+
+    def load_state(self, state: Mapping[str, Any]) -> None:
+        """Load ``state()``'s output onto this averager."""
+        self._p = load_params(self._p, state["params"])
+        self._sum_dv_b = np.array(state["sum_dv_b"], dtype=np.float64)
+        self._sum_dt_s = float(state["sum_dt_s"])
+        self._n_valid = int(state["n_valid"])
+        self._n_rejected = int(state["n_rejected"])
+        self._elapsed_s = float(state["elapsed_s"])
 
 
 def average_accelerometer(

@@ -30,13 +30,17 @@ the HGA link stayed solid for about 10,000 s of IMU integration, so the 0.5° le
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from typing import Any
 
 from estimation.sapp.aqf import AttitudeQuality
 from estimation.sapp.hga_pointing import HGA_POINTING_REQUIREMENT_DEG
+from estimation.sapp.nate_io import NateParams
 
 FINE_3SIGMA_DEG = 1.5  # Ali et al. 2005 sec. 1: the attitude's share of the 2 deg, 3 sigma
 DRIFT_3SIGMA_DEG_PER_S = 0.5 / 10_000.0  # sec. 4, see the module docstring
-COARSE_3SIGMA_DEG = 8.0  # estimation.sapp.nate: gyrocompass_coarse_3sigma_rad, Pancam's half field
+# NATE's gyrocompass_coarse_3sigma_rad (Pancam's half field), the 3σ a Coarse flag stands for
+COARSE_3SIGMA_DEG = math.degrees(NateParams().gyrocompass_coarse_3sigma_rad)
 UNKNOWN_HEADING_3SIGMA_DEG = 180.0
 
 
@@ -48,6 +52,22 @@ class PointingKnowledge:
         self._base_imu_s = 0.0
         self._propagated = False  # the estimate is a Fine one, propagated since
         self._aqf = AttitudeQuality.UNKNOWN
+
+    def state(self) -> dict[str, Any]:
+        """The knowledge as plain data (``estimation.state``)."""
+        return {
+            "base_deg": self._base_deg,
+            "base_imu_s": self._base_imu_s,
+            "propagated": self._propagated,
+            "aqf": self._aqf.name,
+        }
+
+    def load_state(self, state: Mapping[str, Any]) -> None:
+        """Load ``state()``'s output onto a fresh ``PointingKnowledge``."""
+        self._base_deg = float(state["base_deg"])
+        self._base_imu_s = float(state["base_imu_s"])
+        self._propagated = bool(state["propagated"])
+        self._aqf = AttitudeQuality[state["aqf"]]
 
     def update(
         self,

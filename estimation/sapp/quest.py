@@ -49,7 +49,9 @@ Flight software: numpy only; bad arguments raise ``ValueError`` naming the param
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -202,6 +204,28 @@ class QuestAccumulator:
         self._n = 0
         self._first_b = np.zeros(3)
         self._first_r = np.zeros(3)
+
+    def state(self) -> dict[str, Any]:
+        """The running sums as plain data (``estimation.state``)."""
+        return {
+            "B_weighted": self._B_weighted.copy(),
+            "information": self._information.copy(),
+            "b_weighted_sum": self._b_weighted_sum.copy(),
+            "r_weighted_sum": self._r_weighted_sum.copy(),
+            "weight_sum": self._weight_sum,
+            "n": self._n,
+            "first_b": self._first_b.copy(),
+            "first_r": self._first_r.copy(),
+        }
+
+    def load_state(self, state: Mapping[str, Any]) -> None:
+        """Load ``state()``'s output onto this accumulator."""
+        for name in ("B_weighted", "information", "b_weighted_sum", "r_weighted_sum"):
+            setattr(self, f"_{name}", np.array(state[name], dtype=np.float64))
+        self._first_b = np.array(state["first_b"], dtype=np.float64)
+        self._first_r = np.array(state["first_r"], dtype=np.float64)
+        self._weight_sum = float(state["weight_sum"])
+        self._n = int(state["n"])
 
     @property
     def n_observations(self) -> int:

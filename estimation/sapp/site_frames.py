@@ -18,7 +18,9 @@ position knowledge of a traverse (Ali et al. 2005 requires 10 % of distance driv
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -39,6 +41,15 @@ class SiteChain:
 
     def __init__(self) -> None:
         self._sites = [SiteFrame(0, np.zeros(3))]
+
+    def state(self) -> dict[str, Any]:
+        """The Sites' origins in the mission frame, (n, 3) m, as plain data."""
+        return {"origins_mission_m": np.array([s.origin_mission_m for s in self._sites])}
+
+    def load_state(self, state: Mapping[str, Any]) -> None:
+        """Load ``state()``'s output onto this chain."""
+        origins = np.array(state["origins_mission_m"], dtype=np.float64).reshape(-1, 3)
+        self._sites = [SiteFrame(i, origin.copy()) for i, origin in enumerate(origins)]
 
     @property
     def current(self) -> SiteFrame:

@@ -1,7 +1,7 @@
 """Sunfind, Sungaze and Suncheck: NATE's camera modes as image-by-image procedures.
 
-Ali et al. 2005, "Attitude and Position Estimation on the Mars Exploration Rovers" (seed
-000): sec. 2.2.2 (Sunfind: search phase eqs. 2-3, confirmation phase, final update eq. 4,
+Ali et al. 2005, "Attitude and Position Estimation on the Mars Exploration Rovers":
+sec. 2.2.2 (Sunfind: search phase eqs. 2-3, confirmation phase, final update eq. 4,
 the near-zenith case), 2.2.3 (Sungaze: QUEST on observed and expected sun vectors in LL,
 ten-minute timer, early stop at 1.5 deg 3σ, and a variation with an additional sensor),
 2.3.2 (Suncheck). The geometry is in ``estimation.sapp.sunfind_search``, QUEST in
@@ -62,8 +62,9 @@ from __future__ import annotations
 
 import enum
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -85,6 +86,7 @@ from estimation.sapp.sunfind_search import (
     search_guess,
     search_plan,
 )
+from estimation.state import params_state
 
 FloatArray = NDArray[np.float64]
 SunLL = Callable[[float], FloatArray]
@@ -161,6 +163,28 @@ class PancamRequest:
     purpose: str
 
 
+def _request_state(request: PancamRequest | None) -> dict[str, Any] | None:
+    if request is None:
+        return None
+    return {
+        "az_rad": request.az_rad,
+        "el_rad": request.el_rad,
+        "not_before_t_s": request.not_before_t_s,
+        "purpose": request.purpose,
+    }
+
+
+def _request_from(state: Mapping[str, Any] | None) -> PancamRequest | None:
+    if state is None:
+        return None
+    return PancamRequest(
+        float(state["az_rad"]),
+        float(state["el_rad"]),
+        float(state["not_before_t_s"]),
+        str(state["purpose"]),
+    )
+
+
 class SunOutcome(enum.Enum):
     """How a camera-mode procedure ended."""
 
@@ -202,6 +226,7 @@ class Sunfind:
 
     def __init__(self, q_b_ll: ArrayLike, t_s: float, sun_ll: SunLL, params: SunfindParams):
         self._q = unit_quaternion(q_b_ll)
+        self._start_t_s = float(t_s)
         self._sun_ll = sun_ll
         self._p = params
         elev = math.asin(max(-1.0, min(1.0, -float(sun_ll(t_s)[2]))))
@@ -214,6 +239,35 @@ class Sunfind:
         self._sun_seen = False
         self.result: SunResult | None = None
         self.request: PancamRequest | None = self._search_request(t_s)
+
+    def state(self) -> dict[str, Any]:
+        """A running Sunfind as plain data (``estimation.state``): its constructor's
+        ``q_b_ll``, ``start_t_s`` and ``params``, and where the search is."""
+        return {
+            "q_b_ll": self._q.copy(),
+            "start_t_s": self._start_t_s,
+            "params": params_state(self._p),
+            "index": self._index,
+            "phase": self._phase,
+            "confirm_t_s": [t for t, _ in self._confirm],
+            "confirm_sun_b": [b.copy() for _, b in self._confirm],
+            "psi_rad": self._psi,
+            "n_images": self._n_images,
+            "sun_seen": self._sun_seen,
+            "request": _request_state(self.request),
+        }
+
+    def load_state(self, state: Mapping[str, Any]) -> None:
+        """Load ``state()``'s output onto a Sunfind built from the same constructor
+        arguments (a running one: a finished procedure is not kept)."""
+        self._index = int(state["index"])
+        self._phase = str(state["phase"])
+        sun_b = [np.array(b, dtype=np.float64) for b in state["confirm_sun_b"]]
+        self._confirm = [(float(t), b) for t, b in zip(state["confirm_t_s"], sun_b, strict=True)]
+        self._psi = float(state["psi_rad"])
+        self._n_images = int(state["n_images"])
+        self._sun_seen = bool(state["sun_seen"])
+        self.request = _request_from(state["request"])
 
     def _search_request(self, t_s: float) -> PancamRequest:
         guess = search_guess(self._q, self._sun_ll(t_s), self._index, self.plan.step_rad)
@@ -294,6 +348,8 @@ class Sungaze:
         down_b: ArrayLike | None = None,
     ):
         self._q = unit_quaternion(q_b_ll)
+        self._start_t_s = float(t_s)
+        self._down_b = None if down_b is None else np.array(down_b, dtype=np.float64)
         self._sun_ll = sun_ll
         self._p = params
         self._t0: float | None = None  # the timer runs from the first image
@@ -311,6 +367,34 @@ class Sungaze:
                 R_ll_b.apply(unit_vector(down_b, "down_b")), DOWN_LL, params.gravity_sigma_rad
             )
         self.request: PancamRequest | None = PancamRequest(mast[0], mast[1], t_s, "sungaze 0")
+
+    def state(self) -> dict[str, Any]:
+        """A running Sungaze as plain data (``estimation.state``): its constructor's
+        arguments and the QUEST sums so far."""
+        return {
+            "q_b_ll": self._q.copy(),
+            "start_t_s": self._start_t_s,
+            "mast": list(self._mast),
+            "params": params_state(self._p),
+            "down_b": None if self._down_b is None else self._down_b.copy(),
+            "t0_s": self._t0,
+            "quest": self._acc.state(),
+            "n_images": self._n_images,
+            "n_sun": self._n_sun,
+            "request": _request_state(self.request),
+        }
+
+    def load_state(self, state: Mapping[str, Any]) -> None:
+        """Load ``state()``'s output onto a Sungaze built from the same constructor
+        arguments (a running one)."""
+        self._t0 = None if state["t0_s"] is None else float(state["t0_s"])
+        self._acc.load_state(state["quest"])
+        self._n_images = int(state["n_images"])
+        self._n_sun = int(state["n_sun"])
+        # The last solution is QUEST on the sums as they were after the last sun image,
+        # which are the sums now (nothing is added without a sun).
+        self._last = self._acc.solve() if self._n_sun else None
+        self.request = _request_from(state["request"])
 
     @property
     def three_sigma_rad(self) -> float:
@@ -368,6 +452,7 @@ class Suncheck:
 
     def __init__(self, q_b_ll: ArrayLike, t_s: float, sun_ll: SunLL, params: SuncheckParams):
         self._q = unit_quaternion(q_b_ll)
+        self._start_t_s = float(t_s)
         self._sun_ll = sun_ll
         self._p = params
         guess = search_guess(self._q, sun_ll(t_s), 0, 2.0 * math.pi)  # the estimate's sun
@@ -375,6 +460,19 @@ class Suncheck:
         self.request: PancamRequest | None = PancamRequest(
             guess.mast_az_rad, guess.mast_el_rad, t_s, "suncheck"
         )
+
+    def state(self) -> dict[str, Any]:
+        """A waiting Suncheck as plain data: its constructor's arguments and its request."""
+        return {
+            "q_b_ll": self._q.copy(),
+            "start_t_s": self._start_t_s,
+            "params": params_state(self._p),
+            "request": _request_state(self.request),
+        }
+
+    def load_state(self, state: Mapping[str, Any]) -> None:
+        """Load ``state()``'s output onto a Suncheck built from the same arguments."""
+        self.request = _request_from(state["request"])
 
     def on_image(self, t_s: float, fix: SunFix | None) -> None:
         """The sun finder's result for the image taken at ``t_s``."""

@@ -54,55 +54,18 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
+from estimation.geometry import (
+    FLIGHT_GEOMETRY,
+    N_WHEELS,
+    STEERED_INDEX,
+    FlightGeometry,
+)
 from estimation.quaternion import quat_from_rotvec, quat_multiply
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
-N_WHEELS = 6
-WHEEL_NAMES = ("LF", "LM", "LR", "RF", "RM", "RR")
-STEERED_INDEX = (0, 2, 3, 5)  # LF, LR, RF, RR in WHEEL_NAMES order
 DEFAULT_CENTRE_TOL_M = 0.01  # our choice: C "at the center of a wheel" if closer than 1 cm
-
-
-@dataclass(frozen=True)
-class WheelGeometry:
-    """The flight software's copy of the rover geometry (metres), body frame.
-
-    Nominal MER-like values, the same as the simulator's ``sim.rover.geometry`` (which
-    flight code may not import): wheel diameter 26 cm, wheelbase 1.4 m, track 1.2 m,
-    middle wheels under the body origin (the turn-in-place centre). Wheel centres are at
-    ``x ∈ {x_front, x_middle, x_rear}``, ``y = ∓track/2`` (left negative, y is right).
-    """
-
-    wheel_radius_m: float = 0.13  # MER wheel diameter 26 cm (REFERENCES.md)
-    track_m: float = 1.2  # approximate, as sim.rover.geometry
-    x_front_m: float = 0.70  # approximate, as sim.rover.geometry
-    x_middle_m: float = 0.0  # as sim.rover.geometry: middle wheels under the origin
-    x_rear_m: float = -0.70  # approximate, as sim.rover.geometry
-
-    def __post_init__(self) -> None:
-        for name in ("wheel_radius_m", "track_m", "x_front_m", "x_middle_m", "x_rear_m"):
-            if not math.isfinite(getattr(self, name)):
-                raise ValueError(f"{name}: must be finite")
-        for name in ("wheel_radius_m", "track_m"):
-            if getattr(self, name) <= 0.0:
-                raise ValueError(f"{name}: must be positive")
-        if not self.x_front_m > self.x_middle_m > self.x_rear_m:
-            raise ValueError("x_middle_m: wheels must go front, middle, rear along x")
-
-    def wheel_xy_b(self) -> FloatArray:
-        """Wheel centres ``(x, y)`` in the body frame (m), shape (6, 2), LF..RR order.
-
-        >>> WheelGeometry().wheel_xy_b()[0].tolist()
-        [0.7, -0.6]
-        """
-        xs = (self.x_front_m, self.x_middle_m, self.x_rear_m)
-        half = 0.5 * self.track_m
-        return np.array([[x, -half] for x in xs] + [[x, half] for x in xs])
-
-
-MER_WHEEL_GEOMETRY = WheelGeometry()
 
 
 class DriveKind(enum.Enum):
@@ -156,7 +119,7 @@ def steer_six(steer_corner_rad: ArrayLike) -> FloatArray:
 
 
 def arc_lengths_m(
-    wheel_rotation_rad: ArrayLike, geometry: WheelGeometry = MER_WHEEL_GEOMETRY
+    wheel_rotation_rad: ArrayLike, geometry: FlightGeometry = FLIGHT_GEOMETRY
 ) -> FloatArray:
     """Arc length each wheel rolled, ``a_i`` = rotation × wheel radius (§2.5), (6,) in m.
 
@@ -167,7 +130,7 @@ def arc_lengths_m(
     return out
 
 
-def arc_centre_b(radius_m: float, geometry: WheelGeometry = MER_WHEEL_GEOMETRY) -> FloatArray:
+def arc_centre_b(radius_m: float, geometry: FlightGeometry = FLIGHT_GEOMETRY) -> FloatArray:
     """Arc centre ``C^B = (x_middle, R)`` (m, (2,)) of a commanded arc of radius ``radius_m``.
 
     MER's arcs turn about a point on the middle wheels' axle line; ``radius_m`` is the
@@ -220,7 +183,7 @@ def arc_step(
     arc_m: ArrayLike,
     steer_rad: ArrayLike,
     centre_b: ArrayLike,
-    geometry: WheelGeometry = MER_WHEEL_GEOMETRY,
+    geometry: FlightGeometry = FLIGHT_GEOMETRY,
     centre_tol_m: float = DEFAULT_CENTRE_TOL_M,
 ) -> tuple[FloatArray, float, FloatArray, BoolArray]:
     """Eqs. (6)-(7): ``(Δp_b (3,), ψ_ave, ψ_i (6,), used (6,))`` for an arc about ``centre_b``.
@@ -254,7 +217,7 @@ def odometry_step(
     wheel_rotation_rad: ArrayLike,
     steer_rad: ArrayLike,
     centre_b: ArrayLike | None = None,
-    geometry: WheelGeometry = MER_WHEEL_GEOMETRY,
+    geometry: FlightGeometry = FLIGHT_GEOMETRY,
     centre_tol_m: float = DEFAULT_CENTRE_TOL_M,
 ) -> OdometryStep:
     """One control cycle of §2.5 for the commanded ``kind`` of drive.

@@ -24,7 +24,9 @@ from __future__ import annotations
 
 import enum
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -141,6 +143,38 @@ class VisualOdometry:
     def reset(self) -> None:
         """Forget the previous pair: the next step initialises."""
         self._previous = None
+
+    def state(self) -> dict[str, Any]:
+        """What the next step needs, as plain data (``estimation.state``): the previous
+        pair's left image and features, and the RANSAC generator's position."""
+        bits = self.rng.bit_generator.state
+        previous = self._previous
+        return {
+            "rng": {"state": bits["state"], "has_uint32": bits["has_uint32"],
+                    "uinteger": bits["uinteger"]},
+            "previous": None if previous is None else {
+                "left_px": previous.left_pyramid[0].image.copy(),
+                "uv_px": previous.uv_px.copy(),
+                "p_b": previous.p_b.copy(),
+                "cov_b": previous.cov_b.copy(),
+            },
+        }  # fmt: skip
+
+    def load_state(self, state: Mapping[str, Any]) -> None:
+        """Load ``state()``'s output onto a ``VisualOdometry`` built with the same rig,
+        parameters and kind of generator (the left pyramid is rebuilt from the image)."""
+        bits = dict(self.rng.bit_generator.state)
+        bits.update(state["rng"])
+        self.rng.bit_generator.state = bits
+        previous = state["previous"]
+        self._previous = None
+        if previous is not None:
+            self._previous = _Frame(
+                build_pyramid(np.array(previous["left_px"], np.float32), self.levels, self.pad_px),
+                np.array(previous["uv_px"], dtype=np.float64),
+                np.array(previous["p_b"], dtype=np.float64),
+                np.array(previous["cov_b"], dtype=np.float64),
+            )
 
     def step(
         self,

@@ -28,6 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from estimation.camera_model import check_rotation_matrix
+from estimation.checks import finite_array
 
 FloatArray = NDArray[np.float64]
 
@@ -117,8 +118,8 @@ def update_of(
     R_s = check_rotation_matrix(R_s_b0, "R_s_b0")
     R_vo = check_rotation_matrix(R_b0_b1_vo, "R_b0_b1_vo")
     R_wheels = check_rotation_matrix(R_b0_b1_wheels, "R_b0_b1_wheels")
-    p_vo = _vector3(p_b1_b0_vo, "p_b1_b0_vo")
-    p_wheels = _vector3(p_b1_b0_wheels, "p_b1_b0_wheels")
+    p_vo = finite_array(p_b1_b0_vo, "p_b1_b0_vo", (3,))
+    p_wheels = finite_array(p_b1_b0_wheels, "p_b1_b0_wheels", (3,))
     dp_s = R_s @ (p_vo - p_wheels)
     roll_vo, pitch_vo, yaw_vo = roll_pitch_yaw(R_s @ R_vo)
     roll_w, pitch_w, yaw_w = roll_pitch_yaw(R_s @ R_wheels)
@@ -164,10 +165,3 @@ def violation(update: Update, limits: SanityLimits) -> str | None:
                 f"(limit {math.degrees(limit):.1f} deg)"
             )
     return None
-
-
-def _vector3(value: ArrayLike, name: str) -> FloatArray:
-    arr = np.asarray(value, dtype=np.float64)
-    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name}: must be a finite 3-vector, got {value!r}")
-    return arr

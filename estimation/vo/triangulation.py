@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from estimation.checks import finite_array
 from estimation.vo.geometry import PointedPair
 
 FloatArray = NDArray[np.float64]
@@ -66,8 +67,8 @@ def midpoint(
     >>> np.round(P, 12).tolist(), np.round(gap, 12).tolist()
     ([[0.0, 0.0, 1.0]], [0.0])
     """
-    C1 = _vector3(c1, "c1")
-    C2 = _vector3(c2, "c2")
+    C1 = finite_array(c1, "c1", (3,))
+    C2 = finite_array(c2, "c2", (3,))
     B = C2 - C1
     a = np.einsum("ni,ni->n", r1, r2)
     b1 = r1 @ B
@@ -95,7 +96,7 @@ def midpoint_jacobian(
 ) -> FloatArray:
     """Eqs. 8-10: ``dP/dq`` (N, 3, Q) given the rays' derivatives ``dr1``, ``dr2`` (N, 3, Q)
     with respect to the Q pixel coordinates ``q``, and ``m1``, ``m2`` from :func:`midpoint`."""
-    base = _vector3(B, "B")
+    base = finite_array(B, "B", (3,))
     a = np.einsum("ni,ni->n", r1, r2)
     b2 = r2 @ base
     da = np.einsum("niq,ni->nq", dr1, r2) + np.einsum("ni,niq->nq", r1, dr2)  # a'
@@ -145,13 +146,6 @@ def triangulate(
     cov_q[:, 2:, 2:] = cov_r
     cov_P = J @ cov_q @ np.swapaxes(J, 1, 2)  # (11)
     return Triangulated(P, gap, m1, m2, cov_P)
-
-
-def _vector3(value: ArrayLike, name: str) -> FloatArray:
-    arr = np.asarray(value, dtype=np.float64)
-    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name}: must be a finite 3-vector, got {value!r}")
-    return arr
 
 
 def _covariances(value: ArrayLike, n: int, name: str) -> FloatArray:

@@ -54,6 +54,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from estimation.geometry import DRIVE_SPEED_M_S, TURN_RATE_RAD_S
+from sequences.limits import MAX_DRIVE_M
 from sim.errors import InputError
 from sim.rover.geometry import MER_GEOMETRY, STEERED_INDEX, RoverGeometry
 from sim.rover.settle import Settled, settle
@@ -64,9 +66,9 @@ from sim.world.terrain import Terrain
 FloatArray = NDArray[np.float64]
 log = logging.getLogger(__name__)
 
-DEFAULT_SPEED_M_S = 0.0375  # Ali et al. 2005 section 2.5: MER drives at ~3.75 cm/s
-DEFAULT_TURN_RATE_RAD_S = math.radians(2.1)  # Ali et al. 2005 section 2.4.2: turns at ~2.1°/s
-MAX_PATH_M = 1000.0  # longer single primitives are rejected as input errors
+DEFAULT_SPEED_M_S = DRIVE_SPEED_M_S  # the flight software's, Ali et al. 2005 section 2.5
+DEFAULT_TURN_RATE_RAD_S = TURN_RATE_RAD_S  # the flight software's, Ali et al. 2005 sec. 2.4.2
+MAX_PATH_M = MAX_DRIVE_M  # one drive command (sequences.limits): longer is an input error
 MAX_SPEED_M_S = 0.1  # twice MER's ~5 cm/s top speed (REFERENCES.md)
 MAX_TURN_RATE_RAD_S = math.radians(10.0)  # about five times MER's 2.1°/s
 MAX_TURN_RAD = 4.0 * math.pi  # two full turns

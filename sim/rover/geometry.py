@@ -216,3 +216,39 @@ def wheel_kinematics(
 
 
 MER_GEOMETRY = RoverGeometry()
+
+
+@dataclass(frozen=True)
+class BoxPart:
+    """A box of the rover's shape: its centre and full extent along body x, y, z (m)."""
+
+    name: str
+    centre_b: tuple[float, float, float]
+    size_m: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class CylinderPart:
+    """A cylinder of the rover's shape, its axis along body z: centre, radius, length (m)."""
+
+    name: str
+    centre_b: tuple[float, float, float]
+    radius_m: float
+    length_m: float
+
+
+# The rover's shape above its wheels, body frame (x forward, y right, z down), in boxes and
+# cylinders: approximate MER proportions, not flight drawings. The one table from which the
+# 3D view draws the rover (server.scene3d.model) and the Navcam casts the rover's own shadow
+# (sim.sensors.navcam.rover_shadow); the wheels come from ``RoverGeometry``.
+ROVER_BOXES: tuple[BoxPart, ...] = (
+    BoxPart("body", (0.05, 0.0, -0.175), (1.3, 0.9, 0.35)),  # warm electronics box
+    BoxPart("deck", (0.0, 0.0, -0.37), (1.6, 1.9, 0.03)),  # solar-array deck
+    BoxPart("pancam", (0.45, -0.30, -1.30), (0.12, 0.3, 0.1)),  # camera bar on the mast head
+)
+ROVER_CYLINDERS: tuple[CylinderPart, ...] = (
+    CylinderPart("mast", (0.45, -0.30, -0.82), 0.04, 0.9),  # stands along -z from the deck
+    CylinderPart("hga", (-0.35, 0.45, -0.50), 0.14, 0.03),  # the high-gain antenna's dish
+)
+MAST_HEAD_B = ROVER_BOXES[2].centre_b  # the Pancam head, about 1.5 m above the ground
+HGA_DISH_B = ROVER_CYLINDERS[1].centre_b

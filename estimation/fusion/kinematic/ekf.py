@@ -28,12 +28,15 @@ velocity and a drive's last interval is not lost.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
+from estimation.checks import finite_array
 from estimation.fusion import ekf_core
 from estimation.fusion.kinematic.attitude_sensors import (
     HEADING_GYRO,
@@ -48,13 +51,14 @@ from estimation.fusion.kinematic.process import (
     jacobian,
     noise_density,
 )
-from estimation.fusion.kinematic.rover_kinematics import FLIGHT_GEOMETRY, FlightGeometry, suspension
+from estimation.fusion.kinematic.rover_kinematics import suspension
 from estimation.fusion.kinematic.slip_constraint import (
     ROWS_PER_WHEEL,
     JointRates,
     deterministic_slip,
     slip_constraint,
 )
+from estimation.geometry import FLIGHT_GEOMETRY, FlightGeometry
 from estimation.quaternion import quat_multiply
 
 FloatArray = NDArray[np.float64]
@@ -146,13 +150,6 @@ class KinematicEstimate:
         return out
 
 
-def _vector(name: str, value: ArrayLike, size: int) -> FloatArray:
-    out = np.asarray(value, dtype=float)
-    if out.shape != (size,) or not np.all(np.isfinite(out)):
-        raise ValueError(f"{name} must be {size} finite numbers, got {value!r}")
-    return out
-
-
 @dataclass
 class _Command:
     v_c_b: FloatArray = field(default_factory=lambda: np.zeros(3))
@@ -183,7 +180,7 @@ class KinematicEkf:
     ) -> None:
         if gyro not in ("heading", "3axis"):
             raise ValueError(f"gyro must be 'heading' or '3axis', got {gyro!r}")
-        q = _vector("q_s_b", q_s_b, 4)
+        q = finite_array(q_s_b, "q_s_b", (4,))
         if abs(float(np.linalg.norm(q)) - 1.0) > 1e-6:
             raise ValueError("q_s_b must be a unit quaternion")
         self.B_g = HEADING_GYRO if gyro == "heading" else THREE_AXIS_GYRO
@@ -194,7 +191,7 @@ class KinematicEkf:
         self.q_s_b = q
         L = self.layout
         self.X = np.zeros(L.n)
-        self.X[L.X] = _vector("p_s", p_s, 3)
+        self.X[L.X] = finite_array(p_s, "p_s", (3,))
         if P0 is None:
             s_att, s_rate, s_pos, s_vel, s_xi, s_bias = sigma0
             diag = np.zeros(L.n)
@@ -207,6 +204,30 @@ class KinematicEkf:
                 raise ValueError(f"P0 must be a symmetric ({L.n}, {L.n}) matrix")
         self._command = _Command()
         self._Q = noise_density(L, self.process)
+
+    # ---- checkpoints (estimation.state) ---------------------------------------------
+
+    def state(self) -> dict[str, Any]:
+        """The filter's estimate and command as plain data; ``load_state`` puts it back on
+        a filter built with the same arguments."""
+        return {
+            "q_s_b": self.q_s_b.copy(),
+            "X": self.X.copy(),
+            "P": self.P.copy(),
+            "v_c_b": self._command.v_c_b.copy(),
+            "omega_c_b": self._command.omega_c_b.copy(),
+        }
+
+    def load_state(self, state: Mapping[str, Any]) -> None:
+        """Load ``state()``'s output."""
+        n = self.layout.n
+        self.q_s_b = finite_array(state["q_s_b"], "q_s_b", (4,)).copy()
+        self.X = finite_array(state["X"], "X", (n,)).copy()
+        P = np.array(state["P"], dtype=np.float64)
+        if P.shape != (n, n):
+            raise ValueError(f"P: must be ({n}, {n}), got {P.shape}")
+        self.P = P
+        self.set_command(np.array(state["v_c_b"]), np.array(state["omega_c_b"]))
 
     # ---- (i)-(iii) of sec. 3 --------------------------------------------------------
 
@@ -230,7 +251,9 @@ class KinematicEkf:
 
     def set_command(self, v_c_b: ArrayLike, omega_c_b: ArrayLike) -> None:
         """The prescribed body velocity (m/s) and rate (rad/s) of the controller (eqs. 1-2)."""
-        self._command = _Command(_vector("v_c_b", v_c_b, 3), _vector("omega_c_b", omega_c_b, 3))
+        self._command = _Command(
+            finite_array(v_c_b, "v_c_b", (3,)), finite_array(omega_c_b, "omega_c_b", (3,))
+        )
 
     def propagate(self, dt_s: float) -> None:
         """Propagate over ``dt_s`` (> 0) under the current command (eqs. 1, 2, 7, 8, 9)."""
@@ -259,15 +282,15 @@ class KinematicEkf:
         body axes; ``omega_frame_s`` the Site frame's inertial rate (Mars rotation) in Site
         axes. Returns the normalised innovation squared."""
         m = self.B_g.shape[0]
-        y = _vector("omega_m", np.atleast_1d(np.asarray(omega_m, dtype=float)), m)
-        frame = _vector("omega_frame_s", omega_frame_s, 3)
+        y = finite_array(np.atleast_1d(np.asarray(omega_m, dtype=float)), "omega_m", (m,))
+        frame = finite_array(omega_frame_s, "omega_frame_s", (3,))
         h, H = gyro_measurement(self.X, self._R0(), self._command.omega_c_b, self.B_g, frame)
         return self._update(y - h, H, self.noise.gyro_rad_s**2 * np.eye(m))
 
     def update_sun(self, s_m: ArrayLike, sun_s: ArrayLike) -> float:
         """A WASS reading ``s_m`` (2,) of the Sun along the unit ``sun_s`` (Site frame)."""
-        y = _vector("s_m", s_m, 2)
-        sun = _vector("sun_s", sun_s, 3)
+        y = finite_array(s_m, "s_m", (2,))
+        sun = finite_array(sun_s, "sun_s", (3,))
         if abs(float(np.linalg.norm(sun)) - 1.0) > 1e-6:
             raise ValueError("sun_s must be a unit vector")
         h, H = sun_measurement(self.X, self._R0(), sun)

@@ -3,9 +3,8 @@
 Balaram 2000 builds its slip constraints (eqs. 17-20) on the forward kinematics of
 the suspension: wheel centres and axles as functions of the internal angles ``γ`` and the
 steering angles ``λ``, and the contact frame ``l_f`` at contact angle ``ξ`` on each wheel's
-equator (sec. 2.2.4). The flight software may not import the simulator, so it keeps its
-own copy of the rover's dimensions; ``tests/test_kinematic_ekf_sensors.py`` checks that
-they equal the simulated rover's.
+equator (sec. 2.2.4). The dimensions are the flight software's one copy,
+``estimation.geometry.FlightGeometry``.
 
 Frames (docs/CONVENTIONS.md): body ``b`` x forward, y right, z down. A wheel frame ``w`` is
 ``R_b_w = Ry(link) Rz(σ)``: ``link`` the pitch of the link that carries the wheel (rocker,
@@ -27,41 +26,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from estimation.geometry import FLIGHT_GEOMETRY, N_WHEELS, STEERED_INDEX, FlightGeometry
+
 FloatArray = NDArray[np.float64]
 
-N_WHEELS = 6
-STEERED_INDEX = (0, 2, 3, 5)  # LF, LR, RF, RR in the wheel order
 _SIDES = ((1.0, (0, 1, 2)), (-1.0, (3, 4, 5)))  # (rocker sign, wheel indices) left, right
-
-
-@dataclass(frozen=True)
-class FlightGeometry:
-    """Rover dimensions the flight software uses (metres), body frame at zero joint angles.
-
-    The same values as the simulated MER-like rover (``sim.rover.geometry``; approximate
-    MER dimensions, Lindemann and Voorhees 2005).
-    """
-
-    wheel_radius_m: float = 0.13
-    track_m: float = 1.2
-    x_front_m: float = 0.70
-    x_middle_m: float = 0.0
-    x_rear_m: float = -0.70
-    wheel_centre_z_m: float = 0.17
-    rocker_pivot_x_m: float = 0.10
-    rocker_pivot_z_m: float = -0.05
-    bogie_pivot_x_m: float = -0.35
-    bogie_pivot_z_m: float = 0.02
-
-    def __post_init__(self) -> None:
-        for name, value in self.__dict__.items():
-            if not np.isfinite(value):
-                raise ValueError(f"{name} must be finite, got {value}")
-        if self.wheel_radius_m <= 0.0 or self.track_m <= 0.0:
-            raise ValueError("wheel_radius_m and track_m must be positive")
-
-
-FLIGHT_GEOMETRY = FlightGeometry()
 
 
 def _ry(angle: float) -> FloatArray:

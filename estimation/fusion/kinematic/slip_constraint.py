@@ -32,13 +32,11 @@ from numpy.typing import NDArray
 
 from estimation.fusion.kinematic.process import skew
 from estimation.fusion.kinematic.rover_kinematics import (
-    FLIGHT_GEOMETRY,
-    N_WHEELS,
-    FlightGeometry,
     Suspension,
     contact_rotation_b,
     suspension,
 )
+from estimation.geometry import FLIGHT_GEOMETRY, N_WHEELS, FlightGeometry
 
 FloatArray = NDArray[np.float64]
 ROWS_PER_WHEEL = 4  # eq. 20: three linear slips and the spin about the normal

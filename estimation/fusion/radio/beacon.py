@@ -4,7 +4,7 @@
 "The parameters of orbiting radio beacons measured by the DSN are uploaded to the rover in
 advance" and, over a pass, perturbations are neglected: ``dr_o/dt = v_o`` (eq. 5),
 ``dv_o/dt = -μ_M r_o / |r_o|³`` (eq. 6), in a Mars-centred inertial frame (here the
-ICRF/J2000 axes centred on Mars). The state is integrated with RK4 (``rk4.py``) in steps of
+ICRF/J2000 axes centred on Mars). The state is integrated with RK4 (``ekf_core.rk4``) in steps of
 at most ``max_step_s`` and rotated to Mars-fixed axes with the onboard IAU rotation
 (``estimation.ivp.R_mf_j2000``), where the rover's position lives.
 """
@@ -16,14 +16,14 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from estimation.fusion.rk4 import rk4_step
+from estimation.fusion.ekf_core import rk4
 from estimation.ivp import R_mf_j2000
 from estimation.mars_constants import MARS_GM_M3_S2
 
 FloatArray = NDArray[np.float64]
 
 
-def two_body_derivative(_t_s: float, state: FloatArray) -> FloatArray:
+def two_body_derivative(state: FloatArray) -> FloatArray:
     """Eqs. 5-6 for the stacked state ``[r (m), v (m/s)]`` (6,) in inertial axes."""
     r = state[:3]
     accel = -MARS_GM_M3_S2 * r / float(np.linalg.norm(r)) ** 3  # eq. 6
@@ -70,7 +70,7 @@ class OrbitingBeacon:
         span = t_s - self._t_s
         n = max(1, math.ceil(span / self._max_step_s)) if span > 0.0 else 0
         for _ in range(n):
-            self._state = rk4_step(two_body_derivative, 0.0, self._state, span / n)
+            self._state = rk4(two_body_derivative, self._state, span / n)
         self._t_s = float(t_s)
 
     def position_mf_m(self, t_s: float) -> FloatArray:

@@ -3,11 +3,11 @@
 State ``X = [L, λ, v_N, v_E]``: planetographic latitude and East longitude of the body
 origin (rad), North and East velocity (m/s) (sec. 4.1; models in ``radio_models``).
 
-- Time update (eqs. 26-27): the state by RK4 through eq. 2 (``rk4.py``) with the
+- Time update (eqs. 26-27): the state by RK4 through eq. 2 (``ekf_core.rk4``) with the
   accelerometers' specific force, rotated by eq. 1, held over the step; the covariance by
   ``Φ = I + F Δt`` (eq. 19, ``F`` of eq. 22 at the previous state) and
   ``P = Φ P Φ^T + Q`` (eq. 27).
-- Measurement updates (eqs. 28-30, Joseph form, ``joseph.py``), one sensor at a time
+- Measurement updates (eqs. 28-30, Joseph form, ``ekf_core.joseph_update``), one sensor at a time
   (the paper stacks them in eq. 13; with uncorrelated noises, eq. 18, sequential updates
   are the same filter): gyro yaw rate (eq. 4), range to an orbiting beacon (eqs. 7-9), and
   the pixels of matched landmarks (eqs. 10-11).
@@ -28,14 +28,16 @@ Flight software: no truth, numpy only; bad input raises ``ValueError`` naming it
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from estimation.fusion.joseph import joseph_update
+from estimation.checks import finite_array
+from estimation.fusion.ekf_core import joseph_update, rk4
 from estimation.fusion.radio import models as rm
-from estimation.fusion.rk4 import rk4_step
 
 FloatArray = NDArray[np.float64]
 
@@ -63,13 +65,6 @@ class RadioEkfTuning:
                 raise ValueError(f"{name}: must be positive and finite, got {value!r}")
 
 
-def _array(name: str, value: ArrayLike, shape: tuple[int, ...]) -> FloatArray:
-    a = np.asarray(value, dtype=np.float64)
-    if a.shape != shape or not np.all(np.isfinite(a)):
-        raise ValueError(f"{name}: must be finite with shape {shape}, got shape {a.shape}")
-    return a
-
-
 def _scalar(name: str, value: float, low: float = -math.inf, high: float = math.inf) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float | np.floating):
         raise ValueError(f"{name}: must be a number, got {value!r}")
@@ -84,7 +79,7 @@ def _height(height_m: float) -> float:
 
 
 def _euler(euler_rad: ArrayLike) -> FloatArray:
-    e = _array("euler_rad", euler_rad, (3,))
+    e = finite_array(euler_rad, "euler_rad", (3,))
     return rm.R_ll_b_from_euler(float(e[0]), float(e[1]), float(e[2]))
 
 
@@ -116,6 +111,23 @@ class RadioEkf:
         self._P = self._metres_to_state(p0_m2, self.tuning.p0_velocity_m_s**2, h)
         self._accel_ne = np.zeros(2)
         self._dt_s = 1.0
+
+    def state(self) -> dict[str, Any]:
+        """The estimate and the last step's acceleration as plain data (``load_state`` puts
+        it back on a filter built with the same arguments)."""
+        return {
+            "x": self._x.copy(),
+            "P": self._P.copy(),
+            "accel_ne": self._accel_ne.copy(),
+            "dt_s": self._dt_s,
+        }
+
+    def load_state(self, state: Mapping[str, Any]) -> None:
+        """Load ``state()``'s output."""
+        self._x = finite_array(state["x"], "x", (4,)).copy()
+        self._P = finite_array(state["P"], "P", (4, 4)).copy()
+        self._accel_ne = finite_array(state["accel_ne"], "accel_ne", (2,)).copy()
+        self._dt_s = float(state["dt_s"])
 
     def _metres_to_state(self, pos_var_m2: float, vel_var: float, height_m: float) -> FloatArray:
         """``diag(σ²_N, σ²_E, σ²_vN, σ²_vE)`` with the positions converted from m² to rad²."""
@@ -153,12 +165,12 @@ class RadioEkf:
         ``accel_bias_b`` (3,): the known accelerometer bias ``b_a`` (m/s², default none).
         """
         dt = _scalar("dt_s", dt_s, 1e-6, 60.0)
-        f_b = _array("specific_force_b", specific_force_b, (3,))
-        b_a = _array("accel_bias_b", accel_bias_b, (3,))
+        f_b = finite_array(specific_force_b, "specific_force_b", (3,))
+        b_a = finite_array(accel_bias_b, "accel_bias_b", (3,))
         h = _height(height_m)
         a_ne = rm.horizontal_accel_ne(f_b, b_a, _euler(euler_rad))  # eqs. 1-2
         F = rm.dynamics_jacobian(self._x, h)  # eq. 22, at X_{k-1}
-        self._x = rk4_step(lambda _t, x: rm.dynamics(x, a_ne, h), 0.0, self._x, dt)  # eq. 26
+        self._x = rk4(lambda x: rm.dynamics(x, a_ne, h), self._x, dt)  # eq. 26
         Phi = np.eye(4) + F * dt  # eq. 19
         Q = self._metres_to_state(
             self.tuning.q_position_m2_per_s * dt, self.tuning.q_velocity_m2_s2_per_s * dt, h
@@ -191,7 +203,7 @@ class RadioEkf:
         Jiang, Li et al. 2014: the rover uses it as a zero-velocity update when its wheels have
         stopped (the driving software knows), so a parked rover's velocity stays known.
         Returns the innovation (2,)."""
-        v = _array("v_ne_m_s", v_ne_m_s, (2,))
+        v = finite_array(v_ne_m_s, "v_ne_m_s", (2,))
         sigma = _scalar("sigma_m_s", sigma_m_s, 1e-9, 10.0)
         H = np.hstack([np.zeros((2, 2)), np.eye(2)])
         innovation: FloatArray = v - self._x[2:]
@@ -205,7 +217,7 @@ class RadioEkf:
         """Eqs. 7-9: a range (m) to the beacon at ``beacon_mf_m`` (Mars-fixed, m) with noise
         ``sigma_m`` (1σ). Returns the innovation (m)."""
         y = _scalar("range_m", range_m, 0.0, 1.0e8)
-        beacon = _array("beacon_mf_m", beacon_mf_m, (3,))
+        beacon = finite_array(beacon_mf_m, "beacon_mf_m", (3,))
         sigma = _scalar("sigma_m", sigma_m, 1e-6, 1e5)
         predicted, H = rm.beacon_range(self._x, _height(height_m), beacon)
         innovation = np.array([y - predicted])
@@ -238,12 +250,12 @@ class RadioEkf:
         if pixels.ndim != 2 or pixels.shape[0] < 1:
             raise ValueError(f"pixels_px: must have shape (n, 2), got {pixels.shape}")
         n = pixels.shape[0]
-        pixels = _array("pixels_px", pixels, (n, 2))
-        landmarks = _array("landmarks_mf_m", landmarks_mf_m, (n, 3))
-        pans = _array("pan_rad", pan_rad, (n,))
+        pixels = finite_array(pixels, "pixels_px", (n, 2))
+        landmarks = finite_array(landmarks_mf_m, "landmarks_mf_m", (n, 3))
+        pans = finite_array(pan_rad, "pan_rad", (n,))
         R_ll_b = _euler(euler_rad)
         h = _height(height_m)
-        offset_ll = R_ll_b @ _array("camera_offset_b_m", camera_offset_b_m, (3,))
+        offset_ll = R_ll_b @ finite_array(camera_offset_b_m, "camera_offset_b_m", (3,))
         f = _scalar("focal_px", focal_px, 1.0, 1.0e6)
         pix_var = _scalar("pixel_sigma_px", pixel_sigma_px, 1e-6, 1e4) ** 2
         map_var = _scalar("landmark_sigma_m", landmark_sigma_m, 0.0, 1e4) ** 2

@@ -34,7 +34,7 @@ What is drawn (``sim.sensors.navcam.trace`` casts the rays):
 
   ``V`` is 0 where the ground is in a cast shadow (a ray from the point towards the Sun
   meets terrain or rocks; with ``rover_shadow`` also the rover's body, deck, mast, camera
-  bar, HGA and wheels as boxes and cylinders, after ``server/scene3d.py``'s model). The
+  bar, HGA and wheels as boxes and cylinders, the shape table of ``sim.rover.geometry``). The
   second term is Mars's diffuse skylight, which keeps shadows grey, not black.
   ``n_up`` is the normal's vertical component (the sky a tilted facet sees). The normal
   ``n`` is the smooth one interpolated from the samples' slopes (``sim.sensors.navcam.trace``):
@@ -81,7 +81,12 @@ from scipy.spatial.transform import Rotation
 
 from estimation.vo.stereo_rig import NAVCAM, StereoRig
 from sim.errors import InputError
-from sim.rover.geometry import MER_GEOMETRY
+from sim.sensors.navcam.rover_shadow import (
+    ROVER_BOUND_B,
+    ROVER_BOXES_B,
+    ROVER_CYLINDERS_B,
+    RoverShadow,
+)
 from sim.sensors.navcam.texture import band_limited_albedo
 from sim.sensors.navcam.trace import HeightGrid, render_eye
 from sim.world.albedo import AlbedoTexture
@@ -214,51 +219,6 @@ class NavcamPair:
         return self.p_s + R_s_b @ left_b, self.p_s + R_s_b @ right_b
 
 
-# The rover's parts for its own shadow, body frame (x forward, y right, z down), after the
-# boxes and cylinders of server/scene3d.py's RoverModel (approximate, not flight drawings).
-ROVER_BOXES_B = np.array(
-    [
-        # centre (x, y, z), half sizes
-        [0.05, 0.0, -0.175, 0.65, 0.45, 0.175],  # warm electronics box
-        [0.0, 0.0, -0.37, 0.80, 0.95, 0.015],  # solar-array deck
-        [0.45, -0.30, -1.30, 0.06, 0.15, 0.05],  # camera bar on the mast head
-    ]
-)
-
-
-def _rover_cylinders_b() -> FloatArray:
-    """Mast, high-gain antenna and the six wheels: centre, unit axis, radius, half length."""
-    g = MER_GEOMETRY
-    parts = [
-        [0.45, -0.30, -0.82, 0.0, 0.0, 1.0, 0.04, 0.45],  # mast, 0.9 m tall
-        [-0.35, 0.45, -0.50, 0.0, 0.0, 1.0, 0.14, 0.015],  # HGA dish
-    ]
-    for x_m, y_m in g.wheel_xy_b():  # wheels at zero suspension angles
-        parts.append(
-            [x_m, y_m, g.wheel_centre_z_m, 0.0, 1.0, 0.0, g.wheel_radius_m, 0.5 * g.wheel_width_m]
-        )
-    return np.array(parts)
-
-
-ROVER_CYLINDERS_B = _rover_cylinders_b()
-
-
-def _rover_bound_b() -> FloatArray:
-    """A sphere (centre, radius) holding every rover part: box corners, cylinder ends
-    widened by their radius."""
-    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
-    corners = (ROVER_BOXES_B[:, None, :3] + signs[None] * ROVER_BOXES_B[:, None, 3:]).reshape(-1, 3)
-    c = ROVER_CYLINDERS_B
-    ends = np.vstack([c[:, :3] + c[:, 7:8] * c[:, 3:6], c[:, :3] - c[:, 7:8] * c[:, 3:6]])
-    centre = 0.5 * (np.vstack([corners, ends]).min(axis=0) + np.vstack([corners, ends]).max(axis=0))
-    radius = max(
-        float(np.linalg.norm(corners - centre, axis=1).max()),
-        float((np.linalg.norm(ends - centre, axis=1) + np.tile(c[:, 6], 2)).max()),
-    )
-    return np.array([*centre, radius])
-
-
-ROVER_BOUND_B = _rover_bound_b()
 _UP_FROM_SITE = np.diag([1.0, 1.0, -1.0])  # (N, E, Down) <-> the caster's (N, E, Up)
 
 
@@ -313,7 +273,7 @@ def render_navcam_pair(
     _check_eyes_above_ground(terrain, eyes_s)
     grid = _sample_grid(terrain, eyes_s, R_s_cam, rig, sun, max_range_m)
     view = _View(grid, rig, R_s_cam, 0.5 * (eyes_s[0] + eyes_s[1]), sun, max_range_m)
-    rover = _RoverShadow(p, R_s_b) if rover_shadow else None
+    rover = RoverShadow(p, R_s_b) if rover_shadow else None
     left, right = (_cast_eye(view, eye, shadows, rover) for eye in eyes_s)
     iof_left, iof_right = (_radiance_factor(terrain, rig, light, eye) for eye in (left, right))
     if e_per_iof is None:
@@ -512,15 +472,7 @@ class _View:
     max_range_m: float
 
 
-@dataclass(frozen=True)
-class _RoverShadow:
-    """The rover's pose for its own shadow (parts: ``ROVER_BOXES_B`` etc.)."""
-
-    p_s: FloatArray
-    R_s_b: FloatArray
-
-
-def _cast_eye(view: _View, eye_s: FloatArray, shadows: bool, rover: _RoverShadow | None) -> _Eye:
+def _cast_eye(view: _View, eye_s: FloatArray, shadows: bool, rover: RoverShadow | None) -> _Eye:
     """Cast one eye's rays over the grid (``sim.sensors.navcam.trace.render_eye``)."""
     grid = view.grid
     corner = np.array([grid.x0_m, grid.y0_m, 0.0])

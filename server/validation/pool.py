@@ -15,8 +15,8 @@ every request waited for it (92-287 ms p99 against ~3 ms idle). A process has it
 - ``check`` sends the worker plain values only: the body's bytes, its content type, the
   rover's ``RoverSite`` (from which the worker builds its ``ValidationContext``) and
   whether to find a name. The worker answers a ``Checked``, or the ``HTTPException`` of a
-  bad body (``server.uploads.read_source``) as a ``Refused`` of plain values, raised again
-  here: exceptions do not always survive pickling.
+  bad body (``server.validation.uploads.read_source``) as a ``Refused`` of plain values,
+  raised again here: exceptions do not always survive pickling.
 - A worker that dies (killed, out of memory) breaks the pool: the request is retried once
   in a new pool; if that worker dies too, the request is validated in the threadpool
   (the old path, slower for the others but an answer, not a 5xx), and the next upload
@@ -51,8 +51,8 @@ from starlette.concurrency import run_in_threadpool
 
 from sequences.language import declared_name
 from sequences.validate import ValidationContext, ValidationResult, validate
-from server.uploads import read_source
-from server.validation_context import RoverSite
+from server.validation.context import RoverSite
+from server.validation.uploads import read_source
 
 logger = logging.getLogger(__name__)
 

@@ -8,7 +8,7 @@ handshakes, the latter Origin-checked), never for a request that changes anythin
 page on another site cannot act with it.
 
 ``require(role)`` makes the dependency a route declares. It is marked ``__auth_check__``
-so that ``server.routing`` runs it before the request body is read: a client without the
+so that ``server.api.routing`` runs it before the request body is read: a client without the
 right token is refused (401 missing, 403 wrong or too low a role) before any of its input
 is parsed, and nothing changes. With ``public_read`` on (the default) the viewer role needs
 no token; a token that is presented must still be valid.
@@ -19,18 +19,17 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import Annotated, Any
 
-from fastapi import Depends, FastAPI, HTTPException, Request
-from fastapi.routing import APIRoute
+from fastapi import Depends, HTTPException, Request
 from fastapi.security import APIKeyHeader, HTTPAuthorizationCredentials, HTTPBearer
 from starlette.datastructures import Headers
 
-from server.accounts import ANONYMOUS, RANK, Accounts, Principal, TokenRefusedError
+from server.access.accounts import ANONYMOUS, RANK, Accounts, Principal, TokenRefusedError
 
 COOKIE = "roverops_token"
 SAFE_METHODS = ("GET", "HEAD")
 
 # Declares the bearer scheme in OpenAPI (so /docs has an Authorize button); the check
-# itself reads the headers, so it runs the same whether FastAPI or server.routing calls it.
+# itself reads the headers, so it runs the same whether FastAPI or server.api.routing calls it.
 bearer_scheme = HTTPBearer(auto_error=False, description="an API token (roverops users token)")
 legacy_scheme = APIKeyHeader(
     name="X-Operator-Token", auto_error=False, description="the same token, the older header"
@@ -117,8 +116,8 @@ def require(role: str) -> Callable[..., Principal]:
         request.state.checked_role = role
         return principal
 
-    check.__auth_check__ = True  # type: ignore[attr-defined]  # server.routing runs it first
-    check.__required_role__ = role  # type: ignore[attr-defined]  # for document_public_reads
+    check.__auth_check__ = True  # type: ignore[attr-defined]  # server.api.routing runs it first
+    check.__required_role__ = role  # type: ignore[attr-defined]  # server.api.routing reads it
     check.__name__ = f"require_{role}"
     return check
 
@@ -128,33 +127,6 @@ def websocket_principal(server: Any, headers: Headers, cookies: Mapping[str, str
     token, from_cookie = presented_token(headers, cookies, True)
     principal = identify(server.accounts, server.config.public_read, "viewer", token, from_cookie)
     return authorize(principal, "viewer")
-
-
-def document_public_reads(app: FastAPI) -> None:
-    """With public reading on, the OpenAPI of each viewer route says its token is optional
-    (``security: [{}, ...]``): the schema describes what the server does."""
-    original = app.openapi
-
-    def openapi() -> dict[str, Any]:
-        schema = original()
-        if schema.get("x-public-reads-documented"):
-            return schema
-        for route in app.routes:
-            if not isinstance(route, APIRoute) or not route.include_in_schema:
-                continue
-            roles = {
-                getattr(d.call, "__required_role__", None) for d in route.dependant.dependencies
-            }
-            if "viewer" not in roles:
-                continue
-            for method in route.methods or ():
-                operation = schema["paths"].get(route.path_format, {}).get(method.lower())
-                if operation is not None and operation.get("security"):
-                    operation["security"] = [{}, *operation["security"]]
-        schema["x-public-reads-documented"] = True
-        return schema
-
-    app.openapi = openapi  # type: ignore[method-assign]
 
 
 Viewer = Annotated[Principal, Depends(require("viewer"))]

@@ -25,7 +25,7 @@ token kept in memory only, for scripts, tests and benches.
 >>> accounts.authenticate(token)
 Traceback (most recent call last):
 ...
-server.accounts.TokenRefusedError: token revoked
+server.access.accounts.TokenRefusedError: token revoked
 """
 
 from __future__ import annotations

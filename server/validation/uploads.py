@@ -11,7 +11,7 @@ Every body the server reads goes through here (issue 13, defects 2, 5 and 6):
   integer over Python's 4,300-digit conversion limit, and ``NaN``/``Infinity``/``1e999``.
 - ``read_source`` turns an upload's bytes (text, JSON or multipart) into the sequence source;
   it is synchronous and runs with the validation, off the event loop (in the validation
-  worker process, ``server.validation_pool``, or the threadpool).
+  worker process, ``server.validation.pool``, or the threadpool).
 - ``ValidationSlots`` bounds the validations one client runs at once (per address, and per
   token when one is sent): over it, 429 with ``Retry-After``.
 

@@ -1,14 +1,14 @@
 """The viser 3D view of one rover: what the operator sees of the rover in its terrain.
 
 One ``RoverScene`` per rover runs its own ``viser.ViserServer`` on a loopback port; the
-FastAPI app proxies it under ``/viser/{rover}/`` (``server.viser_proxy``) so the console and
+FastAPI app proxies it under ``/viser/{rover}/`` (``server.scene3d.proxy``) so the console and
 the 3D view share one origin. The scene shows
 
 - the terrain around the rover (a patch of the simulator's heightmap, re-cut when the
   rover nears its edge, its faces shaded in bands of the site's albedo);
-- the rover model (body, solar deck, mast and camera head, HGA, six wheels placed on their
-  rocker and bogie angles and steered) at the true pose, and a translucent ghost at
-  SAPP's estimated pose;
+- the rover model (``server.scene3d.model``: body, solar deck, mast and camera head, HGA,
+  six wheels placed on their rocker and bogie angles and steered) at the true pose, and a
+  translucent ghost at SAPP's estimated pose;
 - the true and estimated traverses, the Site frames as labelled axes;
 - the sun and Earth directions from the mast head, and the HGA boresight from the dish;
 - a time slider over the current sol: dragging it scrubs back through the stored frames;
@@ -21,7 +21,7 @@ viewer instead of the shared ones. The live rover is drawn once for everyone, so
 frame costs the same whatever the number of viewers, plus a few small GUI updates per
 following viewer; a replaying viewer is not redrawn until it follows again. What a viewer
 sends changes only its own elements (viser routes a GUI message to the sender's handles),
-its callbacks check the values they get, and ``server.viser_proxy`` lets through only a
+its callbacks check the values they get, and ``server.scene3d.proxy`` lets through only a
 camera report or an input's new value.
 
 Coordinates are the mission frame of the frames' ``p_mission_*`` (the first Site: x North,
@@ -41,269 +41,42 @@ import io
 import logging
 import math
 import threading
-from collections.abc import Callable, Coroutine, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Coroutine
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import viser
-from numpy.typing import ArrayLike, NDArray
-from scipy.spatial.transform import Rotation
 
 from server.runtime import RoverRuntime
+from server.scene3d.model import (
+    ALBEDO_BANDS,
+    GHOST_RGB,
+    REPLAY_NODES,
+    SIDE_RGB,
+    TERRAIN_STEP_M,
+    TRACK_RGB,
+    TRUE_RGB,
+    FloatArray,
+    RoverModel,
+    RoverPose,
+    Track,
+    compact,
+    draw_vectors,
+    status_text,
+    terrain_patch,
+)
 from server.storage import Store
-from sim.rover.geometry import MER_GEOMETRY, STEERED_INDEX, wheel_kinematics
 from sim.world.sites import make_terrain
-from sim.world.terrain import Terrain
 
-FloatArray = NDArray[np.float64]
 log = logging.getLogger(__name__)
 
 VIEW_RATE_HZ = 10.0  # the live telemetry rate of the console (server.hub.MAX_RATE_HZ)
-TERRAIN_HALF_M = 16.0  # the patch reaches this far from its centre
-TERRAIN_STEP_M = 0.16  # grid spacing: 201 x 201 vertices, ~2 MB once per re-cut
 TERRAIN_RECUT_M = 8.0  # re-cut when the rover is this far from the patch centre
-ALBEDO_BANDS = 6  # the terrain faces are drawn in this many shades of the albedo
-TRACK_STEP_M = 0.05  # a traverse gets a new vertex after this much motion
-TRACK_CHUNK = 200  # vertices per traverse node (10 m): a draw re-sends one chunk
 HISTORY_EVERY_S = 5.0  # stored frames are read back at this spacing (traverses, slider)
-ARROW_LENGTH_M = 2.0
 CAMERA_OFFSET_W = np.array([-7.0, -5.0, -5.0])  # behind, to the left of and above the rover
 NARROW_VIEW_PX = 1000  # a 3D view narrower than this starts with its controls minimized
-
-SOIL_RGB = np.array([178.0, 118.0, 82.0])  # Gusev/Meridiani ochre at albedo 0.25
-TRUE_RGB = (230, 230, 225)
-GHOST_RGB = (90, 170, 255)
-SUN_RGB = (255, 205, 60)
-EARTH_RGB = (80, 160, 255)
-HGA_RGB = (90, 230, 120)
-SIDE_RGB = (217, 140, 255)  # an estimator run beside SAPP (sim.loop.side.kinematic) ...
-TRACK_RGB = {  # ... with its own colour where it has one (the timeline's too: web/timeline.js)
-    "true": TRUE_RGB,
-    "est": GHOST_RGB,
-    "kinematic_ekf": (255, 140, 66),
-    "radio_ekf": (230, 90, 200),
-}
-VECTORS = (  # the arrows: node name, the frame's unit vector (LL), where it starts, colour
-    ("sun", "sun_ll_true", "head", SUN_RGB),
-    ("earth", "earth_ll_true", "head", EARTH_RGB),
-    ("hga", "hga_boresight_ll_true", "dish", HGA_RGB),
-)
-REPLAY_NODES = ("/rover", "/ghost", *(f"/{name}" for name, *_ in VECTORS))  # a viewer's own
 SLIDER_LABEL = "Sol time (LMST h)"
-
-
-def wxyz_from_q(q_xyzw: ArrayLike) -> tuple[float, float, float, float]:
-    """viser's scalar-first ``wxyz`` from our scalar-last ``[x, y, z, w]`` (docs/CONVENTIONS.md:
-    the one conversion, at the scene boundary).
-
-    >>> wxyz_from_q([0.0, 0.0, 0.0, 1.0])
-    (1.0, 0.0, 0.0, 0.0)
-    """
-    x, y, z, w = (float(v) for v in np.asarray(q_xyzw, dtype=float))
-    return (w, x, y, z)
-
-
-@dataclass(frozen=True)
-class RoverPose:
-    """What the scene needs of a frame for one rover model: the body origin in the mission
-    frame, ``q_w_b`` (body to mission/LL, ``[x, y, z, w]``) and the suspension, rad."""
-
-    p_w: FloatArray
-    q_w_b: FloatArray
-    rocker_rad: float
-    bogie_rad: FloatArray
-    steer_rad: FloatArray
-
-    @staticmethod
-    def from_frame(frame: dict[str, Any], which: str) -> RoverPose:
-        """The ``"true"`` or ``"est"`` pose of a telemetry frame (the estimate has no
-        suspension of its own: it borrows the true joint angles)."""
-        q_b_w = Rotation.from_quat(np.asarray(frame[f"q_b_ll_{which}"], dtype=float))
-        return RoverPose(
-            p_w=np.asarray(frame[f"p_mission_{which}"], dtype=float),
-            q_w_b=q_b_w.inv().as_quat(),
-            rocker_rad=math.radians(float(frame.get("rocker_deg") or 0.0)),
-            bogie_rad=np.radians(np.asarray(frame.get("bogie_deg") or [0.0, 0.0], float)),
-            steer_rad=np.radians(np.asarray(frame.get("steer_deg") or [0.0] * 4, float)),
-        )
-
-
-def wheel_poses_b(pose: RoverPose) -> list[tuple[FloatArray, FloatArray]]:
-    """Each wheel's ``(centre_b, q_b_wheel)``, WHEEL_NAMES order; the wheel's local z is its
-    axle (viser's cylinders are along z), pitched with its link and steered.
-
-    R_b_wheel = Ry(link) Rz(steer) Rx(-90°): Rx(-90°) takes z to y (the axle at rest),
-    Rz steers it about Down, Ry pitches it with the rocker or bogie (``sim.rover.geometry``).
-    """
-    kin = wheel_kinematics(MER_GEOMETRY, pose.rocker_rad, pose.bogie_rad, pose.steer_rad)
-    steer = np.zeros(6)
-    steer[list(STEERED_INDEX)] = pose.steer_rad
-    out = []
-    for i in range(6):
-        r = Rotation.from_euler("YZX", [kin.link_rad[i], steer[i], -math.pi / 2])
-        out.append((kin.centre_b[i], r.as_quat()))
-    return out
-
-
-def terrain_patch(
-    terrain: Terrain, centre_w: FloatArray, origin_world: FloatArray
-) -> tuple[FloatArray, list[tuple[NDArray[np.uint32], tuple[int, int, int]]]]:
-    """Vertices (mission frame) of the square patch around ``centre_w`` (mission x, y), and
-    its faces grouped in ``ALBEDO_BANDS`` shades of the albedo, each with its colour.
-
-    ``origin_world`` is the mission frame's origin in the simulator's frame; the terrain's
-    heights are elevations (up), the mission frame's z is Down.
-    """
-    n = round(2 * TERRAIN_HALF_M / TERRAIN_STEP_M) + 1
-    offsets = np.linspace(-TERRAIN_HALF_M, TERRAIN_HALF_M, n)
-    gx, gy = np.meshgrid(centre_w[0] + offsets, centre_w[1] + offsets, indexing="ij")
-    xw, yw = gx + origin_world[0], gy + origin_world[1]
-    height = np.asarray(terrain.height_m(xw.ravel(), yw.ravel()), dtype=float)
-    vertices = np.stack([gx.ravel(), gy.ravel(), -height - origin_world[2]], axis=1)
-    idx = np.arange(n * n).reshape(n, n)
-    a, b, c, d = idx[:-1, :-1], idx[1:, :-1], idx[:-1, 1:], idx[1:, 1:]
-    # Both triangles wind so that their normals point up (-z): x North, y East, z Down.
-    faces = np.concatenate(
-        [np.stack([a, c, b], -1).reshape(-1, 3), np.stack([b, c, d], -1).reshape(-1, 3)]
-    ).astype(np.uint32)
-    # A face's shade is the mean albedo of four points inside it: one point would alias
-    # the texture's millimetre grain into a checkerboard.
-    x0 = (gx[:-1, :-1] + origin_world[0]).ravel()
-    y0 = (gy[:-1, :-1] + origin_world[1]).ravel()
-    quarter = (0.25 * TERRAIN_STEP_M, 0.75 * TERRAIN_STEP_M)
-    albedo_face = np.mean(
-        [terrain.albedo(x0 + dx, y0 + dy) for dx in quarter for dy in quarter], axis=0
-    )
-    albedo = np.tile(np.asarray(albedo_face, dtype=float), 2)
-    edges = np.quantile(albedo, np.linspace(0.0, 1.0, ALBEDO_BANDS + 1)[1:-1])
-    band = np.searchsorted(edges, albedo)
-    groups = []
-    for k in range(ALBEDO_BANDS):
-        mask = band == k
-        if not np.any(mask):
-            continue
-        shade = float(np.clip(np.mean(albedo[mask]) / 0.25, 0.4, 1.6))
-        rgb = np.clip(SOIL_RGB * shade, 0, 255).astype(int)
-        groups.append((faces[mask], (int(rgb[0]), int(rgb[1]), int(rgb[2]))))
-    return vertices, groups
-
-
-def compact(
-    vertices: FloatArray, faces: NDArray[np.uint32]
-) -> tuple[FloatArray, NDArray[np.uint32]]:
-    """The vertices ``faces`` use and the faces re-indexed to them: each albedo band is
-    sent with its own vertices only, not the whole patch's."""
-    used, index = np.unique(faces, return_inverse=True)
-    return vertices[used], index.reshape(faces.shape).astype(np.uint32)
-
-
-@dataclass
-class Track:
-    """A traverse as a polyline that grows by ``TRACK_STEP_M`` steps, kept in chunks of
-    ``TRACK_CHUNK`` vertices so that a draw re-sends only the chunk still growing (a
-    chunk's last vertex is the next one's first: the line stays joined)."""
-
-    points: list[FloatArray] = field(default_factory=list)
-    dirty: set[int] = field(default_factory=set)  # chunks changed since the last draw
-
-    def add(self, p: ArrayLike) -> bool:
-        """Append ``p`` if it is far enough from the last vertex; True when it was."""
-        q = np.asarray(p, dtype=float)
-        if self.points and float(np.linalg.norm(q - self.points[-1])) < TRACK_STEP_M:
-            return False
-        self.points.append(q)
-        if len(self.points) > 1:
-            self.dirty.add((len(self.points) - 2) // TRACK_CHUNK)
-        return True
-
-    def segments(self, chunk: int) -> FloatArray:
-        """The (n, 2, 3) segments of ``chunk`` for ``add_line_segments``."""
-        pts = np.asarray(self.points[chunk * TRACK_CHUNK : (chunk + 1) * TRACK_CHUNK + 1])
-        return np.stack([pts[:-1], pts[1:]], axis=1)
-
-    def take_dirty(self) -> dict[int, FloatArray]:
-        """The segments of every chunk changed since the last call."""
-        out = {c: self.segments(c) for c in sorted(self.dirty)}
-        self.dirty.clear()
-        return out
-
-
-class RoverModel:
-    """The rover drawn from boxes and cylinders under one scene node, wheels on joints."""
-
-    def __init__(
-        self, scene: viser.SceneApi, name: str, rgb: tuple[int, int, int], opacity: float | None
-    ) -> None:
-        g = MER_GEOMETRY
-        self.root = scene.add_frame(name, show_axes=False)
-        kw: dict[str, Any] = {"opacity": opacity, "cast_shadow": opacity is None}
-        scene.add_box(f"{name}/body", rgb, (1.3, 0.9, 0.35), position=(0.05, 0, -0.175), **kw)
-        deck_rgb = (40, 55, 90) if opacity is None else rgb
-        scene.add_box(f"{name}/deck", deck_rgb, (1.6, 1.9, 0.03), position=(0, 0, -0.37), **kw)
-        scene.add_cylinder(
-            f"{name}/mast", 0.04, 0.9, rgb, position=(0.45, -0.3, -0.82), **kw
-        )  # cylinder axis is z: the mast stands along -z from the deck
-        scene.add_box(f"{name}/pancam", rgb, (0.12, 0.3, 0.1), position=self.mast_head_b(), **kw)
-        scene.add_cylinder(f"{name}/hga", 0.14, 0.03, rgb, position=self.hga_b(), **kw)
-        self.wheels = [
-            scene.add_cylinder(
-                f"{name}/wheel_{i}", g.wheel_radius_m, g.wheel_width_m, (60, 60, 60), **kw
-            )
-            for i in range(6)
-        ]
-
-    @staticmethod
-    def mast_head_b() -> tuple[float, float, float]:
-        """The Pancam head on the mast, body frame (about 1.5 m above the ground)."""
-        return (0.45, -0.3, -1.3)
-
-    @staticmethod
-    def hga_b() -> tuple[float, float, float]:
-        """The HGA dish on the deck, body frame."""
-        return (-0.35, 0.45, -0.5)
-
-    def show(self, pose: RoverPose) -> None:
-        self.root.position = tuple(pose.p_w)
-        self.root.wxyz = wxyz_from_q(pose.q_w_b)
-        for handle, (centre_b, q_b_wheel) in zip(self.wheels, wheel_poses_b(pose), strict=True):
-            handle.position = tuple(centre_b)
-            handle.wxyz = wxyz_from_q(q_b_wheel)
-
-
-def _points_w(pose: RoverPose, p_b: Sequence[float]) -> FloatArray:
-    return np.asarray(pose.p_w + Rotation.from_quat(pose.q_w_b).apply(np.asarray(p_b, float)))
-
-
-def draw_vectors(scene: viser.SceneApi, frame: dict[str, Any], pose: RoverPose) -> None:
-    """Sun and Earth from the mast head, the HGA boresight from the dish (truth, LL); a
-    vector the frame lacks is hidden (a replaying viewer must not see the live one)."""
-    start = {
-        "head": _points_w(pose, RoverModel.mast_head_b()),
-        "dish": _points_w(pose, RoverModel.hga_b()),
-    }
-    for name, key, where, rgb in VECTORS:
-        v = frame.get(key)
-        end = start[where] + ARROW_LENGTH_M * np.asarray(v if v else [0.0, 0.0, 0.0], float)
-        scene.add_arrows(
-            f"/{name}",
-            np.array([[start[where], end]]),
-            rgb,
-            shaft_radius=0.015,
-            head_radius=0.05,
-            visible=bool(v),
-        )
-
-
-def status_text(frame: dict[str, Any], live: bool) -> str:
-    """The status line of a viewer: sol, LMST, live or replay, mode, AQF, error."""
-    h = float(frame["lmst_h"])
-    clock = f"{int(h):02d}:{int(h * 60) % 60:02d}"
-    mode = "live" if live else "replay"
-    return (
-        f"Sol {frame['sol']} {clock} LMST ({mode}) · {frame['nate_mode']} · "
-        f"AQF {frame['aqf']} · position error {frame['position_error_m']:.2f} m"
-    )
 
 
 def guarded(

@@ -44,7 +44,7 @@ from sim.world.marsclock import (
     t_s_for_sol_lmst,
 )
 
-if TYPE_CHECKING:  # the validation process (server.validation_pool) imports no runtime
+if TYPE_CHECKING:  # the validation process (server.validation.pool) imports no runtime
     from server.runtime import RoverRuntime
     from server.storage import Store
 
@@ -164,7 +164,7 @@ def site_context(
 @dataclass(frozen=True)
 class RoverSite:
     """What validation needs to know of a rover, as plain values: ``site_context``'s
-    arguments. It pickles, so the validation process (``server.validation_pool``) builds
+    arguments. It pickles, so the validation process (``server.validation.pool``) builds
     the context itself."""
 
     mission: str

@@ -4,7 +4,7 @@ FastAPI reads and parses a route's body before it solves the route's dependencie
 request without a token but with bad JSON got a 422 (the body's fault) instead of a 401,
 and a stranger could make the server parse whatever they sent. ``AuthFirstRoute`` runs the
 route's auth checks (dependencies marked with ``auth_check``) first, then reads a JSON body
-itself through ``server.uploads`` (size limit while streaming, nesting and number limits,
+itself through ``server.validation.uploads`` (size limit while streaming, nesting and number limits,
 parsed in the threadpool), and only then hands the request to FastAPI's own handler, which
 reuses both: the check's result is cached on ``request.state`` and the body on the request.
 """
@@ -12,19 +12,19 @@ reuses both: the check's result is cached on ``request.state`` and the body on t
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable, Coroutine
+from collections.abc import Callable, Coroutine, Iterator
 from typing import Any, TypeVar
 
 from fastapi import FastAPI, Request, params
 from fastapi.dependencies.models import Dependant
 from fastapi.exception_handlers import http_exception_handler
 from fastapi.responses import JSONResponse
-from fastapi.routing import APIRoute
+from fastapi.routing import APIRoute, iter_route_contexts
 from starlette.concurrency import run_in_threadpool
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.responses import Response
 
-from server.uploads import parse_json, read_body
+from server.validation.uploads import parse_json, read_body
 
 DEFAULT_MAX_BODY_BYTES = 1_000_000  # when the app sets no ``state.max_body_bytes``
 
@@ -92,6 +92,14 @@ class AuthFirstRoute(APIRoute):
         return auth_first
 
 
+def api_routes(app: FastAPI) -> Iterator[APIRoute]:
+    """Every ``APIRoute`` of ``app``, those of its included routers too (FastAPI keeps an
+    included router whole, one entry of ``app.routes``; ``iter_route_contexts`` opens it)."""
+    for context in iter_route_contexts(app.routes):
+        if isinstance(context.original_route, APIRoute):
+            yield context.original_route
+
+
 def allow_every_method(app: FastAPI) -> None:
     """A 405's ``Allow`` lists every method of every route at that path. Starlette answers
     with the methods of the first route whose path matched, and this API puts GET and POST
@@ -103,11 +111,38 @@ def allow_every_method(app: FastAPI) -> None:
             return await http_exception_handler(request, exc)
         methods = {
             method
-            for route in app.routes
-            if isinstance(route, APIRoute) and route.path_regex.match(request.url.path)
+            for route in api_routes(app)
+            if route.path_regex.match(request.url.path)
             for method in route.methods or ()
         }
         headers = {**(exc.headers or {}), "Allow": ", ".join(sorted(methods))}
         return JSONResponse({"detail": exc.detail}, 405, headers)
 
     app.add_exception_handler(StarletteHTTPException, method_not_allowed)
+
+
+def document_public_reads(app: FastAPI) -> None:
+    """With public reading on, the OpenAPI of each viewer route says its token is optional
+    (``security: [{}, ...]``): the schema describes what the server does."""
+    original = app.openapi
+
+    def openapi() -> dict[str, Any]:
+        schema = original()
+        if schema.get("x-public-reads-documented"):
+            return schema
+        for route in api_routes(app):
+            if not route.include_in_schema:
+                continue
+            roles = {
+                getattr(d.call, "__required_role__", None) for d in route.dependant.dependencies
+            }
+            if "viewer" not in roles:
+                continue
+            for method in route.methods or ():
+                operation = schema["paths"].get(route.path_format, {}).get(method.lower())
+                if operation is not None and operation.get("security"):
+                    operation["security"] = [{}, *operation["security"]]
+        schema["x-public-reads-documented"] = True
+        return schema
+
+    app.openapi = openapi  # type: ignore[method-assign]

@@ -1,0 +1,80 @@
+"""The flight software's one copy of the rover: its dimensions and how fast it drives.
+
+The flight software may not import the simulator, so it keeps its own copy of the rover's
+dimensions: nominal MER-like values, the same as the simulated rover's
+(``sim.rover.geometry``; approximate MER dimensions, Lindemann and Voorhees 2005; wheel
+diameter 26 cm, wheelbase 1.4 m, track 1.2 m, middle wheels under the body origin, the
+turn-in-place centre). Wheel odometry (``estimation.sapp.wheel_odometry``, Ali et al. 2005
+sec. 2.5) uses the wheel centres in the plane; the kinematic filter
+(``estimation.fusion.kinematic.rover_kinematics``, Balaram 2000 sec. 2.2.4) the whole
+rocker-bogie. ``tests/test_kinematic_ekf_sensors.py`` checks them against the simulated
+rover.
+
+The rates the mobility software drives at are the flight software's too (Ali et al. 2005
+sec. 2.5: about 3.75 cm/s; sec. 2.4.2: turns at about 2.1 deg/s): the simulator drives at
+them and the ground's validator predicts durations with them.
+
+Frames (docs/CONVENTIONS.md): body ``b`` x forward, y right, z down. Wheel order LF, LM, LR,
+RF, RM, RR; steered wheels LF, LR, RF, RR.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+
+N_WHEELS = 6
+STEERED_INDEX = (0, 2, 3, 5)  # LF, LR, RF, RR in the wheel order (module docstring)
+
+DRIVE_SPEED_M_S = 0.0375  # Ali et al. 2005 sec. 2.5: MER drives at ~3.75 cm/s
+TURN_RATE_DEG_S = 2.1  # Ali et al. 2005 sec. 2.4.2: turns at ~2.1 deg/s
+TURN_RATE_RAD_S = math.radians(TURN_RATE_DEG_S)
+
+
+@dataclass(frozen=True)
+class FlightGeometry:
+    """Rover dimensions the flight software uses (metres), body frame at zero joint angles.
+
+    Wheel centres at ``x ∈ {x_front, x_middle, x_rear}``, ``y = ∓track/2`` (left negative,
+    y is right), ``z = wheel_centre_z_m`` below the body origin; the rocker and bogie
+    pivots as ``rover_kinematics.suspension`` uses them.
+    """
+
+    wheel_radius_m: float = 0.13  # MER wheel diameter 26 cm (docs/REFERENCES.md)
+    track_m: float = 1.2  # approximate, as sim.rover.geometry
+    x_front_m: float = 0.70  # approximate, as sim.rover.geometry
+    x_middle_m: float = 0.0  # as sim.rover.geometry: middle wheels under the origin
+    x_rear_m: float = -0.70  # approximate, as sim.rover.geometry
+    wheel_centre_z_m: float = 0.17
+    rocker_pivot_x_m: float = 0.10
+    rocker_pivot_z_m: float = -0.05
+    bogie_pivot_x_m: float = -0.35
+    bogie_pivot_z_m: float = 0.02
+
+    def __post_init__(self) -> None:
+        for name, value in self.__dict__.items():
+            if not (isinstance(value, int | float) and math.isfinite(value)):
+                raise ValueError(f"{name}: must be finite")
+        for name in ("wheel_radius_m", "track_m"):
+            if getattr(self, name) <= 0.0:
+                raise ValueError(f"{name}: must be positive")
+        if not self.x_front_m > self.x_middle_m > self.x_rear_m:
+            raise ValueError("x_middle_m: wheels must go front, middle, rear along x")
+
+    def wheel_xy_b(self) -> FloatArray:
+        """Wheel centres ``(x, y)`` in the body frame (m), shape (6, 2), LF..RR order.
+
+        >>> FlightGeometry().wheel_xy_b()[0].tolist()
+        [0.7, -0.6]
+        """
+        xs = (self.x_front_m, self.x_middle_m, self.x_rear_m)
+        half = 0.5 * self.track_m
+        return np.array([[x, -half] for x in xs] + [[x, half] for x in xs])
+
+
+FLIGHT_GEOMETRY = FlightGeometry()

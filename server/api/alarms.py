@@ -1,0 +1,128 @@
+"""Alarm limits per channel (``server.limits``) and the alarms they raise
+(``server.alarms``): list, change, reset, acknowledge."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import HTTPException, Query, Request
+from pydantic import BaseModel, ConfigDict, Field
+
+from server.access.auth import Operator, Viewer
+from server.alarms import AlarmError
+from server.api.deps import (
+    AUTH_ERRORS,
+    BAD_REQUEST,
+    NOT_FOUND,
+    TOO_LARGE,
+    AlarmId,
+    Channel,
+    RoverName,
+    ServerDep,
+    error_doc,
+    router,
+)
+from server.limits import LimitsError
+from server.validation.uploads import request_error
+
+LimitLevel = float | str | list[str] | None
+
+
+class LimitsBody(BaseModel):
+    """``PUT /api/rovers/{rover}/limits/{channel}``: a channel's levels (``server.limits``):
+    numbers (numeric), a level's name (ordinal, e.g. AQF), a list of states (state), or
+    null for no level; ``hysteresis`` (numeric only) in the channel's units."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
+    warning: LimitLevel = Field(description="the warning level, or null")
+    critical: LimitLevel = Field(description="the critical level, or null")
+    hysteresis: float | None = Field(default=None, ge=0.0, allow_inf_nan=False)
+
+
+routes = router()
+
+
+@routes.get("/api/rovers/{rover}/limits", responses=NOT_FOUND)
+def get_limits(server: ServerDep, rover: RoverName, _: Viewer) -> list[dict[str, Any]]:
+    """Every channel's alarm limits for the rover: kind, direction, units, truth view
+    or not, why, the levels now and by default, and who last changed them."""
+    server.rover(rover)
+    return server.alarms.limits(rover)
+
+
+@routes.put(
+    "/api/rovers/{rover}/limits/{channel}",
+    responses={**AUTH_ERRORS, **NOT_FOUND, **TOO_LARGE, **BAD_REQUEST},
+)
+def put_limits(
+    server: ServerDep,
+    rover: RoverName,
+    channel: Channel,
+    body: LimitsBody,
+    request: Request,
+    who: Operator,
+) -> dict[str, Any]:
+    """Change a channel's levels (stored; judged at once against the latest frame)."""
+    runtime = server.rover(rover)
+    levels = body.model_dump(exclude_none=False)
+    if body.hysteresis is None:
+        levels.pop("hysteresis")
+    request.state.audit_action = f"set limits of {channel}: " + ", ".join(
+        f"{k}={v}" for k, v in levels.items()
+    )
+    try:
+        return server.alarms.set_limits(rover, channel, levels, who.name, runtime.last_frame)
+    except KeyError as unknown:
+        raise HTTPException(404, str(unknown.args[0])) from None
+    except LimitsError as bad:
+        raise request_error(("body",), str(bad), "limits") from None
+
+
+@routes.delete("/api/rovers/{rover}/limits/{channel}", responses={**AUTH_ERRORS, **NOT_FOUND})
+def reset_limits(
+    server: ServerDep, rover: RoverName, channel: Channel, request: Request, _: Operator
+) -> dict[str, Any]:
+    """Back to the default levels for a channel."""
+    runtime = server.rover(rover)
+    request.state.audit_action = f"reset limits of {channel} to the defaults"
+    try:
+        return server.alarms.reset_limits(rover, channel, runtime.last_frame)
+    except KeyError as unknown:
+        raise HTTPException(404, str(unknown.args[0])) from None
+
+
+@routes.get("/api/rovers/{rover}/alarms", responses={**NOT_FOUND, **BAD_REQUEST})
+def list_alarms(
+    server: ServerDep,
+    rover: RoverName,
+    _: Viewer,
+    active: Annotated[
+        bool | None,
+        Query(
+            description="true: still listed (not both acknowledged and cleared); "
+            "false: done; absent: all"
+        ),
+    ] = None,
+    limit: Annotated[int, Query(ge=1, le=10_000)] = 500,
+) -> list[dict[str, Any]]:
+    """A rover's alarms, newest first."""
+    server.rover(rover)
+    return server.alarms.listed(rover, active, limit)
+
+
+@routes.post(
+    "/api/alarms/{alarm_id}/acknowledge",
+    responses={**AUTH_ERRORS, **NOT_FOUND, 409: error_doc("acknowledged already")},
+)
+def acknowledge_alarm(
+    server: ServerDep, alarm_id: AlarmId, request: Request, who: Operator
+) -> dict[str, Any]:
+    """Acknowledge an alarm (who and when are kept; it leaves the list once cleared)."""
+    request.state.audit_action = f"acknowledge alarm #{alarm_id}"
+    try:
+        alarm = server.alarms.acknowledge(alarm_id, who.name)
+    except AlarmError as refused:
+        raise HTTPException(refused.status, str(refused)) from None
+    request.state.audit_rover = alarm["rover"]
+    request.state.audit_action = f"acknowledge alarm #{alarm_id} ({alarm['channel']})"
+    return alarm

@@ -1,0 +1,79 @@
+"""Telemetry at a glance (``server.channels``): the numeric channels of a rover and one
+channel's values over sols, decimated."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import HTTPException, Query
+
+from server.access.auth import Viewer
+from server.api.deps import MAX_SOL, ServerDep, router
+from server.channels import (
+    DEFAULT_POINTS,
+    MAX_POINTS,
+    MAX_SOLS,
+    MIN_POINTS,
+    Channel,
+    channel_series,
+    channels_of,
+)
+from server.validation.uploads import request_error
+from sim.world.marsclock import t_s_for_sol_lmst
+
+# this router's own error descriptions (a channel, not a record, may be unknown)
+NOT_FOUND: dict[int | str, dict[str, Any]] = {
+    404: {"description": "no such rover or channel (the answer names the known channels)"}
+}
+BAD_REQUEST: dict[int | str, dict[str, Any]] = {422: {"description": "the request's problems"}}
+
+routes = router()
+
+
+def known(server: ServerDep, rover: str) -> dict[str, Channel]:
+    runtime = server.rover(rover)
+    return channels_of(runtime.last_frame)
+
+
+@routes.get("/api/rovers/{rover}/channels", responses=NOT_FOUND)
+def list_channels(server: ServerDep, rover: str, _: Viewer) -> list[dict[str, Any]]:
+    """The numeric telemetry channels: name, unit, and whether it is scored against
+    the simulator's truth (a view no real operator has)."""
+    return [c.describe() for c in known(server, rover).values()]
+
+
+@routes.get("/api/rovers/{rover}/channels/{channel}", responses={**NOT_FOUND, **BAD_REQUEST})
+def channel_values(
+    server: ServerDep,
+    rover: str,
+    channel: str,
+    _: Viewer,
+    sol_from: Annotated[int | None, Query(ge=0, le=MAX_SOL)] = None,
+    sol_to: Annotated[int | None, Query(ge=0, le=MAX_SOL)] = None,
+    max_points: Annotated[int, Query(ge=MIN_POINTS, le=MAX_POINTS)] = DEFAULT_POINTS,
+) -> dict[str, Any]:
+    """One channel over sols ``sol_from``-``sol_to`` (default: the rover's sol now; at
+    most MAX_SOLS sols), as ``t_s``, ``sol``, ``lmst_h`` and ``values`` arrays (null:
+    no value), at most ``max_points`` long: decimated keeping each bucket's min and
+    max."""
+    runtime = server.rover(rover)
+    channels = known(server, rover)
+    if channel not in channels:
+        raise HTTPException(404, f"unknown channel {channel!r}; known: {', '.join(channels)}")
+    now = runtime.sol(runtime.t_s)
+    lo = now if sol_from is None else sol_from
+    hi = lo if sol_to is None else sol_to
+    if hi < lo:
+        raise request_error(("query", "sol_to"), "sol_to: must be >= sol_from", "range")
+    if hi - lo + 1 > MAX_SOLS:
+        raise request_error(
+            ("query", "sol_to"), f"at most {MAX_SOLS} sols at once, asked {hi - lo + 1}",
+            "range",
+        )  # fmt: skip
+    server.writer.flush()
+    mission = runtime.spec.mission
+    t0 = t_s_for_sol_lmst(mission, lo, 0.0)
+    t1 = t_s_for_sol_lmst(mission, hi + 1, 0.0)
+    frames = [f for f in server.store.frames(rover, t0, t1) if lo <= int(f["sol"]) <= hi]
+    return {"rover": rover, "sol_from": lo, "sol_to": hi,
+            **channel_series(frames, channels[channel], max_points)}  # fmt: skip

@@ -1,0 +1,65 @@
+"""A rover's event log, filtered and paged (``server.eventlog``)."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import Query
+
+from server.access.auth import Viewer
+from server.api.deps import (
+    BAD_REQUEST,
+    MAX_ID,
+    MAX_SOL,
+    NOT_FOUND,
+    RoverName,
+    ServerDep,
+    router,
+)
+from server.eventlog import LOG_KINDS, MAX_LIMIT, EventFilter, FilterError, event_log
+from server.validation.uploads import request_error
+
+routes = router()
+
+
+@routes.get("/api/rovers/{rover}/events", responses={**NOT_FOUND, **BAD_REQUEST})
+def event_log_page(
+    server: ServerDep,
+    rover: RoverName,
+    _: Viewer,
+    sol: Annotated[int | None, Query(ge=0, le=MAX_SOL, description="one sol")] = None,
+    sol_from: Annotated[int | None, Query(ge=0, le=MAX_SOL, description="first sol")] = None,
+    sol_to: Annotated[int | None, Query(ge=0, le=MAX_SOL, description="last sol")] = None,
+    kind: Annotated[
+        list[str] | None, Query(description=f"repeatable: {', '.join(LOG_KINDS)}")
+    ] = None,
+    severity: Annotated[
+        list[str] | None, Query(description="repeatable: info, warning, error")
+    ] = None,
+    min_severity: Annotated[str | None, Query(max_length=16)] = None,
+    text: Annotated[str | None, Query(max_length=200, description="contained, any case")] = None,
+    before_t_s: Annotated[float | None, Query(description="events before this TT s")] = None,
+    limit: Annotated[int, Query(ge=1, le=MAX_LIMIT)] = 200,
+    offset: Annotated[int, Query(ge=0, le=MAX_ID)] = 0,
+) -> dict[str, Any]:
+    """The rover's events, newest first, filtered (server.eventlog): ``{"rover",
+    "kinds", "total", "offset", "limit", "events"}``; a filter that cannot be met is a
+    422 naming it."""
+    runtime = server.rover(rover)
+    server.writer.flush()
+    flt = EventFilter(
+        sol=sol,
+        sol_from=sol_from,
+        sol_to=sol_to,
+        kinds=tuple(dict.fromkeys(kind or [])),
+        severities=tuple(dict.fromkeys(severity or [])),
+        min_severity=min_severity,
+        text=text,
+        before_t_s=before_t_s,
+        limit=limit,
+        offset=offset,
+    )
+    try:
+        return event_log(server.store, runtime, flt)
+    except FilterError as exc:
+        raise request_error(("query", exc.param), str(exc), "value_error") from exc

@@ -1,0 +1,166 @@
+"""Telemetry: sols with data, a sol's timeline, frames over a span (JSON or CSV), a sol's
+CSV file, the live WebSocket, and the frame's JSON schema (``sim.loop.telemetry``)."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import math
+import time
+from typing import Annotated, Any
+
+import anyio
+from fastapi import HTTPException, Query, Request, WebSocket
+from fastapi.responses import Response
+from starlette.websockets import WebSocketDisconnect
+
+from server.access.auth import Viewer
+from server.api.deps import (
+    BAD_REQUEST,
+    CSV_FILE,
+    NOT_FOUND,
+    RoverName,
+    ServerDep,
+    Sol,
+    router,
+    websocket_allowed,
+)
+from server.api.telemetry_csv import frames_csv
+from server.hub import MAX_RATE_HZ, next_message
+from server.timeline import sol_timeline
+from server.validation.uploads import request_error
+from sim.loop.telemetry import telemetry_schema
+
+routes = router()
+
+
+@routes.get("/api/rovers/{rover}/sols", responses=NOT_FOUND)
+def sols(server: ServerDep, rover: RoverName, _: Viewer) -> list[int]:
+    """Sols with telemetry."""
+    server.rover(rover)
+    server.writer.flush()
+    return server.store.sols(rover)
+
+
+@routes.get("/api/rovers/{rover}/sols/{sol}/timeline", responses=NOT_FOUND)
+def timeline(server: ServerDep, rover: RoverName, sol: Sol, _: Viewer) -> dict[str, Any]:
+    """One sol: commands, NATE mode and AQF intervals, events, distance, summary."""
+    runtime = server.rover(rover)
+    server.writer.flush()
+    found = sol_timeline(server.store, runtime, sol)
+    if found is None:
+        raise HTTPException(404, f"no telemetry on sol {sol}")
+    return found
+
+
+@routes.get(
+    "/api/rovers/{rover}/sols/{sol}/telemetry.csv",
+    response_class=Response,
+    responses={200: CSV_FILE, **NOT_FOUND},
+)
+def sol_telemetry_csv(
+    server: ServerDep,
+    rover: RoverName,
+    sol: Sol,
+    _: Viewer,
+    every: Annotated[float, Query(ge=0.0, le=86400.0)] = 0.0,
+) -> Response:
+    """One sol's frames as a CSV file to download (one per ``every`` s; frames with
+    events are always kept), named ``{rover}_sol{sol}.csv``."""
+    server.rover(rover)
+    server.writer.flush()
+    span = server.store.sol_range(rover, sol)
+    if span is None:
+        raise HTTPException(404, f"no telemetry on sol {sol} for rover {rover!r}")
+    frames = server.store.frames(rover, span[0], span[1], every)
+    disposition = f'attachment; filename="{rover}_sol{sol}.csv"'
+    return Response(
+        frames_csv(frames), media_type="text/csv", headers={"Content-Disposition": disposition}
+    )
+
+
+@routes.get(
+    "/api/rovers/{rover}/telemetry",
+    response_model=None,
+    responses={
+        200: {
+            "description": "frames (JSON), or CSV on Accept: text/csv",
+            "content": {
+                "application/json": {"schema": {"type": "array", "items": {"type": "object"}}},
+                **CSV_FILE["content"],
+            },
+        },
+        **NOT_FOUND,
+        **BAD_REQUEST,
+    },
+)
+def telemetry(
+    server: ServerDep,
+    rover: RoverName,
+    request: Request,
+    _: Viewer,
+    t_from: Annotated[float | None, Query(alias="from")] = None,
+    t_to: Annotated[float | None, Query(alias="to")] = None,
+    every: Annotated[float, Query(ge=0.0, le=86400.0)] = 0.0,
+    limit: Annotated[int, Query(ge=1, le=200_000)] = 20_000,
+) -> Response | list[dict[str, Any]]:
+    """Frames over ``from``-``to`` (TT s), one per ``every`` s; CSV on Accept: text/csv."""
+    runtime = server.rover(rover)
+    server.writer.flush()
+    lo = -math.inf if t_from is None else t_from
+    hi = runtime.t_s if t_to is None else t_to
+    if not (math.isfinite(hi) and lo <= hi):
+        raise request_error(("query", "to"), "from/to: need from <= to, to finite", "range")
+    frames = server.store.frames(rover, lo, hi, every, limit)
+    if "text/csv" in request.headers.get("accept", ""):
+        return Response(frames_csv(frames), media_type="text/csv")
+    return frames
+
+
+@routes.websocket("/ws/rovers/{rover}/telemetry")
+async def live(server: ServerDep, websocket: WebSocket, rover: str) -> None:
+    """Frames as they are played out, at most MAX_RATE_HZ per second of wall time, and
+    notices (``server.hub``) as they come."""
+    if not await websocket_allowed(websocket):
+        return
+    if rover not in server.rovers:
+        await websocket.close(code=4404)
+        return
+    await websocket.accept()
+    client = server.hub.subscribe(rover)
+    period = 1.0 / MAX_RATE_HZ
+
+    async def send_frames(done: anyio.CancelScope) -> None:
+        with contextlib.suppress(WebSocketDisconnect, RuntimeError):  # the browser left
+            next_send = 0.0
+            while True:
+                message = await next_message(client)
+                await websocket.send_json(message)
+                if "type" in message:  # a notice: never held back by the frame rate
+                    continue
+                next_send = max(next_send + period, time.monotonic())  # >= period apart
+                wait = next_send - time.monotonic()
+                if wait > 0:
+                    await asyncio.sleep(wait)
+        done.cancel()
+
+    async def until_closed(done: anyio.CancelScope) -> None:
+        # A rover at rest sends nothing for a long time: listening is how a closed
+        # browser, or the server shutting down, ends this handler (and its subscription).
+        while (await websocket.receive())["type"] != "websocket.disconnect":
+            pass
+        done.cancel()
+
+    try:
+        async with anyio.create_task_group() as tasks:
+            tasks.start_soon(send_frames, tasks.cancel_scope)
+            tasks.start_soon(until_closed, tasks.cancel_scope)
+    finally:
+        server.hub.unsubscribe(rover, client)
+
+
+@routes.get("/api/schema/telemetry")
+def frame_schema(_: Viewer) -> dict[str, Any]:
+    """The JSON schema of a telemetry frame as ``/state``, ``/telemetry`` and the WebSocket
+    send it (``sim.loop.telemetry.TelemetryFrame``, the one definition of its fields)."""
+    return telemetry_schema()

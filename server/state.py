@@ -1,0 +1,217 @@
+"""The server's state: its settings (``ServerConfig``) and ``Server``, which owns the rover
+runtimes, storage, the accounts, the audit log, the alarm engine, the WebSocket hub and the
+3D views, and wires a frame's route through them.
+
+A frame's route: each ``RoverRuntime`` (``server.runtime``) plays its frames out as its
+clock reaches them and hands every batch, in order, to its named sinks (``server.sinks``):
+``StorageSink`` (frames and their events, through the ``BatchWriter``), the
+``AlarmEngine`` (limits judged, alarms raised and cleared), the ``TelemetryHub`` (the
+console's WebSocket) and, with the 3D view on, the rover's ``RoverScene``. The routes
+(``server.api``) read this state through ``server.api.deps.ServerDep``.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from dataclasses import dataclass
+from typing import Any
+
+from fastapi import HTTPException
+
+from sequences.validate import ValidationContext, validate
+from server.access.accounts import Accounts
+from server.access.audit import AuditLog
+from server.alarms import AlarmEngine
+from server.hub import TelemetryHub
+from server.queue_view import QueueNotices, queue_json
+from server.runtime import ROVERS, CheckpointFormatError, RoverRuntime
+from server.scene3d.scene import RoverScene
+from server.sinks import FrameSink, StorageSink
+from server.storage import BatchWriter, Store
+from server.timeline import stored_command
+from server.validation.context import rover_site, validation_context
+from server.validation.pool import ValidationPool
+from server.validation.uploads import ValidationSlots
+from sim.world.marsclock import t_s_to_utc
+
+log = logging.getLogger(__name__)
+
+MAX_UPLOAD_BYTES = 1_000_000
+MAX_CONCURRENT_VALIDATIONS = 2  # per client address, and per token
+VALIDATION_PROCESSES = 1  # one core of two for uploads, the other for the server
+
+
+@dataclass
+class ServerConfig:
+    """Settings of one server (``roverops serve`` fills them from flags and ROVEROPS_*)."""
+
+    database_url: str
+    # the bootstrap admin token (--operator-token): in memory only, for scripts and tests;
+    # None: only the users' tokens in the database are accepted
+    operator_token: str | None = None
+    # reading (telemetry, sequences, timelines, the 3D view) needs no token while on
+    public_read: bool = True
+    max_upload_bytes: int = MAX_UPLOAD_BYTES  # every request body, uploads or not
+    max_concurrent_validations: int = MAX_CONCURRENT_VALIDATIONS
+    # uploads validate in these worker processes (server.validation.pool); 0: in the
+    # server's threadpool, sharing its interpreter lock (slower answers while one runs)
+    validation_processes: int = VALIDATION_PROCESSES
+    start_clocks: bool = True
+    initial_speed: float = 1.0
+    viewer_3d: bool = False  # a viser 3D view per rover under /viser/{rover}/
+    # what runs beside SAPP on a new rover (sim.loop.side.kinematic); a rover restored from a
+    # checkpoint keeps the estimators it was started with
+    estimators: tuple[str, ...] = ("sapp",)
+
+
+class Server:
+    """The app's state: the runtimes, storage, the writer, the hub and the frame sinks
+    (module docstring)."""
+
+    def __init__(self, config: ServerConfig) -> None:
+        self.config = config
+        self.store = Store(config.database_url)
+        self.accounts = Accounts(self.store, config.operator_token)
+        self.audit = AuditLog(self.store)
+        self.writer = BatchWriter(self.store)
+        self.hub = TelemetryHub()
+        self.validation = ValidationPool(config.validation_processes)
+        # a client's validations at once (429 past them; server.validation.uploads)
+        self.slots = ValidationSlots(config.max_concurrent_validations)
+        self.rovers: dict[str, RoverRuntime] = {}
+        self.queue_notices = QueueNotices(
+            self._queue_notice, self.hub.notify, lambda rover: self.hub.count(rover) > 0
+        )
+        self.alarms = AlarmEngine(self.store, self._when, self.hub.notify)
+        self.alarms.on_event = self._server_event
+        # every played-out batch, in order: stored, judged against the limits, sent live
+        # (and drawn in the 3D view, below: a RoverScene is the sink of its own rover)
+        self.sinks: list[FrameSink] = [StorageSink(self.writer), self.alarms, self.hub]
+        for name, spec in ROVERS.items():
+            saved = self.store.load_checkpoint(name)
+            try:
+                runtime = RoverRuntime.restore(spec, saved[1]) if saved else None
+            except CheckpointFormatError as error:  # an older format: the rover starts fresh
+                log.warning("%s", error)
+                saved = None
+            if saved is None:
+                runtime = RoverRuntime(spec, estimators=config.estimators)
+            assert runtime is not None
+            if saved is None:
+                runtime.set_clock(speed=config.initial_speed)
+            if saved is not None:
+                self._resume(runtime)
+            runtime.sinks.extend(self.sinks)
+            runtime.on_command = self._command
+            runtime.on_sequence = self._sequence
+            runtime.on_checkpoint = self.writer.checkpoint
+            runtime.commit = self.writer.flush  # a clock change is stored when it answers
+            runtime.on_queue = self.queue_notices.changed
+            self.rovers[name] = runtime
+        # the 3D views: a scene joins its rover's sinks when it starts (RoverScene.start)
+        self.scenes: dict[str, RoverScene] = {}
+        if config.viewer_3d:
+            self.scenes = {name: RoverScene(rt, self.store) for name, rt in self.rovers.items()}
+
+    def _resume(self, runtime: RoverRuntime) -> None:
+        """After a restart: no frame stored twice, and every accepted sequence the
+        checkpoint does not hold (accepted or started after it) queued again, in order, an
+        immediate command (format ``command``) first as when it was sent."""
+        rover = runtime.spec.name
+        last = self.store.last_frame(rover)
+        if last is not None:
+            runtime.watermark_t_s = float(last["t_s"])
+            runtime.last_frame = last
+        held = set(runtime.queued_ids())
+        pending = [
+            s
+            for s in self.store.list_sequences(rover)
+            if s["status"] in ("queued", "running") and s["id"] not in held
+        ]
+        for summary in sorted(pending, key=lambda s: s["id"]):
+            stored = self.store.get_sequence(summary["id"])
+            assert stored is not None
+            text = stored["source"]
+            source = json.loads(text) if stored["format"] in ("json", "command") else text
+            result = validate(source)
+            if result.sequence is None:  # cannot happen: it was accepted
+                self.store.set_sequence_status(summary["id"], "failed", "unreadable after restart")
+                continue
+            runtime.enqueue(summary["id"], result.sequence, stored["format"] == "command")
+
+    def _when(self, rover: str, t_s: float) -> dict[str, Any]:
+        runtime = self.rovers[rover]
+        return {"t_s": t_s, "utc": t_s_to_utc(t_s).isoformat(), "lmst_h": runtime.lmst_h(t_s),
+                "sol": runtime.sol(t_s)}  # fmt: skip
+
+    def _command(self, rover: str, report: dict[str, Any]) -> None:
+        self.writer.command(rover, **report)
+        if self.hub.count(rover):  # a live timeline shows it: written now, read back as listed
+            self.writer.flush()
+            entry = stored_command(self.store, self.rovers[rover], report)
+            if entry is not None:
+                self.hub.notify(rover, {"type": "command", "command": entry})
+
+    def _sequence(self, sequence_id: int, status: str, detail: str | None) -> None:
+        self.writer.flush()
+        before = self.store.get_sequence(sequence_id)
+        self.store.set_sequence_status(sequence_id, status, detail)
+        if before is None or before["status"] == status:  # e.g. resumed after a restart
+            return
+        said = {"running": "started", "completed": "completed", "failed": "failed"}
+        severity = "error" if status == "failed" else "warning" if detail else "info"
+        text = f"sequence #{sequence_id} {before['name']} {said.get(status, status)}"
+        self._server_event(
+            before["rover"], None,
+            {"text": text + (f": {detail}" if detail else ""), "kind": "sequence",
+             "severity": severity},
+        )  # fmt: skip
+
+    def _server_event(self, rover: str, t_s: float | None, event: dict[str, str]) -> None:
+        """An event the server makes (``estimation.events``: kinds ``sequence``, ``alarm``),
+        at ``t_s`` or the rover's clock now: stored for the event log and sent as an
+        ``event`` notice (it is in no frame)."""
+        t = self.rovers[rover].t_s if t_s is None else t_s
+        when = self._when(rover, t)
+        self.writer.events(rover, [(t, event)])
+        self.hub.notify(rover, {"type": "event", "event": {
+            **event, "t_s": t, "sol": when["sol"], "lmst_h": when["lmst_h"]}})  # fmt: skip
+
+    def _queue_notice(self, rover: str) -> dict[str, Any]:
+        return {
+            "type": "queue",
+            "rover": rover,
+            "queue": queue_json(self.rovers[rover], self.store),
+        }
+
+    def start(self) -> None:
+        self.writer.start()
+        self.queue_notices.start()
+        self.validation.start(rover_site(next(iter(self.rovers.values()))))
+        for scene in self.scenes.values():
+            scene.start()
+        if self.config.start_clocks:
+            for runtime in self.rovers.values():
+                runtime.start()
+
+    def stop(self) -> None:
+        """Each rover's clock stopped and checkpointed where it stopped, then everything
+        written: a graceful stop (SIGTERM) loses nothing."""
+        for runtime in self.rovers.values():
+            runtime.stop()
+        self.queue_notices.stop()
+        for scene in self.scenes.values():
+            scene.stop()
+        self.validation.stop()
+        self.writer.stop()
+        self.store.close()
+
+    def rover(self, name: str) -> RoverRuntime:
+        if name not in self.rovers:
+            raise HTTPException(404, f"unknown rover {name!r}; known: {', '.join(self.rovers)}")
+        return self.rovers[name]
+
+    def context(self, runtime: RoverRuntime) -> ValidationContext:
+        """What validation warnings need to know of a rover, from its state now."""
+        return validation_context(runtime)

@@ -1,0 +1,488 @@
+"""``Store``: the synchronous queries of the operations server, one transaction each.
+
+The request handlers call it; ``server.storage.writer.BatchWriter`` shares its batch
+primitives (``_insert_frames`` ...) to commit high-rate writes together. The choices it
+keeps (strict JSON with non-finite floats as null, UTC ISO 8601 timestamps, one command
+row per step whatever the restarts) are the package's (``server.storage``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterable, Mapping
+from datetime import UTC, datetime
+from typing import Any
+
+from sqlalchemy import (
+    create_engine,
+    delete,
+    event,
+    func,
+    insert,
+    select,
+    update,
+)
+from sqlalchemy.engine import Connection, Engine, RowMapping, make_url
+from sqlalchemy.pool import StaticPool
+
+from server.storage.schema import (
+    alarm_limits,
+    alarms_table,
+    checkpoints,
+    commands,
+    event_dict,
+    events,
+    frame_events,
+    frames_table,
+    metadata,
+    now_utc,
+    sequences,
+    sqlite_pragmas,
+    upgrade_schema,
+)
+
+
+def _finite(value: Any) -> Any:
+    """``value`` with every non-finite float (NaN, ±inf) replaced by ``None``."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, Mapping):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite(v) for v in value]
+    return value
+
+
+def json_dumps(value: Any) -> str:
+    """Strict JSON for every database: non-finite floats become null (module docstring)."""
+    try:
+        return json.dumps(value, allow_nan=False)
+    except ValueError:  # a NaN somewhere: the slow path only for the frames that have one
+        return json.dumps(_finite(value), allow_nan=False)
+
+
+def _iso(value: datetime | None) -> str | None:
+    """UTC ISO 8601; SQLite hands back naive datetimes (stored as UTC), PostgreSQL aware."""
+    if value is None:
+        return None
+    if value.tzinfo is None:
+        value = value.replace(tzinfo=UTC)
+    return value.astimezone(UTC).isoformat()
+
+
+def row_dict(row: RowMapping) -> dict[str, Any]:
+    return {str(k): _iso(v) if isinstance(v, datetime) else v for k, v in row.items()}
+
+
+def event_columns(event: Mapping[str, Any]) -> dict[str, str]:
+    e = event_dict(event)
+    return {"text": str(e["text"]), "kind": str(e["kind"]), "severity": str(e["severity"])}
+
+
+def command_row(
+    rover: str,
+    sequence_id: int | None,
+    step_index: int | None,
+    command: str,
+    status: str,
+    reason: str | None,
+    start_t_s: float,
+    end_t_s: float,
+    events: list[str],
+) -> dict[str, Any]:
+    return {
+        "rover": rover,
+        "sequence_id": sequence_id,
+        "step_index": step_index,
+        "command": command,
+        "status": status,
+        "reason": reason,
+        "start_t_s": float(start_t_s),
+        "end_t_s": float(end_t_s),
+        "events": list(events),
+        "created_at": now_utc(),
+    }
+
+
+def record_command(conn: Connection, row: dict[str, Any]) -> int:
+    """Insert a command row, or update the row of the same step (``sequence_id``,
+    ``step_index``) and count the re-run: every row of it, should a database of an older
+    version hold the step twice. The id of the (first) row."""
+    c = commands.c
+    if row["sequence_id"] is not None and row["step_index"] is not None:
+        same_step = (c.sequence_id == row["sequence_id"], c.step_index == row["step_index"])
+        found = conn.execute(select(func.min(c.id)).where(*same_step)).scalar()
+        if found is not None:
+            report = {k: v for k, v in row.items() if k != "created_at"}
+            conn.execute(update(commands).where(*same_step).values(**report, reruns=c.reruns + 1))
+            return int(found)
+    key = conn.execute(insert(commands).values(**row)).inserted_primary_key
+    assert key is not None
+    return int(key[0])
+
+
+class Store:
+    """The server's database: one engine, the tables created on first use.
+
+    ``url`` is any SQLAlchemy URL: ``sqlite:///path/roverops.db`` (the embedded default),
+    ``sqlite://`` (in memory, one shared connection: for tests and doctests), or
+    ``postgresql+psycopg://user@host:port/db``. Every method is one transaction and safe to
+    call from any thread. Times ``t_s`` are simulated TT seconds from J2000 (floats).
+    """
+
+    def __init__(self, url: str) -> None:
+        parsed = make_url(url)
+        self.url = url
+        kwargs: dict[str, Any] = {"json_serializer": json_dumps}
+        self.is_sqlite = parsed.get_backend_name() == "sqlite"
+        if self.is_sqlite:
+            # The writer thread and the request threads share the engine.
+            kwargs["connect_args"] = {"check_same_thread": False, "timeout": 30.0}
+            if parsed.database in (None, "", ":memory:"):
+                kwargs["poolclass"] = StaticPool  # else each connection is a new empty db
+        else:
+            kwargs["pool_pre_ping"] = True  # a restarted database server is not an error
+        self.engine: Engine = create_engine(url, **kwargs)
+        if self.is_sqlite:
+            event.listen(self.engine, "connect", sqlite_pragmas)
+        metadata.create_all(self.engine)
+        upgrade_schema(self.engine)
+
+    def close(self) -> None:
+        """Close every pooled connection (the store is not usable afterwards)."""
+        self.engine.dispose()
+
+    # ---- sequences: one row per upload, accepted or rejected ------------------------
+
+    def add_sequence(
+        self,
+        rover: str,
+        name: str,
+        source: str,
+        fmt: str,
+        status: str,
+        errors: list[dict[str, Any]],
+        warnings: list[dict[str, Any]],
+        steps: list[dict[str, Any]],
+        submitted_by: str | None = None,
+    ) -> int:
+        """Store an upload as given (a rejected one keeps its errors), with the name of who
+        submitted it; its new id."""
+        with self.engine.begin() as conn:
+            result = conn.execute(
+                insert(sequences).values(
+                    rover=rover,
+                    name=name,
+                    source=source,
+                    format=fmt,
+                    status=status,
+                    errors=errors,
+                    warnings=warnings,
+                    steps=steps,
+                    submitted_by=submitted_by,
+                )
+            )
+            key = result.inserted_primary_key
+            assert key is not None
+            return int(key[0])
+
+    def set_sequence_status(self, sequence_id: int, status: str, detail: str | None = None) -> None:
+        """Move a sequence to ``status`` (``detail`` says why); ``KeyError`` if unknown."""
+        with self.engine.begin() as conn:
+            result = conn.execute(
+                update(sequences)
+                .where(sequences.c.id == sequence_id)
+                .values(status=status, detail=detail, updated_at=now_utc())
+            )
+            if result.rowcount == 0:
+                raise KeyError(f"no sequence {sequence_id}")
+
+    def get_sequence(self, sequence_id: int) -> dict[str, Any] | None:
+        """Every column of one sequence (JSON decoded, times ISO), or ``None``."""
+        with self.engine.connect() as conn:
+            row = conn.execute(select(sequences).where(sequences.c.id == sequence_id)).first()
+        return None if row is None else row_dict(row._mapping)
+
+    def list_sequences(self, rover: str) -> list[dict[str, Any]]:
+        """A rover's sequences, newest first, without the bulky ``source`` and ``steps``."""
+        cols = [c for c in sequences.c if c.name not in ("source", "steps")]
+        query = select(*cols).where(sequences.c.rover == rover).order_by(sequences.c.id.desc())
+        with self.engine.connect() as conn:
+            return [row_dict(r._mapping) for r in conn.execute(query)]
+
+    def submitters(self, sequence_ids: Iterable[int]) -> dict[int, str | None]:
+        """Who submitted each of these sequences (``None`` for rows from before accounts)."""
+        ids = sorted({int(i) for i in sequence_ids})
+        if not ids:
+            return {}
+        c = sequences.c
+        query = select(c.id, c.submitted_by).where(c.id.in_(ids))
+        with self.engine.connect() as conn:
+            return {int(r.id): r.submitted_by for r in conn.execute(query)}
+
+    # ---- command executions ------------------------------------------------------
+
+    def add_command(
+        self,
+        rover: str,
+        sequence_id: int | None,
+        step_index: int | None,
+        command: str,
+        status: str,
+        reason: str | None,
+        start_t_s: float,
+        end_t_s: float,
+        events: list[str],
+    ) -> int:
+        """Store one executed or refused command; its row's id. A step of a sequence
+        already stored (run again after a restart) updates its row (module docstring)."""
+        row = command_row(rover, sequence_id, step_index, command, status, reason,
+                           start_t_s, end_t_s, events)  # fmt: skip
+        with self.engine.begin() as conn:
+            return record_command(conn, row)
+
+    def commands(self, rover: str, t_from: float, t_to: float) -> list[dict[str, Any]]:
+        """Commands whose [start, end] overlaps [t_from, t_to], by start time."""
+        c = commands.c
+        query = (
+            select(commands)
+            .where(c.rover == rover, c.start_t_s <= t_to, c.end_t_s >= t_from)
+            .order_by(c.start_t_s, c.id)
+        )
+        with self.engine.connect() as conn:
+            return [row_dict(r._mapping) for r in conn.execute(query)]
+
+    # ---- events ------------------------------------------------------------------
+
+    def add_events(self, rover: str, events: list[tuple[float, Mapping[str, Any]]]) -> None:
+        """Store events as (t_s, ``{"text", "kind", "severity"}``) pairs."""
+        with self.engine.begin() as conn:
+            self._insert_events(conn, [(rover, t, e) for t, e in events])
+
+    def events(self, rover: str, t_from: float, t_to: float) -> list[dict[str, Any]]:
+        """Events with t_from <= t_s <= t_to, in time order, as
+        ``{"t_s", "text", "kind", "severity"}``."""
+        return self.event_log(rover, t_from, t_to, newest_first=False)[0]
+
+    def event_log(
+        self,
+        rover: str,
+        t_from: float,
+        t_to: float,
+        *,
+        kinds: Iterable[str] = (),
+        severities: Iterable[str] = (),
+        text_contains: str | None = None,
+        before_t_s: float | None = None,
+        limit: int | None = None,
+        offset: int = 0,
+        newest_first: bool = True,
+    ) -> tuple[list[dict[str, Any]], int]:
+        """Events with t_from <= t_s < ``before_t_s`` (if given) and t_s <= t_to, of one of
+        ``kinds`` and ``severities`` (all if empty) whose text contains ``text_contains``
+        (any case); the page of ``limit`` from ``offset``, newest first unless
+        ``newest_first`` is false, and the number of events matching in all."""
+        e = events.c
+        where = [e.rover == rover, e.t_s >= t_from, e.t_s <= t_to]
+        if before_t_s is not None:
+            where.append(e.t_s < before_t_s)
+        kinds, severities = list(kinds), list(severities)
+        if kinds:
+            where.append(e.kind.in_(kinds))
+        if severities:
+            where.append(e.severity.in_(severities))
+        if text_contains:
+            escaped = text_contains.replace("\\", "\\\\").replace("%", "\\%").replace("_", "\\_")
+            where.append(func.lower(e.text).like(f"%{escaped.lower()}%", escape="\\"))
+        order = (e.t_s.desc(), e.id.desc()) if newest_first else (e.t_s, e.id)
+        query = select(e.t_s, e.text, e.kind, e.severity).where(*where).order_by(*order)
+        if offset:
+            query = query.offset(offset)
+        if limit is not None:
+            query = query.limit(limit)
+        with self.engine.connect() as conn:
+            rows = [dict(r._mapping) for r in conn.execute(query)]
+            total = len(rows) if limit is None and not offset else None
+            if total is None:
+                total = int(conn.execute(select(func.count()).where(*where)).scalar_one())
+        return rows, total
+
+    # ---- telemetry frames --------------------------------------------------------
+
+    def add_frames(self, rover: str, frames: list[dict[str, Any]]) -> None:
+        """Store frames (``TelemetryFrame.as_dict()``) in one executemany."""
+        with self.engine.begin() as conn:
+            self._insert_frames(conn, [(rover, f) for f in frames])
+
+    def frames(
+        self,
+        rover: str,
+        t_from: float,
+        t_to: float,
+        every_s: float = 0.0,
+        limit: int | None = None,
+    ) -> list[dict[str, Any]]:
+        """Frames with t_from <= t_s <= t_to, ascending, at most ``limit`` of them.
+
+        With ``every_s > 0`` they are decimated: a frame is kept when it is at least
+        ``every_s`` after the last kept frame, and a frame with events is always kept (and
+        then counts as the last kept one), so decimation never hides an event.
+        """
+        f = frames_table.c
+        query = (
+            select(f.t_s, f.data)
+            .where(f.rover == rover, f.t_s >= t_from, f.t_s <= t_to)
+            .order_by(f.t_s, f.id)
+        )
+        out: list[dict[str, Any]] = []
+        if limit is not None and limit <= 0:
+            return out
+        last = -math.inf
+        with self.engine.connect() as conn:
+            for row in conn.execution_options(yield_per=2000).execute(query):
+                data: dict[str, Any] = row.data
+                if every_s > 0.0 and row.t_s - last < every_s and not data.get("events"):
+                    continue
+                last = row.t_s
+                out.append(frame_events(data))
+                if limit is not None and len(out) >= limit:
+                    break
+        return out
+
+    def sols(self, rover: str) -> list[int]:
+        """The sols that have telemetry, ascending."""
+        f = frames_table.c
+        query = select(f.sol).where(f.rover == rover).distinct().order_by(f.sol)
+        with self.engine.connect() as conn:
+            return [int(s) for s in conn.execute(query).scalars()]
+
+    def sol_range(self, rover: str, sol: int) -> tuple[float, float] | None:
+        """The first and last frame times of a sol, or ``None`` without telemetry."""
+        f = frames_table.c
+        query = select(func.min(f.t_s), func.max(f.t_s)).where(f.rover == rover, f.sol == sol)
+        with self.engine.connect() as conn:
+            lo, hi = conn.execute(query).one()
+        return None if lo is None else (float(lo), float(hi))
+
+    def last_frame(self, rover: str) -> dict[str, Any] | None:
+        """The latest frame of a rover, or ``None``."""
+        f = frames_table.c
+        query = select(f.data).where(f.rover == rover).order_by(f.t_s.desc(), f.id.desc()).limit(1)
+        with self.engine.connect() as conn:
+            data: dict[str, Any] | None = conn.execute(query).scalar()
+        return None if data is None else frame_events(data)
+
+    # ---- alarms (server.alarms) and operators' limits (server.limits) ---------------
+
+    def add_alarm(self, row: dict[str, Any]) -> int:
+        """Store a raised alarm (the columns of ``alarms``); its id."""
+        with self.engine.begin() as conn:
+            key = conn.execute(insert(alarms_table).values(**row)).inserted_primary_key
+        assert key is not None
+        return int(key[0])
+
+    def update_alarm(self, alarm_id: int, values: dict[str, Any]) -> None:
+        """Change an alarm's columns (escalated, cleared, re-raised, acknowledged)."""
+        with self.engine.begin() as conn:
+            conn.execute(update(alarms_table).where(alarms_table.c.id == alarm_id).values(**values))
+
+    def alarms(
+        self,
+        rover: str | None = None,
+        listed: bool | None = None,
+        span: tuple[float, float] | None = None,
+        limit: int | None = None,
+        alarm_id: int | None = None,
+    ) -> list[dict[str, Any]]:
+        """Alarm rows, newest first: of ``rover``; ``listed`` True: still listed (not both
+        acknowledged and cleared), False: done; ``span`` (t0, t1): raised by t1 and not
+        cleared before t0."""
+        a = alarms_table.c
+        query = select(alarms_table).order_by(a.raised_t_s.desc(), a.id.desc())
+        if rover is not None:
+            query = query.where(a.rover == rover)
+        if alarm_id is not None:
+            query = query.where(a.id == alarm_id)
+        done = a.acknowledged_by.is_not(None) & a.cleared_t_s.is_not(None)
+        if listed is not None:
+            query = query.where(~done if listed else done)
+        if span is not None:
+            query = query.where(
+                a.raised_t_s <= span[1], a.cleared_t_s.is_(None) | (a.cleared_t_s >= span[0])
+            )
+        if limit is not None:
+            query = query.limit(limit)
+        with self.engine.connect() as conn:
+            return [row_dict(r._mapping) for r in conn.execute(query)]
+
+    def set_limits(self, rover: str, channel: str, levels: dict[str, Any], by: str) -> None:
+        """Store an operator's levels for a channel (replacing earlier ones)."""
+        c = alarm_limits.c
+        with self.engine.begin() as conn:
+            conn.execute(delete(alarm_limits).where(c.rover == rover, c.channel == channel))
+            conn.execute(insert(alarm_limits).values(
+                rover=rover, channel=channel, levels=levels, updated_by=by, updated_at=now_utc()
+            ))  # fmt: skip
+
+    def reset_limits(self, rover: str, channel: str) -> None:
+        """Forget an operator's levels for a channel (the default applies again)."""
+        c = alarm_limits.c
+        with self.engine.begin() as conn:
+            conn.execute(delete(alarm_limits).where(c.rover == rover, c.channel == channel))
+
+    def stored_limits(self, rover: str) -> dict[str, dict[str, Any]]:
+        """The operators' levels of a rover by channel, with ``updated_by``/``updated_at``."""
+        c = alarm_limits.c
+        with self.engine.connect() as conn:
+            rows = conn.execute(select(alarm_limits).where(c.rover == rover))
+            return {r.channel: row_dict(r._mapping) for r in rows}
+
+    # ---- checkpoints: the latest simulation state, an opaque blob ---------------
+
+    def save_checkpoint(self, rover: str, t_s: float, blob: bytes) -> None:
+        """Replace the rover's checkpoint."""
+        with self.engine.begin() as conn:
+            self._replace_checkpoints(conn, {rover: (t_s, blob)})
+
+    def load_checkpoint(self, rover: str) -> tuple[float, bytes] | None:
+        """The rover's checkpoint as (t_s, blob), or ``None``."""
+        c = checkpoints.c
+        with self.engine.connect() as conn:
+            row = conn.execute(select(c.t_s, c.blob).where(c.rover == rover)).first()
+        return None if row is None else (float(row.t_s), bytes(row.blob))
+
+    # ---- the batch primitives, shared with BatchWriter ----------------------------
+
+    def _insert_frames(self, conn: Connection, rows: list[tuple[str, dict[str, Any]]]) -> None:
+        if rows:
+            conn.execute(
+                insert(frames_table),
+                [{"rover": r, "t_s": float(f["t_s"]), "sol": int(f["sol"]), "data": f}
+                 for r, f in rows],
+            )  # fmt: skip
+
+    def _insert_events(
+        self, conn: Connection, rows: list[tuple[str, float, Mapping[str, Any]]]
+    ) -> None:
+        if rows:
+            conn.execute(
+                insert(events),
+                [{"rover": r, "t_s": float(t), **event_columns(x)} for r, t, x in rows],
+            )
+
+    def _record_commands(self, conn: Connection, rows: list[dict[str, Any]]) -> None:
+        for row in rows:  # a few per flush: one per step completed
+            record_command(conn, row)
+
+    def _replace_checkpoints(self, conn: Connection, saved: dict[str, tuple[float, bytes]]) -> None:
+        # Delete-then-insert in one transaction is the portable upsert; only the writer
+        # thread (or a test) saves checkpoints, so there is no concurrent insert to race.
+        if not saved:
+            return
+        conn.execute(delete(checkpoints).where(checkpoints.c.rover.in_(list(saved))))
+        conn.execute(
+            insert(checkpoints),
+            [{"rover": r, "t_s": float(t), "blob": b, "saved_at": now_utc()}
+             for r, (t, b) in saved.items()],
+        )  # fmt: skip

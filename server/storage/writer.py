@@ -1,0 +1,138 @@
+"""``BatchWriter``: the high-rate writes (frames, events, commands, checkpoints) taken off
+the simulation threads and committed together at least once per ``interval_s``.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable, Iterable, Mapping
+from typing import Any
+
+from sqlalchemy.engine import Connection
+
+from server.storage.store import Store, command_row
+
+log = logging.getLogger(__name__)
+
+
+class BatchWriter:
+    """Queue writes from the simulation threads and flush them in one transaction at least
+    once per ``interval_s`` (default 0.5 s) of wall time, from its own thread, so the
+    simulation never waits on the database. A server killed with SIGKILL loses at most the
+    writes of the last interval.
+
+    The queueing methods only append under a lock. A flush writes everything queued when
+    it starts, frames, events, commands and the latest checkpoint of each rover together,
+    so a checkpoint is never committed without the telemetry queued before it. If that
+    transaction fails (say, a command naming an unknown sequence), each kind is retried in
+    its own transaction and only a kind that fails again is dropped (and logged), so one
+    bad row cannot block telemetry for good. ``flushed_frames`` counts the frames committed.
+    """
+
+    def __init__(self, store: Store, interval_s: float = 0.5) -> None:
+        self.store = store
+        self.interval_s = interval_s
+        self.flushed_frames = 0
+        self.on_flush: Callable[[int], None] | None = None  # called with flushed_frames
+        self._lock = threading.Lock()  # guards the queues
+        self._flush_lock = threading.Lock()  # one flush at a time, in queue order
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._frames: list[tuple[str, dict[str, Any]]] = []
+        self._events: list[tuple[str, float, Mapping[str, Any]]] = []
+        self._commands: list[dict[str, Any]] = []
+        self._checkpoints: dict[str, tuple[float, bytes]] = {}
+
+    def start(self) -> None:
+        """Start the flushing thread (a no-op if it runs)."""
+        if self._thread is not None and self._thread.is_alive():
+            return
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._run, name="storage-writer", daemon=True)
+        self._thread.start()
+
+    def frames(self, rover: str, frames: list[dict[str, Any]]) -> None:
+        """Queue telemetry frames."""
+        with self._lock:
+            self._frames.extend((rover, f) for f in frames)
+
+    def events(self, rover: str, events: list[tuple[float, Mapping[str, Any]]]) -> None:
+        """Queue events as (t_s, ``{"text", "kind", "severity"}``) pairs."""
+        with self._lock:
+            self._events.extend((rover, float(t), e) for t, e in events)
+
+    def command(self, rover: str, **fields: Any) -> None:
+        """Queue one command execution (the keyword arguments of ``Store.add_command``)."""
+        row = command_row(rover, **fields)  # a wrong field fails here, in the caller
+        with self._lock:
+            self._commands.append(row)
+
+    def checkpoint(self, rover: str, t_s: float, blob: bytes) -> None:
+        """Queue a rover's checkpoint; only the last one queued before a flush is written."""
+        with self._lock:
+            self._checkpoints[rover] = (t_s, blob)
+
+    def flush(self) -> None:
+        """Write everything queued so far; returns when it is committed (or dropped)."""
+        with self._flush_lock:
+            with self._lock:
+                frames, self._frames = self._frames, []
+                events, self._events = self._events, []
+                commands_, self._commands = self._commands, []
+                saved, self._checkpoints = self._checkpoints, {}
+            if not (frames or events or commands_ or saved):
+                return
+            store = self.store
+            parts: list[tuple[str, Callable[[Connection], None]]] = [
+                ("frames", lambda conn: store._insert_frames(conn, frames)),
+                ("events", lambda conn: store._insert_events(conn, events)),
+                ("commands", lambda conn: store._record_commands(conn, commands_)),
+                ("checkpoints", lambda conn: store._replace_checkpoints(conn, saved)),
+            ]
+            try:
+                with store.engine.begin() as conn:
+                    for _name, write in parts:
+                        write(conn)
+                written = len(frames)
+            except Exception:
+                log.exception("storage batch failed; retrying each kind on its own")
+                written = self._write_parts(parts, len(frames))
+            self.flushed_frames += written
+            callback = self.on_flush
+        if callback is not None:
+            callback(self.flushed_frames)
+
+    def _write_parts(
+        self, parts: Iterable[tuple[str, Callable[[Connection], None]]], n_frames: int
+    ) -> int:
+        written = 0
+        for name, write in parts:
+            try:
+                with self.store.engine.begin() as conn:
+                    write(conn)
+                if name == "frames":
+                    written = n_frames
+            except Exception:
+                log.exception("storage: dropped a batch of %s", name)
+        return written
+
+    def stop(self) -> None:
+        """Flush what is queued and end the thread."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join()
+            self._thread = None
+        self.flush()
+
+    def _run(self) -> None:
+        # Deadlines from the start of each flush: a slow flush shortens the next wait
+        # rather than stretching the interval.
+        next_t = time.monotonic() + self.interval_s
+        while not self._stop.wait(max(0.0, next_t - time.monotonic())):
+            next_t = time.monotonic() + self.interval_s
+            try:
+                self.flush()
+            except Exception:  # never let the thread die: the next interval retries
+                log.exception("storage flush failed")
