@@ -30,7 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 
 FloatArray = NDArray[np.float64]
 
-# Pancam (Bell et al. 2003, JGR 108(E12) 8063; REFERENCES.md): 1024 x 1024 active pixels,
+# Pancam (Bell et al. 2003, JGR 108(E12) 8063; docs/REFERENCES.md): 1024 x 1024 active pixels,
 # 16 deg square field of view, 0.27-0.28 mrad/pixel, eyes 30 cm apart on the mast head.
 PANCAM_WIDTH_PX = 1024
 PANCAM_HEIGHT_PX = 1024

@@ -7,8 +7,8 @@ diameter 26 cm, wheelbase 1.4 m, track 1.2 m, middle wheels under the body origi
 turn-in-place centre). Wheel odometry (``estimation.sapp.wheel_odometry``, Ali et al. 2005
 sec. 2.5) uses the wheel centres in the plane; the kinematic filter
 (``estimation.fusion.kinematic.rover_kinematics``, Balaram 2000 sec. 2.2.4) the whole
-rocker-bogie. ``tests/test_kinematic_ekf_sensors.py`` checks them against the simulated
-rover.
+rocker-bogie. ``tests/estimation/fusion/test_kinematic_ekf_sensors.py`` checks them against the
+simulated rover.
 
 The rates the mobility software drives at are the flight software's too (Ali et al. 2005
 sec. 2.5: about 3.75 cm/s; sec. 2.4.2: turns at about 2.1 deg/s): the simulator drives at

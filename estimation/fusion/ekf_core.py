@@ -22,7 +22,7 @@ follows ``Ẋ = f(X)`` and the covariance ``Ṗ = F P + P Fᵀ + Q``; at a measu
   as each always has (a checkpointed run replays bit for bit).
 
 On a linear model these are exactly the linear Kalman filter's equations (the test in
-``tests/test_kinematic_ekf_core.py``).
+``tests/estimation/fusion/test_kinematic_ekf_core.py``).
 """
 
 from __future__ import annotations

@@ -74,9 +74,9 @@ FloatArray = NDArray[np.float64]
 
 DEG_PER_H_TO_RAD_S = math.pi / 180.0 / 3600.0
 DEG_PER_SQRT_H_TO_RAD_PER_SQRT_S = math.pi / 180.0 / 60.0
-LN200_GYRO_BIAS_RAD_S = 1.0 * DEG_PER_H_TO_RAD_S  # REFERENCES.md "Hardware": ~1 deg/h
-LN200_GYRO_ARW_RAD_PER_SQRT_S = 0.1 * DEG_PER_SQRT_H_TO_RAD_PER_SQRT_S  # REFERENCES.md
-NADIR_TILT_SIGMA_RAD = 300e-6 * 9.80665 / 3.711  # 300 ug accel bias / Mars g (REFERENCES.md)
+LN200_GYRO_BIAS_RAD_S = 1.0 * DEG_PER_H_TO_RAD_S  # docs/REFERENCES.md "Hardware": ~1 deg/h
+LN200_GYRO_ARW_RAD_PER_SQRT_S = 0.1 * DEG_PER_SQRT_H_TO_RAD_PER_SQRT_S  # docs/REFERENCES.md
+NADIR_TILT_SIGMA_RAD = 300e-6 * 9.80665 / 3.711  # 300 ug accel bias / Mars g (docs/REFERENCES.md)
 
 
 @dataclass(frozen=True)

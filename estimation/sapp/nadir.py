@@ -43,7 +43,7 @@ by ``atan2(sin a cos t, cos a) - a`` (``t`` the correction angle, ``a`` the angl
 the horizontal axis and body x), at most ``atan((1 - cos t) / (2 sqrt(cos t)))``, about
 ``t^2 / 4`` (0.0077 rad for ``t`` = 10 deg), and
 zero for a pure roll or pure pitch correction; for a tilted prior a first-order term of
-about ``t sin(tilt)`` adds to it (tests/test_nadir.py measures both).
+about ``t sin(tilt)`` adds to it (tests/estimation/sapp/test_nadir.py measures both).
 
 If ``n_b`` and ``g_b`` coincide, ``δq^B`` is the identity; if they are opposite (an
 upside-down estimate) the paper's axis is undefined and this module turns by 180 deg about

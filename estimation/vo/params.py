@@ -6,7 +6,7 @@ Navcam; :meth:`VoParams.for_width` rescales them for another width (MER ran VO o
 images, Cheng, Maimone and Matthies 2005 sec. 4). The paper gives few numbers: 6-point RANSAC
 samples, "e.g." a 0.5 px reprojection threshold (at 256 px; we use 0.75 px, see
 ``ransac_threshold_px``), a 3x3 subpixel fit, "a few pixels" of epipolar slack; the rest were tuned
-on rendered Navcam pairs (tests/test_vo_end_to_end.py, ``roverops bench vo``).
+on rendered Navcam pairs (tests/estimation/vo/test_vo_end_to_end.py, ``roverops bench vo``).
 """
 
 from __future__ import annotations

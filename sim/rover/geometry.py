@@ -47,10 +47,10 @@ class RoverGeometry:
 
     Positions ``(x, z)`` are in the body frame at zero joint angles (x forward, z down).
     Values marked "approximate" are plausible choices, not flight drawings
-    (REFERENCES.md, Hardware: "rocker-bogie link lengths: choose and document").
+    (docs/REFERENCES.md, Hardware: "rocker-bogie link lengths: choose and document").
     """
 
-    wheel_radius_m: float = 0.13  # REFERENCES.md: MER wheel diameter 26 cm
+    wheel_radius_m: float = 0.13  # docs/REFERENCES.md: MER wheel diameter 26 cm
     wheel_width_m: float = 0.16  # approximate, MER wheel width ~16 cm
     track_m: float = 1.2  # approximate: between left and right wheel centres
     x_front_m: float = 0.70  # approximate: wheelbase front-to-rear 1.4 m
@@ -65,7 +65,7 @@ class RoverGeometry:
     bogie_pivot_z_m: float = 0.02  # approximate: 15 cm above the wheel centres
     rocker_limit_rad: float = float(np.deg2rad(35.0))  # approximate joint stop, ±
     bogie_limit_rad: float = float(np.deg2rad(60.0))  # approximate joint stop, ±
-    mass_kg: float = 174.0  # REFERENCES.md: ~174 kg
+    mass_kg: float = 174.0  # docs/REFERENCES.md: ~174 kg
 
     def __post_init__(self) -> None:
         for f in fields(self):

@@ -25,8 +25,8 @@ Bekker 1969), reduced to the whole vehicle:
   small on level ground, growing with uphill slope and infinite as ``ρ -> 1``: the slope
   at which the soil cannot hold the rover (just below the friction angle, because of the
   rolling resistance). Beyond it the rover slides back: ``s`` is capped at ``slip_max``
-  (> 1, MER measured up to 125 %, Cheng, Maimone and Matthies 2005 and REFERENCES.md). Downhill ``ρ
-  < 0`` and the same law, odd in ``ρ``, gives skid (``s < 0``).
+  (> 1, MER measured up to 125 %, Cheng, Maimone and Matthies 2005 and docs/REFERENCES.md). Downhill
+  ``ρ < 0`` and the same law, odd in ``ρ``, gives skid (``s < 0``).
 - Lateral creep on a cross slope: the same law for the cross-slope weight component
   against the traction left over by the longitudinal thrust (the traction ellipse, Wong
   ch. 2), directed downslope, as a fraction of the rolled distance.

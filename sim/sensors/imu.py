@@ -19,7 +19,7 @@ The accelerometers sense specific force ``f = a - g``; at rest they read 3.711 m
 and lever-arm terms are neglected. ``g_ll`` is the effective gravity (gravitation plus the
 centrifugal term, which the 3.711 m/s^2 already includes).
 
-Error model (LN-200 class, REFERENCES.md; per axis, independent):
+Error model (LN-200 class, docs/REFERENCES.md; per axis, independent):
 
 - gyro turn-on bias, drawn at power-on: 1 deg/h (1 sigma);
 - gyro angle random walk 0.1 deg/sqrt(h): delta-angle noise sigma ``ARW sqrt(dt)``;
@@ -65,11 +65,11 @@ GRAVITY_LL_M_S2 = (0.0, 0.0, MARS_GRAVITY_M_S2)  # LL z is Down: gravity points 
 class Ln200Params:
     """Error parameters of an LN-200-class IMU (1-sigma, per axis; units in the names)."""
 
-    gyro_bias_turn_on_deg_per_h: float = 1.0  # REFERENCES.md: bias ~1 deg/h
-    gyro_arw_deg_per_sqrt_h: float = 0.1  # REFERENCES.md: 0.07-0.15 deg/sqrt(h)
+    gyro_bias_turn_on_deg_per_h: float = 1.0  # docs/REFERENCES.md: bias ~1 deg/h
+    gyro_arw_deg_per_sqrt_h: float = 0.1  # docs/REFERENCES.md: 0.07-0.15 deg/sqrt(h)
     gyro_bias_instability_deg_per_h: float = 0.3  # approximate, datasheet class
     gyro_bias_corr_time_s: float = 3600.0  # approximate: Gauss-Markov correlation time
-    accel_bias_turn_on_ug: float = 300.0  # REFERENCES.md: ~300 ug
+    accel_bias_turn_on_ug: float = 300.0  # docs/REFERENCES.md: ~300 ug
     accel_noise_ug_per_sqrt_hz: float = 50.0  # approximate, datasheet class
 
     def __post_init__(self) -> None:

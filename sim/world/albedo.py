@@ -3,7 +3,7 @@
 The texture is what the Navcam renderer will paint on the terrain, so it must be defined at
 any point (x, y) of the Site frame (North, East, metres), continuous, deterministic from the
 seed, rich in detail at the scale a Navcam pixel sees on the ground (about 1-3 mm at 1.5-3 m
-range: 0.82 mrad/pixel, REFERENCES.md), and cheap: ~1 s for a 1024 x 1024 image.
+range: 0.82 mrad/pixel, docs/REFERENCES.md), and cheap: ~1 s for a 1024 x 1024 image.
 
 Model (Ebert et al., *Texturing and Modeling*, ch. 2; fractal sums of value noise, Perlin
 1985)::

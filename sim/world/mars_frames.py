@@ -1,7 +1,7 @@
 """Mars frames for the truth: IAU rotation, the Local-Level frame, truth Sun and Earth in LL.
 
 - ``R_mf_j2000``: the IAU 2009 rotation model of Mars (IAU WGCCRE report, Archinal et al.
-  2011, Celest. Mech. Dyn. Astr. 109, 101-135; REFERENCES.md): pole
+  2011, Celest. Mech. Dyn. Astr. 109, 101-135; docs/REFERENCES.md): pole
   ``α0 = 317.68143 - 0.1061 T``, ``δ0 = 52.88650 - 0.0609 T`` and prime meridian
   ``W = 176.630 + 350.89198226 d`` (degrees; ``T`` Julian centuries and ``d`` days of TDB
   since J2000, TT used for TDB). The body-fixed frame is

@@ -146,7 +146,7 @@ class ColumbiaHillsGround:
     the origin to 1 beyond ``RAMP_M`` (the landing plains are gentler). Both multiply a
     zero-mean field, so they change its relief, not its level. Amplitudes were tuned so the
     slope over a 1 m baseline has a median of ~5-8° and reaches 25-35° within a few hundred
-    metres for most seeds (tests/test_sites.py checks one).
+    metres for most seeds (tests/sim/world/test_sites.py checks one).
     """
 
     RAMP_M = 50.0

@@ -6,7 +6,7 @@ model). Evaluated in numpy it makes ~25 passes over memory per layer; this kerne
 one pass over the points with every layer fused, in parallel threads, about 5x faster.
 It reads the texture's own lattice table, rotations, offsets and weights, so it draws the
 same texture; the arithmetic is float64 throughout where the numpy version rounds the
-in-cell fractions to float32, so values agree to ~1e-6 (tests/test_navcam.py pins them).
+in-cell fractions to float32, so values agree to ~1e-6 (tests/sim/sensors/test_navcam.py pins them).
 """
 
 from __future__ import annotations
