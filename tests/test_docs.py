@@ -131,7 +131,7 @@ def test_the_citation_finder() -> None:
 
 
 def test_every_citation_in_the_code_is_in_the_references() -> None:
-    listed = citations((ROOT / "docs" / "docs/REFERENCES.md").read_text())
+    listed = citations((ROOT / "docs" / "REFERENCES.md").read_text())
     missing = []
     for package in ("estimation", "sim", "server", "sequences", "bench", "cli", "tests", "web"):
         for path in sorted((ROOT / package).rglob("*")):

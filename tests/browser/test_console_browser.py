@@ -243,9 +243,13 @@ def _overlaps(page: Page) -> list[str]:
     covered = page.evaluate(
         """() => { const f = document.getElementById('view3d'); f.scrollIntoView();
                    const r = f.getBoundingClientRect();
+                   // the part of the frame on screen: the frame may be taller than the
+                   // window when the readouts beside it grow, and a point below the
+                   // window's edge hits nothing at all
+                   const top = Math.max(r.top, 0), bottom = Math.min(r.bottom, innerHeight);
                    return [[.5, .5], [.05, .95], [.95, .95], [.95, .05], [.05, .05]]
                      .map(([x, y]) => document.elementFromPoint(r.left + x * r.width,
-                                                               r.top + y * r.height))
+                                                               top + y * (bottom - top)))
                      .filter(e => e !== f).map(e => e ? e.tagName : 'nothing'); }"""
     )
     found += [f"{tag} covers the 3D view" for tag in covered]
