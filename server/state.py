@@ -88,12 +88,14 @@ class Server:
         # every played-out batch, in order: stored, judged against the limits, sent live
         # (and drawn in the 3D view, below: a RoverScene is the sink of its own rover)
         self.sinks: list[FrameSink] = [StorageSink(self.writer), self.alarms, self.hub]
+        refused: dict[str, str] = {}  # rover -> why its checkpoint was refused
         for name, spec in ROVERS.items():
             saved = self.store.load_checkpoint(name)
             try:
                 runtime = RoverRuntime.restore(spec, saved[1]) if saved else None
             except CheckpointFormatError as error:  # an older format: the rover starts fresh
                 log.warning("%s", error)
+                refused[name] = str(error)
                 saved = None
             if saved is None:
                 runtime = RoverRuntime(spec, estimators=config.estimators)
@@ -109,6 +111,8 @@ class Server:
             runtime.commit = self.writer.flush  # a clock change is stored when it answers
             runtime.on_queue = self.queue_notices.changed
             self.rovers[name] = runtime
+        for name, why in refused.items():
+            self._drop_stale_queue(name, why)
         # the 3D views: a scene joins its rover's sinks when it starts (RoverScene.start)
         self.scenes: dict[str, RoverScene] = {}
         if config.viewer_3d:
@@ -167,6 +171,20 @@ class Server:
             {"text": text + (f": {detail}" if detail else ""), "kind": "sequence",
              "severity": severity},
         )  # fmt: skip
+
+    def _drop_stale_queue(self, rover: str, why: str) -> None:
+        """A rover that started fresh has an empty queue: the sequences its refused
+        checkpoint held (queued or running) are cancelled, not left "queued" for ever, and
+        the event log says why."""
+        stale = [
+            s for s in self.store.list_sequences(rover) if s["status"] in ("queued", "running")
+        ]
+        for s in stale:
+            self.store.set_sequence_status(s["id"], "cancelled", why)
+        names = ", ".join(f"#{s['id']} {s['name']}" for s in reversed(stale))
+        self._server_event(rover, None, {
+            "text": why + (f"; cancelled: {names}" if names else ""),
+            "kind": "sequence", "severity": "warning"})  # fmt: skip
 
     def _server_event(self, rover: str, t_s: float | None, event: dict[str, str]) -> None:
         """An event the server makes (``estimation.events``: kinds ``sequence``, ``alarm``),

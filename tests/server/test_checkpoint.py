@@ -4,8 +4,10 @@ none, is refused with a message saying that the rover starts fresh."""
 
 from __future__ import annotations
 
+import math
 import pickle
 from datetime import UTC, datetime
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -158,3 +160,33 @@ def test_a_runtime_restored_mid_sequence_runs_on_as_if_never_stopped() -> None:
     frames = _run_queue_out(runtime)
     assert len(frames) > 10 and frames[-1]["command"] == "WAIT duration_s=60"  # to the end
     assert _run_queue_out(restored) == frames
+
+
+def test_a_refused_checkpoint_cancels_the_sequences_it_held_and_says_so(tmp_path: Path) -> None:
+    """An upgrade over an older data directory: the rover starts fresh with an empty queue,
+    so the sequences the old checkpoint held are cancelled (not left "queued" for ever), and
+    the event log says why."""
+    from server.app import Server, ServerConfig
+    from server.storage import Store
+
+    url = f"sqlite:///{tmp_path / 'roverops.db'}"
+    store = Store(url)
+    queued = store.add_sequence("spirit", "old_plan", "SEQUENCE old_plan\nWAIT duration_s=5\n",
+                                "text", "queued", [], [], [])  # fmt: skip
+    done = store.add_sequence("spirit", "old_done", "SEQUENCE old_done\nWAIT duration_s=5\n",
+                              "text", "completed", [], [], [])  # fmt: skip
+    store.save_checkpoint("spirit", 100.0, pickle.dumps({"session": None, "queue": []}))
+    store.engine.dispose()
+    server = Server(ServerConfig(database_url=url, start_clocks=False))
+    try:
+        server.writer.flush()
+        plan = server.store.get_sequence(queued)
+        assert plan is not None and plan["status"] == "cancelled"
+        assert "format 1" in plan["detail"] and "starts fresh" in plan["detail"]
+        finished = server.store.get_sequence(done)
+        assert finished is not None and finished["status"] == "completed"
+        texts = [e["text"] for e in server.store.events("spirit", -math.inf, math.inf)]
+        assert any("checkpoint" in t and "old_plan" in t for t in texts), texts
+        assert server.rovers["spirit"].queue_snapshot() == []
+    finally:
+        server.stop()
