@@ -164,6 +164,20 @@
     if (r.ok) for (const s of r.body) addSol(s);
   }
 
+  // Newest first by time, whatever order live events arrive in (the hub sends notices, the
+  // server's own events, before frames). At one moment the server's events (a sequence's
+  // end, an alarm) come above the rover's, as storage orders them: it writes them after
+  // the frame that caused them.
+  const SERVER_KINDS = new Set(["sequence", "alarm"]);
+  function placeOf(e) {
+    const server = SERVER_KINDS.has(e.kind);
+    for (const tr of ui.rows.children) {
+      const t = Number(tr.dataset.tS);
+      if (t < e.t_s || (t === e.t_s && (server || !SERVER_KINDS.has(tr.dataset.kind)))) return tr;
+    }
+    return null; // older than every row shown
+  }
+
   function live(frame) {
     const f = filters();
     const fresh = (frame.events || [])
@@ -173,7 +187,7 @@
       view.keys.add(key(e));
       addSol(e.sol);
       if (!matches(e, f)) continue;
-      ui.rows.prepend(row(e));
+      ui.rows.insertBefore(row(e), placeOf(e));
       view.liveAdded += 1;
     }
     while (ui.rows.children.length > MAX_ROWS) ui.rows.lastElementChild.remove();

@@ -146,3 +146,27 @@ def test_panels_opened_before_any_telemetry_follow_it_when_it_comes(page: Page) 
     plot = page.get_by_test_id("channel-plot")
     expect(plot).to_have_attribute("data-channel", "hga_margin_deg")
     expect(plot).not_to_have_attribute("data-points", "0")
+
+
+def test_live_events_take_their_place_in_time_not_in_order_of_arrival(page: Page) -> None:
+    """The hub sends notices before frames, so a sequence's end (a notice) can arrive before
+    the frame that holds its last step's refusal, at the same moment. The list stays newest
+    first, and at one moment the server's own event comes above the rover's, as stored."""
+    page.select_option("[data-testid=eventlog-kind]", "")
+    t = 9.0e9  # after everything the rover has done
+    at = {"sol": 999, "lmst_h": 9.0}
+    page.evaluate(
+        """([t, at]) => {
+             roverops.emit("notice", {type: "event", event: {...at, t_s: t,
+               text: "sequence #99 later failed", kind: "sequence", severity: "error"}});
+             roverops.emit("frame", {...at, t_s: t, events: [
+               {text: "DRIVE_TO later refused", kind: "command", severity: "error"}]});
+             roverops.emit("frame", {...at, t_s: t - 60, events: [
+               {text: "Nadir Update earlier", kind: "nadir", severity: "info"}]});
+           }""",
+        [t, at],
+    )
+    rows = page.get_by_test_id("eventlog-row")
+    expect(rows.nth(0)).to_contain_text("sequence #99 later failed")
+    expect(rows.nth(1)).to_contain_text("DRIVE_TO later refused")
+    expect(rows.nth(2)).to_contain_text("Nadir Update earlier")
