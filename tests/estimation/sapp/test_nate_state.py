@@ -202,6 +202,20 @@ def test_nate_resumes_articulate_mobility_and_gyrocompass_from_any_checkpoint() 
     assert final.params.articulate_window_s == 3.0
 
 
+def assert_resumes(
+    make: Callable[[], Any], run: Callable[[Any, Any], Any], inputs: Any, cuts: tuple[int, ...]
+) -> None:
+    """For each cut ``k``: run ``inputs[: k + 1]`` on a filter, load its state (through
+    JSON) on a fresh one, run the rest on both: equal outputs and equal final state."""
+    for k in cuts:
+        original = make()
+        run(original, inputs[: k + 1])
+        restored = make()
+        restored.load_state(through_json(original.state()))
+        assert_same(run(restored, inputs[k + 1 :]), run(original, inputs[k + 1 :]))
+        assert_same(restored.state(), original.state())
+
+
 def test_pointing_knowledge_resumes() -> None:
     history = [
         (AttitudeQuality.TILT_ONLY, 0.0, None),
@@ -249,13 +263,7 @@ def test_kinematic_ekf_resumes() -> None:
             out.append(ekf.estimate())
         return out
 
-    for k in (0, 5, 11):
-        original = make()
-        run(original, inputs[: k + 1])
-        restored = make()
-        restored.load_state(through_json(original.state()))
-        assert_same(run(restored, inputs[k + 1 :]), run(original, inputs[k + 1 :]))
-        assert_same(restored.state(), original.state())
+    assert_resumes(make, run, inputs, (0, 5, 11))
 
 
 def test_radio_ekf_resumes() -> None:
@@ -282,10 +290,4 @@ def test_radio_ekf_resumes() -> None:
             out.append(ekf.estimate())
         return out
 
-    for k in (0, 7, 14):
-        original = make()
-        run(original, inputs[: k + 1])
-        restored = make()
-        restored.load_state(through_json(original.state()))
-        assert_same(run(restored, inputs[k + 1 :]), run(original, inputs[k + 1 :]))
-        assert_same(restored.state(), original.state())
+    assert_resumes(make, run, inputs, (0, 7, 14))
