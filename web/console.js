@@ -34,6 +34,8 @@ async function api(path, options = {}) {
 // again in its own words), and reads on as whoever it is without it.
 async function tokenRefused(detail) {
   sessionStorage.removeItem("roverops-token");
+  // a reload right after still says why this tab is signed out (once)
+  sessionStorage.setItem("roverops-signed-out", detail);
   state.me = null;
   applyRole(); // at once: no control acts with the forgotten token meanwhile
   $("sequence-status").textContent = `Signed out: ${detail}`;
@@ -452,6 +454,9 @@ async function init() {
   $("token").addEventListener("keydown", (e) => { if (e.key === "Enter") signIn(); });
   $("sign-out").addEventListener("click", signOut);
   const kept = sessionStorage.getItem("roverops-token") || "";
+  const signedOut = sessionStorage.getItem("roverops-signed-out");
+  sessionStorage.removeItem("roverops-signed-out");
+  if (signedOut) $("sequence-status").textContent = `Signed out: ${signedOut}`;
   let r = await whoAmI(kept);
   if (!r.ok && kept) { // a token revoked or expired since this tab signed in
     sessionStorage.removeItem("roverops-token");

@@ -98,6 +98,20 @@ def test_a_refused_token_is_reported_as_the_api_words_it(
         "Signed out: wrong token: token revoked"
     )
     expect(page.get_by_test_id("signed-in")).to_have_text("reading only")
+    # the once-a-second poll finds the revocation first: a reload after it still says why
+    sign_in(page, _operator_token(server, "revoked2"), "revoked2 · operator")
+    _revoke(server, "revoked2")
+    expect(page.get_by_test_id("sequence-status")).to_have_text(
+        "Signed out: wrong token: token revoked"
+    )
+    page.reload()
+    expect(page.get_by_test_id("sequence-status")).to_have_text(
+        "Signed out: wrong token: token revoked"
+    )
+    # ... once: the next reload is a plain page that reads
+    page.reload()
+    expect(page.get_by_test_id("signed-in")).to_have_text("reading only")
+    expect(page.get_by_test_id("sequence-status")).to_have_text("")
     page.close()
 
 
