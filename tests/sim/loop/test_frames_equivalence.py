@@ -1,0 +1,97 @@
+"""A whole sol's stored frames agree with those of the loop before it was made fast.
+
+Issue 16 rewrote the per-cycle path (NATE's step, gyro and odometry propagation, the frames
+built over a segment in arrays) without changing what it computes. The reference,
+``data/frames_before_fast_loop.json.gz``, holds every frame (``TelemetryFrame.as_dict``) of
+the session below as the loop of commit 7a9fe57 made it, with the server's frame rate: a
+Fine attitude loaded from the truth, a straight drive, a turn in place, an arc, Articulate
+and an HGA pass, with both side estimators. It was written by running this module with
+``--write`` on that commit. Every number must agree to 1e-6 (metres, degrees, seconds, and
+the unitless quaternion components); texts, flags and modes exactly.
+"""
+
+from __future__ import annotations
+
+import gzip
+import json
+import math
+import sys
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from estimation.sapp.aqf import AttitudeQuality
+from sequences import commands as cmd
+from sim.loop.session import RoverSession
+
+REFERENCE = Path(__file__).parent / "data" / "frames_before_fast_loop.json.gz"
+TOLERANCE = 1e-6
+
+
+def session_frames() -> list[dict[str, Any]]:
+    """The frames of the reference session (module docstring)."""
+    session = RoverSession(
+        "gusev",
+        7,
+        datetime(2004, 4, 14, 16, 30, 0, tzinfo=UTC),
+        frame_every_s=1.0,
+        estimators=("sapp", "kinematic_ekf", "radio_ekf"),
+    )
+    session.nate.load_attitude(session.q_b_ll_true(), AttitudeQuality.FINE)
+    session.run(
+        [
+            cmd.DriveStraight(12.0),
+            cmd.TurnInPlace(-30.0),
+            cmd.DriveArc(4.0, 25.0),
+            cmd.ArticulateStart(),
+            cmd.Wait(20.0),
+            cmd.ArticulateStop(),
+            cmd.HgaPass(3.0),
+        ]
+    )
+    return [frame.as_dict() for frame in session.frames]
+
+
+def _differences(before: Any, after: Any, path: str, out: list[str]) -> None:
+    if isinstance(before, dict) and isinstance(after, dict):
+        if before.keys() != after.keys():
+            out.append(f"{path}: keys {sorted(before)} != {sorted(after)}")
+            return
+        for key in before:
+            _differences(before[key], after[key], f"{path}.{key}", out)
+    elif isinstance(before, list) and isinstance(after, list):
+        if len(before) != len(after):
+            out.append(f"{path}: length {len(before)} != {len(after)}")
+            return
+        for i, (b, a) in enumerate(zip(before, after, strict=True)):
+            _differences(b, a, f"{path}[{i}]", out)
+    elif isinstance(before, float) and isinstance(after, (int, float)):
+        both_nan = math.isnan(before) and math.isnan(float(after))
+        if not both_nan and not abs(before - after) <= TOLERANCE:
+            out.append(f"{path}: {before!r} != {after!r}")
+    elif before != after:
+        out.append(f"{path}: {before!r} != {after!r}")
+
+
+def test_a_sols_frames_agree_with_the_loop_before_it_was_made_fast() -> None:
+    with gzip.open(REFERENCE, "rt", encoding="utf-8") as f:
+        before = json.load(f)
+    after = json.loads(json.dumps(session_frames()))  # as stored: through JSON
+    differences: list[str] = []
+    _differences(before, after, "frames", differences)
+    assert not differences, f"{len(differences)} differences, first: {differences[:5]}"
+    assert len(after) > 400  # the whole session, not a prefix
+
+
+def test_the_comparison_catches_a_difference_above_the_tolerance() -> None:
+    frame = {"p_s_est": [1.0, 2.0, 3.0], "aqf": "Fine", "t_s": 5.0}
+    differences: list[str] = []
+    _differences(frame, {**frame, "p_s_est": [1.0, 2.0 + 2e-6, 3.0]}, "f", differences)
+    _differences(frame, {**frame, "aqf": "Coarse"}, "f", differences)
+    _differences(frame, {**frame, "t_s": 5.0 + 5e-7}, "f", differences)
+    assert differences == ["f.p_s_est[1]: 2.0 != 2.000002", "f.aqf: 'Fine' != 'Coarse'"]
+
+
+if __name__ == "__main__" and sys.argv[1:] == ["--write"]:
+    with gzip.open(REFERENCE, "wt", encoding="utf-8") as f:
+        json.dump(session_frames(), f)
