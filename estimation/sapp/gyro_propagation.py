@@ -33,6 +33,8 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from estimation.quaternion import Quat, Vec3, q_multiply, q_normalised, q_rotate
+
 FloatArray = NDArray[np.float64]
 
 
@@ -63,41 +65,26 @@ def propagate_gyro(
         raise ValueError(f"omega_mars_ll: must be a finite 3-vector, got {omega!r}")
 
     out = np.empty((n + 1, 4))
-    q0 = q0 / np.linalg.norm(q0)
-    out[0] = q0
-    x, y, z, w = (float(c) for c in q0)
-    for k in range(n):
-        # Mars' rotation over the interval, into the body with the current estimate (2.4.1)
-        mars_b = _rotate_ll_to_b((x, y, z, w), omega * dt[k])
-        phi = d_theta[k] - mars_b  # rotation relative to the surface, body axes
-        angle = math.sqrt(float(phi @ phi))
-        # δq^B = q(-φ): exact for any angle (eq. 1's left-multiplied body correction)
-        s = -math.sin(0.5 * angle) / angle if angle > 1e-12 else -0.5
-        dx, dy, dz, dw = s * phi[0], s * phi[1], s * phi[2], math.cos(0.5 * angle)
-        x, y, z, w = (
-            dw * x + dx * w + dy * z - dz * y,
-            dw * y - dx * z + dy * w + dz * x,
-            dw * z + dx * y - dy * x + dz * w,
-            dw * w - dx * x - dy * y - dz * z,
-        )
-        norm = math.sqrt(x * x + y * y + z * z + w * w)  # keep it a unit quaternion
-        x, y, z, w = x / norm, y / norm, z / norm, w / norm
-        out[k + 1] = (x, y, z, w)
+    q = q_normalised((float(q0[0]), float(q0[1]), float(q0[2]), float(q0[3])))
+    out[0] = q
+    mars_ll = (float(omega[0]), float(omega[1]), float(omega[2]))
+    for k, (d_x, d_y, d_z) in enumerate(d_theta.tolist()):
+        q = gyro_cycle(q, (d_x, d_y, d_z), float(dt[k]), mars_ll)
+        out[k + 1] = q
     return out
 
 
-def _rotate_ll_to_b(q_b_ll: tuple[float, float, float, float], v_ll: FloatArray) -> FloatArray:
-    """``R_b_ll v_ll`` for the estimate ``q_b_ll``: scipy's ``from_quat(q_b_ll).apply``."""
-    x, y, z, w = q_b_ll
-    # R(q) v with t = 2 q_v x v, v' = v + w t + q_v x t
-    vx, vy, vz = float(v_ll[0]), float(v_ll[1]), float(v_ll[2])
-    tx = 2.0 * (y * vz - z * vy)
-    ty = 2.0 * (z * vx - x * vz)
-    tz = 2.0 * (x * vy - y * vx)
-    return np.array(
-        [
-            vx + w * tx + (y * tz - z * ty),
-            vy + w * ty + (z * tx - x * tz),
-            vz + w * tz + (x * ty - y * tx),
-        ]
-    )
+def gyro_cycle(q_b_ll: Quat, delta_angle_b: Vec3, dt_s: float, omega_mars_ll: Vec3) -> Quat:
+    """One control cycle of ``propagate_gyro`` on plain floats, unchecked (the caller
+    checks its inputs once): the unit ``q_b_ll`` after the delta angles ``delta_angle_b``
+    over ``dt_s``."""
+    # Mars' rotation over the interval, into the body with the current estimate (2.4.1)
+    o_x, o_y, o_z = omega_mars_ll
+    m_x, m_y, m_z = q_rotate(q_b_ll, (o_x * dt_s, o_y * dt_s, o_z * dt_s))
+    d_x, d_y, d_z = delta_angle_b
+    phi_x, phi_y, phi_z = d_x - m_x, d_y - m_y, d_z - m_z  # relative to the surface, body axes
+    angle = math.sqrt(phi_x * phi_x + phi_y * phi_y + phi_z * phi_z)
+    # δq^B = q(-φ): exact for any angle (eq. 1's left-multiplied body correction)
+    s = -math.sin(0.5 * angle) / angle if angle > 1e-12 else -0.5
+    dq_b = (s * phi_x, s * phi_y, s * phi_z, math.cos(0.5 * angle))
+    return q_normalised(q_multiply(dq_b, q_b_ll))  # keep it a unit quaternion

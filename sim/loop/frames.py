@@ -24,9 +24,8 @@ from scipy.spatial.transform import Rotation
 
 from estimation.events import Event
 from estimation.ivp import earth_ll
-from estimation.sapp.hga_pointing import point_hga
+from estimation.sapp.hga_pointing import PointingKnowledge, point_hga
 from estimation.sapp.nate import Nate, NateOutput
-from estimation.sapp.pointing_knowledge import PointingKnowledge
 from estimation.sapp.sun_modes import SunResult
 from sim.loop.rover_sim import RoverSim, Segment
 from sim.loop.side.estimators import SideEstimators

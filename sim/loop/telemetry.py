@@ -97,7 +97,7 @@ class TelemetryFrame:
         float,
         _about(
             "the HGA margin the rover predicts from its own attitude knowledge, deg "
-            "(estimation.sapp.pointing_knowledge; no truth)"
+            "(estimation.sapp.hga_pointing; no truth)"
         ),
     ] = math.nan
 

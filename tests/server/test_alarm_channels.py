@@ -1,6 +1,6 @@
 """The two frame fields the alarms need (sim.loop.session): VO failures in a row, from the flight
 software's VO status, and the HGA margin the rover predicts from its own attitude knowledge
-(estimation.sapp.pointing_knowledge): -178 deg with the heading unknown, 2 deg minus the
+(estimation.sapp.hga_pointing): -178 deg with the heading unknown, 2 deg minus the
 Sungaze's own 3σ after a Fine attitude, shrinking with IMU time, never reading the truth."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import re
 import pytest
 
 from estimation.sapp.aqf import AttitudeQuality
-from estimation.sapp.pointing_knowledge import (
+from estimation.sapp.hga_pointing import (
     COARSE_3SIGMA_DEG,
     DRIFT_3SIGMA_DEG_PER_S,
     PointingKnowledge,

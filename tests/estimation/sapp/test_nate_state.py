@@ -22,6 +22,7 @@ from estimation.fusion.kinematic.ekf import KinematicEkf
 from estimation.fusion.kinematic.slip_constraint import JointRates
 from estimation.fusion.radio.ekf import RadioEkf
 from estimation.sapp.aqf import AttitudeQuality
+from estimation.sapp.hga_pointing import PointingKnowledge
 from estimation.sapp.nate import (
     CONTROL_DT_S,
     DriveCommand,
@@ -31,7 +32,6 @@ from estimation.sapp.nate import (
     NateMode,
     NateOutput,
 )
-from estimation.sapp.pointing_knowledge import PointingKnowledge
 from estimation.sapp.wheel_odometry import DriveKind
 from tests.estimation.sapp.test_nate_camera import imu, rover
 
