@@ -96,9 +96,14 @@ def quat_rotate(q: ArrayLike, v: ArrayLike) -> FloatArray:
 
 
 def quat_angle_between(q1: ArrayLike, q2: ArrayLike) -> FloatArray:
-    """The angle (rad, ``[0, π]``) of the rotation from ``q2`` to ``q1`` (unit, (..., 4)):
-    ``(Rotation.from_quat(q1) * Rotation.from_quat(q2).inv()).magnitude()``."""
-    d = quat_multiply(q1, quat_conjugate(q2))
+    """The angle (rad, ``[0, π]``) of the rotation from ``q2`` to ``q1`` (non-zero, (..., 4),
+    normalised here as scipy does): ``(Rotation.from_quat(q1) * Rotation.from_quat(q2).inv())
+    .magnitude()``."""
+    a = np.asarray(q1, dtype=float)
+    b = np.asarray(q2, dtype=float)
+    a = a / np.linalg.norm(a, axis=-1, keepdims=True)
+    b = b / np.linalg.norm(b, axis=-1, keepdims=True)
+    d = quat_multiply(a, quat_conjugate(b))
     out: FloatArray = 2.0 * np.arctan2(np.linalg.norm(d[..., :3], axis=-1), np.abs(d[..., 3]))
     return out
 

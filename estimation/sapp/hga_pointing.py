@@ -52,6 +52,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from estimation.camera_model import mast_az_el_for
+from estimation.quaternion import quat_rotate
 from estimation.sapp.aqf import AttitudeQuality
 from estimation.sapp.nate_io import NateParams
 
@@ -116,6 +117,32 @@ def hga_boresight_b(az_rad: float, el_rad: float) -> FloatArray:
             -math.sin(el_rad),
         ]
     )
+
+
+def point_hga_many(
+    q_b_ll_est: FloatArray, earth_ll: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``point_hga`` for ``K`` estimates at once, ``(az_rad (K,), el_rad (K,), boresight_b
+    (K, 3))``, from finite non-zero ``q_b_ll_est`` (K, 4) and ``earth_ll`` (K, 3) (checked
+    by the caller, once)."""
+    q = q_b_ll_est / np.linalg.norm(q_b_ll_est, axis=1, keepdims=True)
+    e_ll = earth_ll / np.linalg.norm(earth_ll, axis=1, keepdims=True)
+    earth_b = quat_rotate(q, e_ll)  # R_b_ll(q̂) earth_ll
+    earth_b /= np.linalg.norm(earth_b, axis=1, keepdims=True)
+    horizontal = np.hypot(earth_b[:, 0], earth_b[:, 1])
+    el_wanted = np.arctan2(-earth_b[:, 2], horizontal)  # camera_model.mast_az_el_for
+    az = np.where(horizontal > 1e-15, np.arctan2(earth_b[:, 1], earth_b[:, 0]), 0.0)
+    el = np.clip(el_wanted, HGA_ELEVATION_MIN_RAD, HGA_ELEVATION_MAX_RAD)  # the travel
+    return az, el, hga_boresights_b(az, el)
+
+
+def hga_boresights_b(az_rad: FloatArray, el_rad: FloatArray) -> FloatArray:
+    """``hga_boresight_b`` of each ``(az, el)`` pair, (K, 3)."""
+    out: FloatArray = np.stack(
+        [np.cos(el_rad) * np.cos(az_rad), np.cos(el_rad) * np.sin(az_rad), -np.sin(el_rad)],
+        axis=-1,
+    )
+    return out
 
 
 # ---- the margin the rover predicts ----------------------------------------------------------

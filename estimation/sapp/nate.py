@@ -117,7 +117,6 @@ from estimation.sapp.aqf import AttitudeQuality
 from estimation.sapp.hga_pointing import HgaCommand, point_hga
 from estimation.sapp.nadir import (
     AccelAverager,
-    NadirParams,
     tilt_from_specific_force_rad,
     tilt_of_estimate_rad,
 )
@@ -126,11 +125,16 @@ from estimation.sapp.nate_io import (
     Completed,
     DriveCommand,
     EncoderSample,
+    EncoderSeries,
     GyrocompassOutcome,
     ImuSample,
+    ImuSeries,
     NateMode,
     NateOutput,
     NateParams,
+    NateSeries,
+    checked_drive,
+    nadir_params_for,
     replace_param,
 )
 from estimation.sapp.nate_modes import NateProcedures
@@ -139,20 +143,20 @@ from estimation.sapp.sun_modes import (
     PancamRequest,
     SuncheckParams,
 )
-from estimation.sapp.wheel_odometry import (
-    DriveKind,
-)
 
 __all__ = [
     "CONTROL_DT_S",
     "DriveCommand",
     "EncoderSample",
+    "EncoderSeries",
     "GyrocompassOutcome",
     "ImuSample",
+    "ImuSeries",
     "Nate",
     "NateMode",
     "NateOutput",
     "NateParams",
+    "NateSeries",
     "replace_param",
 ]
 
@@ -290,7 +294,7 @@ class Nate(NateProcedures):
     def nadir_update(self, window_s: float | None = None) -> None:
         """Start a Nadir Update (sec. 2.2.1) over ``window_s`` (default the parameter)."""
         self._require("nadir_update", NateMode.IDLE)
-        nadir = self._nadir_params(window_s, None)
+        nadir = nadir_params_for(self._params.nadir, window_s, None)
         self._start_nadir_update(nadir)
 
     def nadir_check(
@@ -299,7 +303,7 @@ class Nate(NateProcedures):
         """Start a Nadir Check (sec. 2.3.1); ``tolerance_deg`` in (0, 180) overrides the
         parameter's tolerance for this check."""
         self._require("nadir_check", NateMode.IDLE)
-        nadir = self._nadir_params(window_s, tolerance_deg)
+        nadir = nadir_params_for(self._params.nadir, window_s, tolerance_deg)
         self._averager = AccelAverager(nadir)
         self._check_tolerance_rad = nadir.check_tolerance_rad
         self._mode = NateMode.NADIR_CHECK
@@ -385,7 +389,7 @@ class Nate(NateProcedures):
         propagates attitude from wheel odometry. ``wheel_angle_rad`` (6,) optionally gives
         the encoder reference at entry."""
         self._require("mobility", NateMode.IDLE)
-        cmd = self._check_drive(drive if drive is not None else DriveCommand())
+        cmd = checked_drive(drive if drive is not None else DriveCommand())
         if not isinstance(use_gyros, bool):
             raise ValueError(f"use_gyros: must be a bool, got {use_gyros!r}")
         ref = (
@@ -399,7 +403,7 @@ class Nate(NateProcedures):
     def set_drive(self, drive: DriveCommand) -> None:
         """Change the commanded drive kind while in Mobility."""
         self._require("set_drive", NateMode.MOBILITY)
-        self._drive = self._check_drive(drive)
+        self._drive = checked_drive(drive)
 
     def stop(self) -> None:
         """Leave Articulate or Mobility for Idle. Driving or articulating moves the mast's
@@ -456,34 +460,6 @@ class Nate(NateProcedures):
             self._q_b_ll = _unit_q(q_b_ll, "q_b_ll")
         self._p_s = p.copy()
 
-    def _nadir_params(self, window_s: float | None, tolerance_deg: float | None) -> NadirParams:
-        nadir = self._params.nadir
-        if window_s is not None:
-            if not (is_real_number(window_s) and math.isfinite(window_s) and window_s > 0.0):
-                raise ValueError(f"window_s: must be positive and finite, got {window_s!r}")
-            nadir = dataclasses.replace(nadir, window_s=float(window_s))
-            if window_s / CONTROL_DT_S < nadir.min_valid_samples:
-                shortest = nadir.min_valid_samples * CONTROL_DT_S
-                raise ValueError(
-                    f"window_s: {window_s!r} s holds fewer than min_valid_samples "
-                    f"({nadir.min_valid_samples}) 8 Hz samples; at least {shortest:g} s"
-                )
-        if tolerance_deg is not None:
-            if not (is_real_number(tolerance_deg) and 0.0 < tolerance_deg < 180.0):
-                raise ValueError(f"tolerance_deg: must be in (0, 180), got {tolerance_deg!r}")
-            nadir = dataclasses.replace(nadir, check_tolerance_rad=math.radians(tolerance_deg))
-        return nadir
-
-    @staticmethod
-    def _check_drive(drive: DriveCommand) -> DriveCommand:
-        if not isinstance(drive, DriveCommand) or not isinstance(drive.kind, DriveKind):
-            raise ValueError(f"drive: must be a DriveCommand, got {drive!r}")
-        if not math.isfinite(drive.radius_m):
-            raise ValueError(f"drive: radius_m must be finite, got {drive.radius_m!r}")
-        if drive.kind is DriveKind.ARC and drive.radius_m == 0.0:
-            raise ValueError("drive: an ARC needs a non-zero radius_m (use TURN_IN_PLACE)")
-        return drive
-
     # ---- the control cycle --------------------------------------------------------
 
     def step(
@@ -524,26 +500,61 @@ class Nate(NateProcedures):
                 f"image: taken at {self._t_s + dt:.3f} s, before the requested "
                 f"{request.not_before_t_s:.3f} s"
             )
+        return self._cycle(d_theta_b, dv_b, dt, bool(imu.valid), enc, image, request)
+
+    def step_series(self, imu: ImuSeries, encoders: EncoderSeries | None = None) -> NateSeries:
+        """``step`` through ``N`` cycles (``imu``; in Mobility the ``encoders`` of the same
+        cycles), no images: a drive segment, an 8 Hz wait. The samples are checked once, by
+        the series; in Mobility the cycles run at once (``estimation.sapp.mobility``)."""
+        if encoders is not None and len(encoders) != len(imu):
+            raise ValueError(f"encoders: {len(encoders)} rows for {len(imu)} IMU cycles")
+        if self._mode is NateMode.MOBILITY:
+            return self._mobility_series(imu, encoders)
+        cycles = [
+            self._cycle(
+                imu.delta_angle_b[k],
+                imu.delta_velocity_b[k],
+                float(imu.dt_s[k]),
+                bool(imu.valid[k]),
+                None if encoders is None else (encoders.wheel_angle_rad[k], encoders.steer_rad[k]),
+                None,
+                None,
+            )
+            for k in range(len(imu))
+        ]
+        return NateSeries.of_outputs(cycles)
+
+    def _cycle(
+        self,
+        d_theta_b: FloatArray,
+        dv_b: FloatArray,
+        dt: float,
+        valid: bool,
+        enc: tuple[FloatArray, FloatArray] | None,
+        image: ArrayLike | None,
+        request: PancamRequest | None,
+    ) -> NateOutput:
+        """One control cycle on checked samples (``step``)."""
         self._t_s += dt
         self._events = []
         completed: Completed | None = None
         mode = self._mode
         if mode in (NateMode.NADIR_UPDATE, NateMode.NADIR_CHECK):
-            completed = self._acquire(dv_b, dt, bool(imu.valid))
+            completed = self._acquire(dv_b, dt, valid)
         elif mode is NateMode.ARTICULATE:
-            self._propagate_gyros(d_theta_b, dt, bool(imu.valid))
-            self._articulate_tilt(dv_b, dt, bool(imu.valid))
+            self._propagate_gyros(d_theta_b, dt, valid)
+            self._articulate_tilt(dv_b, dt, valid)
             self._count(dt)
         elif mode is NateMode.MOBILITY:
             if self._use_gyros:
-                self._propagate_gyros(d_theta_b, dt, bool(imu.valid))  # sec. 2.5: attitude ...
+                self._propagate_gyros(d_theta_b, dt, valid)  # sec. 2.5: attitude ...
             if enc is not None:
                 self._odometry(*enc)  # ... then position with the fresh attitude
             self._count(dt)
         elif mode is NateMode.GYROCOMPASS:
-            completed = self._gyrocompass_step(d_theta_b, dt, bool(imu.valid))
+            completed = self._gyrocompass_step(d_theta_b, dt, valid)
         elif mode is NateMode.SUNGAZE and self._procedure is None:
-            self._sungaze_gravity_window(dv_b, dt, bool(imu.valid))
+            self._sungaze_gravity_window(dv_b, dt, valid)
         elif mode in _CAMERA_MODES and image is not None:
             assert request is not None and self._procedure is not None
             completed = self._camera_image(request, image)
@@ -551,7 +562,7 @@ class Nate(NateProcedures):
             self._after_primitive(completed)
 
         tilt_accel = math.nan
-        if imu.valid and np.all(np.isfinite(dv_b)) and float(np.linalg.norm(dv_b)) > 0.0:
+        if valid and np.all(np.isfinite(dv_b)) and float(np.linalg.norm(dv_b)) > 0.0:
             tilt_accel = math.degrees(tilt_from_specific_force_rad(dv_b / dt))
         return NateOutput(
             q_b_ll=self._q_b_ll.copy(),

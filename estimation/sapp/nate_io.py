@@ -18,8 +18,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
+from estimation.checks import is_real_number
 from estimation.events import Event
 from estimation.sapp.aqf import AttitudeQuality
 from estimation.sapp.gyrocompass import GyrocompassParams, GyrocompassResult
@@ -201,6 +202,39 @@ class NateOutput:
     events: tuple[Event, ...] = ()
 
 
+def nadir_params_for(
+    nadir: NadirParams, window_s: float | None, tolerance_deg: float | None
+) -> NadirParams:
+    """``nadir`` with a command's window (s; it must hold ``min_valid_samples`` 8 Hz
+    samples) and Nadir Check tolerance (deg, in (0, 180)) when given; ``ValueError``."""
+    if window_s is not None:
+        if not (is_real_number(window_s) and math.isfinite(window_s) and window_s > 0.0):
+            raise ValueError(f"window_s: must be positive and finite, got {window_s!r}")
+        nadir = dataclasses.replace(nadir, window_s=float(window_s))
+        if window_s / CONTROL_DT_S < nadir.min_valid_samples:
+            shortest = nadir.min_valid_samples * CONTROL_DT_S
+            raise ValueError(
+                f"window_s: {window_s!r} s holds fewer than min_valid_samples "
+                f"({nadir.min_valid_samples}) 8 Hz samples; at least {shortest:g} s"
+            )
+    if tolerance_deg is not None:
+        if not (is_real_number(tolerance_deg) and 0.0 < tolerance_deg < 180.0):
+            raise ValueError(f"tolerance_deg: must be in (0, 180), got {tolerance_deg!r}")
+        nadir = dataclasses.replace(nadir, check_tolerance_rad=math.radians(tolerance_deg))
+    return nadir
+
+
+def checked_drive(drive: DriveCommand) -> DriveCommand:
+    """``drive`` if it is a well-formed ``DriveCommand``; ``ValueError`` otherwise."""
+    if not isinstance(drive, DriveCommand) or not isinstance(drive.kind, DriveKind):
+        raise ValueError(f"drive: must be a DriveCommand, got {drive!r}")
+    if not math.isfinite(drive.radius_m):
+        raise ValueError(f"drive: radius_m must be finite, got {drive.radius_m!r}")
+    if drive.kind is DriveKind.ARC and drive.radius_m == 0.0:
+        raise ValueError("drive: an ARC needs a non-zero radius_m (use TURN_IN_PLACE)")
+    return drive
+
+
 def replace_param(params: Any, path: str, value: object) -> Any:
     """``params`` (a parameter dataclass) with the field at dotted ``path`` (e.g.
     ``"sungaze.timer_s"``, ``"sunfind.search.elevation_tolerance_rad"``) set to ``value``;
@@ -254,3 +288,138 @@ def _coerce(path: str, old: object, value: object) -> object:
             raise ValueError(f"{path}: must be a whole number, got {value!r}")
         return int(number)
     return number
+
+
+# ---- many control cycles at once: checked once, at the boundary ---------------------------
+
+
+class ImuSeries:
+    """``N`` consecutive control cycles of IMU data, checked once here rather than per cycle:
+    ``delta_angle_b`` (N, 3) rad (finite), ``delta_velocity_b`` (N, 3) m/s (a non-finite row
+    is an unusable reading, as in ``ImuSample``), ``dt_s`` (N,) s (positive, finite) and the
+    driver's ``valid`` flags (N,), all valid by default."""
+
+    def __init__(
+        self,
+        delta_angle_b: ArrayLike,
+        delta_velocity_b: ArrayLike,
+        dt_s: ArrayLike,
+        valid: ArrayLike | None = None,
+    ) -> None:
+        self.delta_angle_b = _rows("imu.delta_angle_b", delta_angle_b, 3, finite=True)
+        n = len(self.delta_angle_b)
+        self.delta_velocity_b = _rows("imu.delta_velocity_b", delta_velocity_b, 3, finite=False)
+        self.dt_s = np.asarray(dt_s, dtype=np.float64)
+        if self.delta_velocity_b.shape[0] != n or self.dt_s.shape != (n,):
+            raise ValueError(f"imu: {n} delta angles need as many delta velocities and dt_s")
+        if not (np.all(np.isfinite(self.dt_s)) and np.all(self.dt_s > 0.0)):
+            raise ValueError("imu.dt_s: must be positive and finite")
+        self.valid = np.ones(n, dtype=bool) if valid is None else np.asarray(valid, dtype=bool)
+        if self.valid.shape != (n,):
+            raise ValueError(f"imu.valid: must have shape ({n},), got {self.valid.shape}")
+
+    def __len__(self) -> int:
+        return len(self.dt_s)
+
+    def sample(self, k: int) -> ImuSample:
+        """Cycle ``k`` as one ``ImuSample``."""
+        return ImuSample(
+            self.delta_angle_b[k],
+            self.delta_velocity_b[k],
+            float(self.dt_s[k]),
+            bool(self.valid[k]),
+        )
+
+
+class EncoderSeries:
+    """The mobility sensors at the end of each of ``N`` cycles, checked once: finite
+    ``wheel_angle_rad`` and ``steer_rad``, (N, 6) each (``EncoderSample``'s rows)."""
+
+    def __init__(self, wheel_angle_rad: ArrayLike, steer_rad: ArrayLike) -> None:
+        self.wheel_angle_rad = _rows("encoders.wheel_angle_rad", wheel_angle_rad, 6, finite=True)
+        self.steer_rad = _rows("encoders.steer_rad", steer_rad, 6, finite=True)
+        if self.steer_rad.shape != self.wheel_angle_rad.shape:
+            raise ValueError("encoders: as many steering rows as wheel rows")
+
+    def __len__(self) -> int:
+        return len(self.wheel_angle_rad)
+
+    def sample(self, k: int) -> EncoderSample:
+        """Cycle ``k`` as one ``EncoderSample``."""
+        return EncoderSample(self.wheel_angle_rad[k], self.steer_rad[k])
+
+
+def _rows(name: str, value: ArrayLike, width: int, finite: bool) -> FloatArray:
+    try:
+        out = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name}: must be numeric with shape (N, {width})") from exc
+    if out.ndim != 2 or out.shape[1] != width:
+        raise ValueError(f"{name}: must have shape (N, {width}), got {out.shape}")
+    if finite and not np.all(np.isfinite(out)):
+        raise ValueError(f"{name}: must be finite")
+    return out
+
+
+@dataclass
+class NateSeries:
+    """NATE's outputs over ``N`` cycles, as arrays (the ``NateOutput`` fields cycle by
+    cycle, row ``k`` after cycle ``k``): what a drive segment's frames are built from
+    without a ``NateOutput`` per cycle. ``output(k)`` is cycle ``k``'s ``NateOutput``."""
+
+    t_s: FloatArray
+    q_b_ll: FloatArray
+    p_s: FloatArray
+    tilt_est_deg: FloatArray
+    tilt_accel_deg: FloatArray
+    imu_integration_s: FloatArray
+    gyro_counter_s: FloatArray
+    aqf: list[AttitudeQuality]
+    mode: list[NateMode]
+    site_index: list[int]
+    completed: list[Completed | None]
+    acquisition: list[str | None]
+    camera_request: list[PancamRequest | None]
+    events: list[tuple[Event, ...]]
+
+    def __len__(self) -> int:
+        return len(self.t_s)
+
+    def output(self, k: int) -> NateOutput:
+        """Cycle ``k`` as a ``NateOutput``."""
+        return NateOutput(
+            q_b_ll=self.q_b_ll[k].copy(),
+            tilt_est_deg=float(self.tilt_est_deg[k]),
+            tilt_accel_deg=float(self.tilt_accel_deg[k]),
+            p_s=self.p_s[k].copy(),
+            site_index=self.site_index[k],
+            aqf=self.aqf[k],
+            mode=self.mode[k],
+            imu_integration_s=float(self.imu_integration_s[k]),
+            gyro_counter_s=float(self.gyro_counter_s[k]),
+            completed=self.completed[k],
+            t_s=float(self.t_s[k]),
+            acquisition=self.acquisition[k],
+            camera_request=self.camera_request[k],
+            events=self.events[k],
+        )
+
+    @classmethod
+    def of_outputs(cls, outputs: list[NateOutput]) -> NateSeries:
+        """The series of cycle-by-cycle outputs."""
+        return cls(
+            t_s=np.array([o.t_s for o in outputs], dtype=np.float64),
+            q_b_ll=np.array([o.q_b_ll for o in outputs], dtype=np.float64).reshape(-1, 4),
+            p_s=np.array([o.p_s for o in outputs], dtype=np.float64).reshape(-1, 3),
+            tilt_est_deg=np.array([o.tilt_est_deg for o in outputs], dtype=np.float64),
+            tilt_accel_deg=np.array([o.tilt_accel_deg for o in outputs], dtype=np.float64),
+            imu_integration_s=np.array([o.imu_integration_s for o in outputs], dtype=np.float64),
+            gyro_counter_s=np.array([o.gyro_counter_s for o in outputs], dtype=np.float64),
+            aqf=[o.aqf for o in outputs],
+            mode=[o.mode for o in outputs],
+            site_index=[o.site_index for o in outputs],
+            completed=[o.completed for o in outputs],
+            acquisition=[o.acquisition for o in outputs],
+            camera_request=[o.camera_request for o in outputs],
+            events=[o.events for o in outputs],
+        )

@@ -23,10 +23,22 @@ from scipy.spatial.transform import Rotation
 from estimation.camera_model import PANCAM, R_b_pancam
 from estimation.events import Event, Severity, failure_severity
 from estimation.ivp import mars_rotation_ll, sun_ll
-from estimation.quaternion import quat_canonical, quat_conjugate, quat_from_rotvec, quat_multiply
+from estimation.quaternion import (
+    q_canonical,
+    q_normalised,
+    quat_canonical,
+    quat_conjugate,
+    quat_from_rotvec,
+    quat_multiply,
+)
 from estimation.sapp.aqf import AttitudeQuality
-from estimation.sapp.gyro_propagation import propagate_gyro
+from estimation.sapp.gyro_propagation import gyro_cycle
 from estimation.sapp.gyrocompass import gyrocompass
+from estimation.sapp.mobility import (
+    mobility_cycles,
+    tilt_of_estimates_deg,
+    tilts_from_accelerometers_deg,
+)
 from estimation.sapp.nadir import (
     AccelAverager,
     NadirCheckOutcome,
@@ -40,9 +52,12 @@ from estimation.sapp.nadir import (
 from estimation.sapp.nate_io import (
     Completed,
     DriveCommand,
+    EncoderSeries,
     GyrocompassOutcome,
+    ImuSeries,
     NateMode,
     NateParams,
+    NateSeries,
 )
 from estimation.sapp.site_frames import SiteChain
 from estimation.sapp.sun_modes import (
@@ -101,6 +116,8 @@ class NateProcedures:
                 raise ValueError(f"{name}: must be finite, got {value!r}")
         self._lat_rad, self._lon_east_rad = float(lat_rad), float(lon_east_rad)
         self._omega_mars_ll = mars_rotation_ll(lat_rad)  # sec. 2.4.1, from IVP
+        o_x, o_y, o_z = self._omega_mars_ll.tolist()
+        self._omega_tuple = (o_x, o_y, o_z)  # the same, for the per-cycle float math
         sun_ll(float(t_s), self._lat_rad, self._lon_east_rad)  # validates the site
         self._t_s = float(t_s)
         self._params = params if params is not None else NateParams()
@@ -434,9 +451,57 @@ class NateProcedures:
     def _propagate_gyros(self, d_theta_b: FloatArray, dt: float, valid: bool) -> None:
         if not valid:
             return  # the driver flagged the sample: not integrated (nor counted as IMU time)
-        q = propagate_gyro(self._q_b_ll, d_theta_b[None, :], dt, self._omega_mars_ll)[-1]
-        self._q_b_ll = quat_canonical(q)  # sec. 2.4.1
+        x, y, z, w = self._q_b_ll.tolist()
+        d_x, d_y, d_z = d_theta_b.tolist()
+        q = gyro_cycle(q_normalised((x, y, z, w)), (d_x, d_y, d_z), dt, self._omega_tuple)
+        self._q_b_ll = np.array(q_canonical(q))  # sec. 2.4.1
         self._imu_integration_s += dt
+
+    def _mobility_series(self, imu: ImuSeries, encoders: EncoderSeries | None) -> NateSeries:
+        """Mobility through a series of cycles at once (``estimation.sapp.mobility``): what
+        ``_cycle`` does cycle by cycle, with the same state after it."""
+        track = mobility_cycles(
+            self._q_b_ll,
+            self._p_s,
+            self._imu_integration_s,
+            self._last_wheel_rad,
+            imu,
+            encoders,
+            self._drive,
+            self._use_gyros,
+            self._omega_mars_ll,
+        )
+        n = len(imu)
+        t_s = self._t_s + np.cumsum(imu.dt_s)
+        counter_s = self._gyro_counter_s + np.cumsum(imu.dt_s)  # sec. 2.4, every cycle
+        aqf = [self._aqf] * n
+        if self._aqf is AttitudeQuality.FINE:  # sec. 2.4: Fine drops to Coarse
+            late = np.flatnonzero(counter_s > self._params.fine_to_coarse_s)
+            if len(late):
+                aqf[int(late[0]) :] = [AttitudeQuality.COARSE] * (n - int(late[0]))
+        if n:
+            self._q_b_ll, self._p_s = track.q_b_ll[-1].copy(), track.p_s[-1].copy()
+            self._imu_integration_s = float(track.imu_integration_s[-1])
+            self._gyro_counter_s, self._t_s = float(counter_s[-1]), float(t_s[-1])
+            self._aqf = aqf[-1]
+        self._last_wheel_rad = track.last_wheel_rad
+        self._events = []
+        return NateSeries(
+            t_s=t_s,
+            q_b_ll=track.q_b_ll,
+            p_s=track.p_s,
+            tilt_est_deg=tilt_of_estimates_deg(track.q_b_ll),
+            tilt_accel_deg=tilts_from_accelerometers_deg(imu),
+            imu_integration_s=track.imu_integration_s,
+            gyro_counter_s=counter_s,
+            aqf=aqf,
+            mode=[NateMode.MOBILITY] * n,
+            site_index=[self._sites.current.index] * n,
+            completed=[None] * n,
+            acquisition=[self._acquisition] * n,
+            camera_request=[None] * n,
+            events=[()] * n,
+        )
 
     def _count(self, dt: float) -> None:
         self._gyro_counter_s += dt  # sec. 2.4: incremented each Articulate/Mobility cycle

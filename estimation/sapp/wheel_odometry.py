@@ -52,7 +52,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial.transform import Rotation
 
 from estimation.geometry import (
     FLIGHT_GEOMETRY,
@@ -60,7 +59,7 @@ from estimation.geometry import (
     STEERED_INDEX,
     FlightGeometry,
 )
-from estimation.quaternion import quat_from_rotvec, quat_multiply
+from estimation.quaternion import quat_from_rotvec, quat_multiply, quat_rotate
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -107,14 +106,22 @@ def _vector(name: str, value: ArrayLike, shape: tuple[int, ...]) -> FloatArray:
 
 
 def steer_six(steer_corner_rad: ArrayLike) -> FloatArray:
-    """Steering of all six wheels (rad, (6,)) from the four corner ones (LF, LR, RF, RR).
+    """Steering of all six wheels (rad, (..., 6)) from the four corner ones (LF, LR, RF, RR;
+    (..., 4): one cycle or many).
 
     >>> steer_six([0.1, -0.1, 0.2, -0.2]).tolist()
     [0.1, 0.0, -0.1, 0.2, 0.0, -0.2]
     """
-    corner = _vector("steer_corner_rad", steer_corner_rad, (4,))
-    out = np.zeros(N_WHEELS)
-    out[list(STEERED_INDEX)] = corner
+    try:
+        corner = np.asarray(steer_corner_rad, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError("steer_corner_rad: must be numeric, shape (..., 4)") from exc
+    if corner.shape[-1:] != (4,):
+        raise ValueError(f"steer_corner_rad: must have shape (..., 4), got {corner.shape}")
+    if not np.all(np.isfinite(corner)):
+        raise ValueError("steer_corner_rad: must be finite")
+    out = np.zeros((*corner.shape[:-1], N_WHEELS))
+    out[..., list(STEERED_INDEX)] = corner
     return out
 
 
@@ -279,6 +286,43 @@ def propagate_position(p_s: ArrayLike, q_s_b: ArrayLike, delta_p_b: ArrayLike) -
     """
     p = _vector("p_s", p_s, (3,))
     dp_b = _vector("delta_p_b", delta_p_b, (3,))
-    R_s_b = Rotation.from_quat(_quat("q_s_b", q_s_b)).as_matrix()
-    out: FloatArray = p + R_s_b @ dp_b  # Δp_s = R_s_b Δp_b, §2.5
+    out: FloatArray = p + quat_rotate(_quat("q_s_b", q_s_b), dp_b)  # Δp_s = R_s_b Δp_b, §2.5
     return out
+
+
+def odometry_deltas(
+    kind: DriveKind,
+    wheel_rotation_rad: FloatArray,
+    steer_rad: FloatArray,
+    centre_b: FloatArray | None = None,
+    geometry: FlightGeometry = FLIGHT_GEOMETRY,
+    centre_tol_m: float = DEFAULT_CENTRE_TOL_M,
+) -> tuple[FloatArray, FloatArray]:
+    """``odometry_step`` over ``N`` cycles at once: ``(Δp_b (N, 3), ψ_ave (N,))`` from the
+    encoder changes ``wheel_rotation_rad`` and steering ``steer_rad`` (N, 6) each, finite
+    (the caller has checked them). The same eqs. (5)-(7), row by row."""
+    a = wheel_rotation_rad * geometry.wheel_radius_m  # a_i, §2.5
+    n = len(a)
+    dp_b = np.zeros((n, 3))
+    if kind is DriveKind.STRAIGHT:
+        dp_b[:, 0] = np.sum(a * np.cos(steer_rad), axis=1) / 6.0  # eq. (5)
+        dp_b[:, 1] = np.sum(a * np.sin(steer_rad), axis=1) / 6.0  # eq. (5)
+        return dp_b, np.zeros(n)
+    if kind is DriveKind.TURN_IN_PLACE:
+        c = np.zeros(2)
+    elif centre_b is None:
+        raise ValueError("centre_b: required for an ARC step")
+    else:
+        c = np.asarray(centre_b, dtype=np.float64)
+    r = geometry.wheel_xy_b() - c  # r_i, from C to wheel i (the same every cycle)
+    r_norm = np.hypot(r[:, 0], r[:, 1])
+    used = r_norm >= centre_tol_m
+    if not np.any(used):
+        raise ValueError("centre_b: every wheel is at the arc centre")
+    # sgn(d_i · t_i) with d_i = (cos σ_i, sin σ_i) and t_i = ẑ × r_i = (-r_y, r_x)
+    sense = np.sign(np.cos(steer_rad) * -r[:, 1] + np.sin(steer_rad) * r[:, 0])
+    psi = (sense * a)[:, used] / r_norm[used]  # eq. (6), signed
+    psi_ave = np.mean(psi, axis=1)
+    dp_b[:, 0] = psi_ave * c[1]  # eq. (7)
+    dp_b[:, 1] = -psi_ave * c[0]
+    return dp_b, psi_ave

@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimation.events import Event, Severity
-from estimation.sapp.nate import EncoderSample, ImuSample, Nate, NateOutput
+from estimation.sapp.nate import EncoderSeries, ImuSample, ImuSeries, Nate, NateSeries
 from estimation.sapp.wheel_odometry import steer_six
 from estimation.vo.odometry import VisualOdometry
 from sim.loop.frames import FrameRecorder
@@ -83,11 +83,9 @@ class LoopContext:
                 results += [out.completed] if out.completed is not None else []
                 frame(out, force=True)
             elif hint <= CONTROL_DT_S:
-                samples = sim.rest_cycles(1.0)
-                for k in range(len(samples)):
-                    out = nate.step(imu_sample(samples, k))
-                    results += [out.completed] if out.completed is not None else []
-                    frame(out, force=out.completed is not None)
+                series = nate.step_series(imu_series(sim.rest_cycles(1.0)))
+                results += [c for c in series.completed if c is not None]
+                self.recorder.at_rest_series(series, force_completed=True)
             else:
                 out = nate.step(imu_sample(sim.rest(hint), 0))
                 results += [out.completed] if out.completed is not None else []
@@ -110,22 +108,21 @@ class LoopContext:
         remaining = duration_s
         while remaining > 1e-9:
             chunk = min(WAIT_CHUNK_S, remaining)
-            samples = sim.rest_cycles(chunk)
-            for k in range(len(samples)):
-                frame(nate.step(imu_sample(samples, k)))
+            self.recorder.at_rest_series(nate.step_series(imu_series(sim.rest_cycles(chunk))))
             remaining -= chunk
 
-    def step_segment(self, seg: Segment) -> list[NateOutput]:
-        """NATE through a drive segment, cycle by cycle with the encoders."""
+    def step_segment(self, seg: Segment) -> NateSeries:
+        """NATE through a drive segment with the encoders, its cycles at once."""
         wheel = self.sim.encoders.wheel_angle_rad(seg.encoders.wheel_counts)
-        steer = seg.encoders.steer_rad
-        outputs = []
-        for k in range(len(seg.imu)):
-            enc = EncoderSample(wheel[k + 1], steer_six(steer[k + 1]))
-            outputs.append(self.nate.step(imu_sample(seg.imu, k), enc))
-        return outputs
+        steer = steer_six(seg.encoders.steer_rad)
+        return self.nate.step_series(imu_series(seg.imu), EncoderSeries(wheel[1:], steer[1:]))
 
 
 def imu_sample(samples: ImuSamples, k: int) -> ImuSample:
     """Sample ``k`` of ``samples`` as NATE takes it."""
     return ImuSample(samples.delta_angle_b[k], samples.delta_velocity_b[k], float(samples.dt_s[k]))
+
+
+def imu_series(samples: ImuSamples) -> ImuSeries:
+    """``samples`` as NATE takes many cycles at once."""
+    return ImuSeries(samples.delta_angle_b, samples.delta_velocity_b, samples.dt_s)

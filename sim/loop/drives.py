@@ -51,10 +51,10 @@ def drive(ctx: LoopContext, command: DriveCommand, kind: str, *args: float) -> d
         seg = sim.turn_in_place(args[0])
     start = ctx.mission_estimate()
     nate.mobility(command, wheel_angle_rad=wheel0)
-    outputs = ctx.step_segment(seg)
+    series = ctx.step_segment(seg)
     nate.stop()
-    side = ctx.side.drive(seg, kind, args, start, outputs, ctx.recorder.events)
-    ctx.recorder.segment(seg, outputs, side)
+    side = ctx.side.drive(seg, kind, args, start, series, ctx.recorder.events)
+    ctx.recorder.segment(seg, series, side)
     ctx.recorder.now(force=True)
     distance = float(np.sum(np.linalg.norm(np.diff(seg.truth.p_s, axis=0), axis=1)))
     return {"distance_truth_m": distance}

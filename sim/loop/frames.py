@@ -15,23 +15,27 @@ frame with events or a mode change is always kept.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from estimation.events import Event
 from estimation.ivp import earth_ll
-from estimation.sapp.hga_pointing import PointingKnowledge, point_hga
-from estimation.sapp.nate import Nate, NateOutput
+from estimation.quaternion import quat_angle_between, quat_conjugate, quat_rotate
+from estimation.sapp.hga_pointing import (
+    HGA_POINTING_REQUIREMENT_DEG,
+    PointingKnowledge,
+    point_hga_many,
+)
+from estimation.sapp.nate import Nate, NateOutput, NateSeries
 from estimation.sapp.sun_modes import SunResult
 from sim.loop.rover_sim import RoverSim, Segment
 from sim.loop.side.estimators import SideEstimators
 from sim.loop.side.kinematic import SideEstimate
 from sim.loop.telemetry import TelemetryFrame
-from sim.rover.hga import hga_pointing_truth
+from sim.rover.hga import hga_errors_deg
 from sim.world.local_level import q_ll_b_from_site
 from sim.world.mars_frames import earth_ll_truth, elevation_rad, sun_ll_truth
 from sim.world.marsclock import lmst_h_from_t_s, sol_number_t_s
@@ -77,11 +81,30 @@ class FrameRecorder:
 
     def at_rest(self, out: NateOutput, force: bool = False) -> None:
         """A frame for the rover at rest now (truth from the simulator's state)."""
-        if not self.keep(out, force):
+        if self.keep(out, force):
+            self._rest_frames(NateSeries.of_outputs([out]), [0])
+
+    def at_rest_series(self, series: NateSeries, force_completed: bool = False) -> None:
+        """The frames of NATE's cycles ``series`` with the rover at rest (an 8 Hz wait);
+        ``force_completed``: a cycle that completed a mode always makes one."""
+        self._rest_frames(series, self._kept(series, force_completed))
+
+    def _rest_frames(self, series: NateSeries, kept: list[int]) -> None:
+        if not kept:
             return
-        state = self.sim.drive_state
-        joints = (state.rocker_rad, state.bogie_rad, state.steer_rad)
-        self._append(out, self.sim.q_ll_b(), state.p_s.copy(), joints)
+        state, n = self.sim.drive_state, len(kept)
+        self._append(
+            series,
+            kept,
+            np.tile(self.sim.q_ll_b(), (n, 1)),
+            np.tile(state.p_s, (n, 1)),
+            (
+                np.full(n, state.rocker_rad),
+                np.tile(state.bogie_rad, (n, 1)),
+                np.tile(state.steer_rad, (n, 1)),
+            ),
+            None,
+        )
 
     def now(self, force: bool = False) -> None:
         """A frame of the current state without a NATE cycle (after a command)."""
@@ -100,21 +123,37 @@ class FrameRecorder:
         )
         self.at_rest(out, force)
 
-    def segment(
-        self, seg: Segment, outputs: Sequence[NateOutput], side: Mapping[str, SideEstimate]
-    ) -> None:
-        """The frames of a drive segment, NATE's cycle ``outputs`` through it, with the side
-        estimators' estimates ``side``."""
-        sim = self.sim
-        traj = seg.truth
-        q_ll_b = q_ll_b_from_site(traj.q_s_b, traj.p_s, sim.lat_rad, sim.lon_east_rad)
-        for k, out in enumerate(outputs):
-            if self.keep(out, False):
-                i = k + 1
-                self.side.at_sample(side, i)
-                joints = (float(traj.rocker_rad[i]), traj.bogie_rad[i], traj.steer_rad[i])
-                self._append(out, q_ll_b[i], traj.p_s[i], joints)
+    def segment(self, seg: Segment, series: NateSeries, side: Mapping[str, SideEstimate]) -> None:
+        """The frames of a drive segment, NATE's cycles ``series`` through it, with the side
+        estimators' estimates ``side``: built for the kept cycles only, in arrays."""
+        kept = self._kept(series, False)
+        if kept:
+            traj, rows = seg.truth, np.array(kept) + 1  # truth row 0 is the segment's start
+            sim = self.sim
+            q_ll_b = q_ll_b_from_site(
+                traj.q_s_b[rows], traj.p_s[rows], sim.lat_rad, sim.lon_east_rad
+            )
+            joints = (traj.rocker_rad[rows], traj.bogie_rad[rows], traj.steer_rad[rows])
+            self._append(series, kept, q_ll_b, traj.p_s[rows], joints, (side, rows.tolist()))
         self.side.at_sample(None)
+
+    def _kept(self, series: NateSeries, force_completed: bool) -> list[int]:
+        """The cycles of ``series`` that make frames (``keep``, cycle by cycle)."""
+        kept: list[int] = []
+        last_t, last_mode, pending = self._last_frame_t, self._last_mode, bool(self.events)
+        every_s = self.frame_every_s - 1e-9
+        for k, t in enumerate(series.t_s.tolist()):
+            mode = series.mode[k].value
+            if (
+                pending
+                or series.events[k]
+                or mode != last_mode
+                or t - last_t >= every_s
+                or (force_completed and series.completed[k] is not None)
+            ):
+                kept.append(k)
+                last_t, last_mode, pending = t, mode, False
+        return kept
 
     def last_event(self) -> str:
         """The text of the latest event in a frame (``""``: none)."""
@@ -125,95 +164,148 @@ class FrameRecorder:
 
     # ---- building and scoring ---------------------------------------------------------
 
-    def _sky(self, t_s: float) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Earth in LL at ``t_s`` from IVP and from the truth, and the true sun in LL
-        (module docstring: interpolated between nodes ``EARTH_NODE_S`` apart)."""
-        u = (t_s - self._sky_t0) / EARTH_NODE_S
-        if not 0.0 <= u <= 1.0:
-            sim = self.sim
-            self._sky_t0, u = t_s, 0.0
-            nodes = np.array([t_s, t_s + EARTH_NODE_S])
-            self._sky_nodes = np.stack(
-                [
-                    earth_ll(nodes, sim.lat_rad, sim.lon_east_rad),
-                    earth_ll_truth(nodes, sim.lat_rad, sim.lon_east_rad),
-                    sun_ll_truth(nodes, sim.lat_rad, sim.lon_east_rad),
-                ]
-            )
-        v = (1.0 - u) * self._sky_nodes[:, 0] + u * self._sky_nodes[:, 1]
-        v /= np.linalg.norm(v, axis=1, keepdims=True)
-        return v[0], v[1], v[2]
+    def _sky(self, t_s: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Earth in LL at each of ``t_s`` (increasing) from IVP and from the truth, and the
+        true sun in LL, (K, 3) each (module docstring: interpolated between nodes
+        ``EARTH_NODE_S`` apart, a new node pair where a time leaves the last one)."""
+        sim = self.sim
+        u = np.empty(len(t_s))
+        nodes = np.empty((len(t_s), 3, 2, 3))
+        for k, t in enumerate(t_s.tolist()):
+            u_k = (t - self._sky_t0) / EARTH_NODE_S
+            if not 0.0 <= u_k <= 1.0:
+                self._sky_t0, u_k = t, 0.0
+                at = np.array([t, t + EARTH_NODE_S])
+                self._sky_nodes = np.stack(
+                    [
+                        earth_ll(at, sim.lat_rad, sim.lon_east_rad),
+                        earth_ll_truth(at, sim.lat_rad, sim.lon_east_rad),
+                        sun_ll_truth(at, sim.lat_rad, sim.lon_east_rad),
+                    ]
+                )
+            u[k], nodes[k] = u_k, self._sky_nodes
+        u3 = u[:, None, None]
+        v = (1.0 - u3) * nodes[:, :, 0] + u3 * nodes[:, :, 1]
+        v /= np.linalg.norm(v, axis=2, keepdims=True)
+        return v[:, 0], v[:, 1], v[:, 2]
 
     def _append(
         self,
-        out: NateOutput,
+        series: NateSeries,
+        kept: list[int],
         q_ll_b_true: FloatArray,
         p_world: FloatArray,
-        joints: tuple[float, FloatArray, FloatArray],
+        joints: tuple[FloatArray, FloatArray, FloatArray],
+        side: tuple[Mapping[str, SideEstimate], list[int]] | None,
     ) -> None:
-        """Append a frame; ``p_world`` is the truth position in the simulator's frame, whose
-        offset from the first Site's origin (the start) is the true mission position;
-        ``joints`` the true (rocker, bogie (2,), steering (4,)) angles, rad."""
-        sim, nate = self.sim, self.nate
-        origins = self.site_origins_true
-        p_mission_true = p_world - origins[0]
-        t = out.t_s
-        q_b_ll_true = Rotation.from_quat(q_ll_b_true).inv()
+        """Append the frames of the cycles ``kept`` of ``series``, with the truth of each
+        (K rows): ``q_ll_b_true``, ``p_world`` the position in the simulator's frame, whose
+        offset from the first Site's origin (the start) is the true mission position, and
+        ``joints`` the (rocker (K,), bogie (K, 2), steering (K, 4)) angles, rad; ``side``
+        the side estimators' segment estimates and the segment sample of each frame. The
+        derived figures are computed for all K frames at once."""
+        sim, nate, origins = self.sim, self.nate, self.site_origins_true
+        t = series.t_s[kept]
+        q_est = series.q_b_ll[kept]
+        site_index = [series.site_index[k] for k in kept]
+        q_ll_b = q_ll_b_true / np.linalg.norm(q_ll_b_true, axis=1, keepdims=True)
+        q_b_ll_true = quat_conjugate(q_ll_b)
         earth_ivp, earth_true, sun_true = self._sky(t)
-        hga_command = point_hga(out.q_b_ll, earth_ivp)
-        hga = hga_pointing_truth(hga_command, q_b_ll_true.as_quat(), earth_true)
-        boresight_ll = q_b_ll_true.inv().apply(hga_command.boresight_b)
-        rocker_rad, bogie_rad, steer_rad = joints
-        p_mission_est = nate.sites.to_mission(out.p_s, out.site_index)
-        origin = origins[min(out.site_index, len(origins) - 1)]
-        att_err = (Rotation.from_quat(out.q_b_ll) * q_b_ll_true.inv()).magnitude()
-        events = list(out.events) + self.events
-        self.events = []
-        done = out.completed
-        sungaze = (
-            math.degrees(done.three_sigma_rad)
-            if isinstance(done, SunResult) and done.success and done.updated
-            else None
+        hga_az, hga_el, boresight_b = point_hga_many(q_est, earth_ivp)
+        hga_error = hga_errors_deg(hga_az, hga_el, q_b_ll_true, earth_true)
+        boresight_ll = quat_rotate(q_ll_b, boresight_b)  # R_ll_b: the true body to LL
+        att_err_deg = np.degrees(quat_angle_between(q_est, q_b_ll_true))
+        p_mission_true = p_world - origins[0]
+        p_s_est = series.p_s[kept]
+        p_mission_est = np.array(
+            [nate.sites.to_mission(p, i) for p, i in zip(p_s_est, site_index, strict=True)]
         )
-        predicted = self.knowledge.update(out.aqf, out.imu_integration_s, sungaze)
-        self.frames.append(
-            TelemetryFrame(
-                t_s=t,
-                sol=int(sol_number_t_s(sim.site.mission, t)),
-                lmst_h=float(lmst_h_from_t_s(t, self._lon_west_deg)),
-                nate_mode=out.mode.value,
-                aqf=out.aqf.paper_name,
-                q_b_ll_est=[float(v) for v in out.q_b_ll],
-                q_b_ll_true=[float(v) for v in q_b_ll_true.as_quat()],
-                p_s_est=[float(v) for v in out.p_s],
-                p_s_true=[float(v) for v in p_world - origin],
-                site_index=out.site_index,
-                p_mission_est=[float(v) for v in p_mission_est],
-                p_mission_true=[float(v) for v in p_mission_true],
-                imu_integration_s=out.imu_integration_s,
-                gyro_counter_s=out.gyro_counter_s,
-                tilt_est_deg=out.tilt_est_deg,
-                tilt_accel_deg=out.tilt_accel_deg,
-                hga_error_deg=hga.error_deg,
-                hga_margin_deg=hga.margin_deg,
-                earth_up=bool(elevation_rad(earth_true) > 0.0),
-                attitude_error_deg=math.degrees(float(att_err)),
-                position_error_m=float(np.linalg.norm(p_mission_est - p_mission_true)),
-                command=self.command,
-                rocker_deg=math.degrees(rocker_rad),
-                bogie_deg=[math.degrees(float(v)) for v in bogie_rad],
-                steer_deg=[math.degrees(float(v)) for v in steer_rad],
-                sun_ll_true=[float(v) for v in sun_true],
-                earth_ll_true=[float(v) for v in earth_true],
-                hga_boresight_ll_true=[float(v) for v in boresight_ll],
-                events=events,
-                estimators=self.side.frame_estimates(t, p_mission_true, q_b_ll_true),
-                vo_failures_in_row=self.vo_failures_in_row,
-                hga_margin_predicted_deg=predicted,
+        last = len(origins) - 1
+        p_s_true = p_world - np.array([origins[min(i, last)] for i in site_index])
+        position_error = np.linalg.norm(p_mission_est - p_mission_true, axis=1)
+        sol = sol_number_t_s(sim.site.mission, t)
+        lmst_h = lmst_h_from_t_s(t, self._lon_west_deg)
+        earth_up = elevation_rad(earth_true) > 0.0
+        rocker_deg, bogie_deg, steer_deg = (np.degrees(a) for a in joints)
+        columns = (
+            t.tolist(),
+            sol.tolist(),
+            lmst_h.tolist(),
+            q_est.tolist(),
+            q_b_ll_true.tolist(),
+            p_s_est.tolist(),
+            p_s_true.tolist(),
+            p_mission_est.tolist(),
+            p_mission_true.tolist(),
+            hga_error.tolist(),
+            earth_up.tolist(),
+            att_err_deg.tolist(),
+            position_error.tolist(),
+            rocker_deg.tolist(),
+            bogie_deg.tolist(),
+            steer_deg.tolist(),
+            sun_true.tolist(),
+            earth_true.tolist(),
+            boresight_ll.tolist(),
+        )
+        for j, row in enumerate(zip(*columns, strict=True)):
+            (t_j, sol_j, lmst_j, q_est_j, q_true_j, p_est_j, p_true_j, pm_est_j, pm_true_j) = row[
+                :9
+            ]
+            (hga_j, up_j, att_j, pos_j, rocker_j, bogie_j, steer_j, sun_j, earth_j, bore_j) = row[
+                9:
+            ]
+            k = kept[j]
+            events = list(series.events[k]) + self.events
+            self.events = []
+            done = series.completed[k]
+            sungaze = (
+                math.degrees(done.three_sigma_rad)
+                if isinstance(done, SunResult) and done.success and done.updated
+                else None
             )
-        )
-        self._last_frame_t = t
-        self._last_mode = out.mode.value
+            aqf = series.aqf[k]
+            predicted = self.knowledge.update(aqf, float(series.imu_integration_s[k]), sungaze)
+            if side is not None:
+                self.side.at_sample(side[0], side[1][j])
+            self.frames.append(
+                TelemetryFrame(
+                    t_s=t_j,
+                    sol=sol_j,
+                    lmst_h=lmst_j,
+                    nate_mode=series.mode[k].value,
+                    aqf=aqf.paper_name,
+                    q_b_ll_est=q_est_j,
+                    q_b_ll_true=q_true_j,
+                    p_s_est=p_est_j,
+                    p_s_true=p_true_j,
+                    site_index=site_index[j],
+                    p_mission_est=pm_est_j,
+                    p_mission_true=pm_true_j,
+                    imu_integration_s=float(series.imu_integration_s[k]),
+                    gyro_counter_s=float(series.gyro_counter_s[k]),
+                    tilt_est_deg=float(series.tilt_est_deg[k]),
+                    tilt_accel_deg=float(series.tilt_accel_deg[k]),
+                    hga_error_deg=hga_j,
+                    hga_margin_deg=HGA_POINTING_REQUIREMENT_DEG - hga_j,
+                    earth_up=up_j,
+                    attitude_error_deg=att_j,
+                    position_error_m=pos_j,
+                    command=self.command,
+                    rocker_deg=rocker_j,
+                    bogie_deg=bogie_j,
+                    steer_deg=steer_j,
+                    sun_ll_true=sun_j,
+                    earth_ll_true=earth_j,
+                    hga_boresight_ll_true=bore_j,
+                    events=events,
+                    estimators=self.side.frame_estimates(t_j, p_mission_true[j], q_b_ll_true[j]),
+                    vo_failures_in_row=self.vo_failures_in_row,
+                    hga_margin_predicted_deg=predicted,
+                )
+            )
+            self._last_frame_t = t_j
+            self._last_mode = series.mode[k].value
 
     # ---- checkpoint -----------------------------------------------------------------------
 

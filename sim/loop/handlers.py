@@ -27,7 +27,7 @@ from estimation.sapp.sun_modes import SunResult
 from estimation.sapp.wheel_odometry import DriveKind
 from sequences import commands as cmd
 from sim.loop import drives
-from sim.loop.context import CommandRefusedError, LoopContext, imu_sample
+from sim.loop.context import CommandRefusedError, LoopContext, imu_sample, imu_series
 from sim.rover.truth import CONTROL_DT_S
 
 Details = dict[str, Any]
@@ -155,9 +155,7 @@ def hga_pass(ctx: LoopContext, c: cmd.HgaPass) -> Details:
         if nate.wait_hint_s > CONTROL_DT_S:
             recorder.at_rest(nate.step(imu_sample(sim.rest(step), 0)), force=True)
         else:
-            samples = sim.rest_cycles(step)
-            for k in range(len(samples)):
-                recorder.at_rest(nate.step(imu_sample(samples, k)))
+            recorder.at_rest_series(nate.step_series(imu_series(sim.rest_cycles(step))))
     frames = recorder.frames[first:]
     errors = [f.hga_error_deg for f in frames if f.earth_up]
     worst = max(errors) if errors else math.nan

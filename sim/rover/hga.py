@@ -12,10 +12,18 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
-from estimation.sapp.hga_pointing import HGA_POINTING_REQUIREMENT_DEG, HgaCommand, hga_boresight_b
+from estimation.quaternion import quat_rotate
+from estimation.sapp.hga_pointing import (
+    HGA_POINTING_REQUIREMENT_DEG,
+    HgaCommand,
+    hga_boresight_b,
+    hga_boresights_b,
+)
+
+FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
@@ -39,3 +47,17 @@ def hga_pointing_truth(
     cos_angle = float(np.clip(boresight_b @ earth_b, -1.0, 1.0))
     error_deg = math.degrees(math.acos(cos_angle))
     return HgaPointing(error_deg=error_deg, margin_deg=HGA_POINTING_REQUIREMENT_DEG - error_deg)
+
+
+def hga_errors_deg(
+    az_rad: FloatArray, el_rad: FloatArray, q_b_ll_true: FloatArray, earth_ll_true: FloatArray
+) -> FloatArray:
+    """``hga_pointing_truth``'s error for ``K`` gimbal commands ``(az_rad, el_rad)`` (K,)
+    at once, against the true attitudes (K, 4) and Earth directions (K, 3), deg."""
+    q = q_b_ll_true / np.linalg.norm(q_b_ll_true, axis=1, keepdims=True)
+    earth_b = quat_rotate(q, earth_ll_true)
+    earth_b /= np.linalg.norm(earth_b, axis=1, keepdims=True)
+    boresight_b = hga_boresights_b(az_rad, el_rad)  # the gimbal angles' forward model
+    cos_angle = np.clip(np.sum(boresight_b * earth_b, axis=1), -1.0, 1.0)
+    out: FloatArray = np.degrees(np.arccos(cos_angle))
+    return out

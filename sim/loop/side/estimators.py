@@ -10,10 +10,10 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from estimation.events import Event
-from estimation.sapp.nate import NateOutput
+from estimation.quaternion import quat_angle_between
+from estimation.sapp.nate import NateSeries
 from sim.errors import InputError
 from sim.loop.rover_sim import RoverSim, Segment
 from sim.loop.side.kinematic import (
@@ -56,11 +56,11 @@ class SideEstimators:
         kind: str,
         args: tuple[float, ...],
         start: tuple[FloatArray, FloatArray],
-        outputs: Sequence[NateOutput],
+        series: NateSeries,
         events: list[Event],
     ) -> dict[str, SideEstimate]:
         """Every runner through a drive segment; ``start`` SAPP's ``(p_mission, q_b_ll)``
-        before it and ``outputs`` its cycles through it."""
+        before it and ``series`` its cycles through it."""
         if not self.runners:
             return {}
         inputs = DriveInputs(
@@ -69,7 +69,7 @@ class SideEstimators:
             wheel_rad=self.sim.encoders.wheel_angle_rad(seg.encoders.wheel_counts),
             steer_rad=seg.encoders.steer_rad,
             start=start,
-            sapp_q_b_ll=np.array([start[1], *(o.q_b_ll for o in outputs)]),
+            sapp_q_b_ll=np.vstack([start[1], series.q_b_ll]),
         )
         out: dict[str, SideEstimate] = {}
         for runner in list(self.runners):
@@ -93,7 +93,7 @@ class SideEstimators:
         }
 
     def frame_estimates(
-        self, t_s: float, p_mission_true: FloatArray, q_b_ll_true: Rotation
+        self, t_s: float, p_mission_true: FloatArray, q_b_ll_true: FloatArray
     ) -> dict[str, Any]:
         """Each runner's pose in the frame at ``t_s`` and its errors against the truth."""
         out: dict[str, Any] = {}
@@ -106,7 +106,7 @@ class SideEstimators:
             if now is None:
                 continue  # not started: it starts at the first drive
             p, q = now
-            att = None if q is None else (Rotation.from_quat(q) * q_b_ll_true.inv()).magnitude()
+            att = None if q is None else float(quat_angle_between(q, q_b_ll_true))
             out[runner.name] = {  # position-only estimators have no attitude (None)
                 "p_mission": [float(v) for v in p],
                 "q_b_ll": None if q is None else [float(v) for v in q],
