@@ -8,8 +8,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from estimation import ivp
-from estimation.sapp.hga_pointing import hga_boresight_b, point_hga
-from sim.rover.hga import hga_pointing_truth
+from estimation.sapp.hga_pointing import hga_boresight_b, point_hga, point_hga_many
+from sim.rover.hga import hga_errors_deg, hga_pointing_truth
 from sim.world.mars_frames import earth_ll_truth, elevation_rad
 from sim.world.marsclock import utc_to_t_s
 
@@ -77,3 +77,23 @@ def test_bad_arguments_name_the_parameter() -> None:
         point_hga([0, 0, 0, 1.0], [0.0, 0.0, 0.0])
     with pytest.raises(ValueError, match="q_b_ll_est"):
         point_hga([0, 0, 0, np.nan], [1.0, 0.0, 0.0])
+
+
+def test_many_pointings_at_once_are_the_pointings_one_by_one() -> None:
+    """``point_hga_many`` and ``hga_errors_deg`` (the frames' path) against ``point_hga``
+    and ``hga_pointing_truth``, including Earth below the deck (the gimbal at its stop)."""
+    rng = np.random.default_rng(16)
+    q_est = Rotation.random(300, random_state=3).as_quat()
+    q_true = Rotation.from_rotvec(rng.normal(0.0, 0.02, (300, 3))) * Rotation.from_quat(q_est)
+    earth = rng.normal(size=(300, 3))
+    az, el, boresight_b = point_hga_many(q_est, earth)
+    errors = hga_errors_deg(
+        az, el, q_true.as_quat(), earth / np.linalg.norm(earth, axis=1)[:, None]
+    )
+    for k in range(300):
+        one = point_hga(q_est[k], earth[k])
+        assert (az[k], el[k]) == pytest.approx((one.az_rad, one.el_rad), abs=1e-12)
+        assert np.allclose(boresight_b[k], one.boresight_b, rtol=0.0, atol=1e-12)
+        truth = hga_pointing_truth(one, q_true[k].as_quat(), earth[k] / np.linalg.norm(earth[k]))
+        assert errors[k] == pytest.approx(truth.error_deg, abs=1e-9)
+    assert (el == 0.0).any() and (el > 0.0).any()

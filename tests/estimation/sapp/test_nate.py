@@ -12,7 +12,17 @@ from scipy.spatial.transform import Rotation
 
 from estimation.sapp.aqf import AttitudeQuality as Aqf
 from estimation.sapp.gyro_propagation import propagate_gyro
-from estimation.sapp.nate import DriveCommand, EncoderSample, ImuSample, Nate, NateMode
+from estimation.sapp.nate import (
+    DriveCommand,
+    EncoderSample,
+    EncoderSeries,
+    ImuSample,
+    ImuSeries,
+    Nate,
+    NateMode,
+    NateOutput,
+    NateSeries,
+)
 from estimation.sapp.wheel_odometry import DriveKind, steer_six
 from sim.loop.rover_sim import RoverSim
 from sim.sensors.imu import Ln200Imu, Ln200Params
@@ -293,3 +303,123 @@ def test_refused_commands_leave_the_state_untouched() -> None:
     nate.stop()
     nate.set_params(fine_to_coarse_s=600.0)
     assert nate.params.fine_to_coarse_s == 600.0
+
+
+# ---- a segment's cycles at once (step_series) against cycle by cycle (step) -----------------
+
+
+def _series_and_steps(
+    drive: DriveCommand, make_segment: Callable[[RoverSim], object], use_gyros: bool,
+    reference: bool, invalid: tuple[int, ...] = (), fine_to_coarse_s: float = 900.0,
+) -> tuple[NateSeries, list[NateOutput], Nate, Nate]:  # fmt: skip
+    """Two NATEs in Mobility through one gusev segment: one with ``step_series``, one with
+    ``step`` per cycle (the reference)."""
+    sim = RoverSim("gusev", 4, START)
+    q0 = Rotation.from_quat(sim.q_ll_b()).inv().as_quat()
+    seg = make_segment(sim)
+    wheel = sim.encoders.wheel_angle_rad(seg.encoders.wheel_counts)  # type: ignore[attr-defined]
+    steer = steer_six(seg.encoders.steer_rad)  # type: ignore[attr-defined]
+    imu = seg.imu  # type: ignore[attr-defined]
+    valid = np.ones(len(imu), dtype=bool)
+    valid[list(invalid)] = False
+    nates = []
+    for _ in range(2):
+        nate = Nate(sim.lat_rad, sim.lon_east_rad, sim.t_s)
+        nate.set_params(fine_to_coarse_s=fine_to_coarse_s)
+        nate.load_attitude(q0, Aqf.FINE)
+        nate.mobility(drive, use_gyros=use_gyros, wheel_angle_rad=wheel[0] if reference else None)
+        nates.append(nate)
+    series = nates[0].step_series(
+        ImuSeries(imu.delta_angle_b, imu.delta_velocity_b, imu.dt_s, valid),
+        EncoderSeries(wheel[1:], steer[1:]),
+    )
+    steps = [
+        nates[1].step(
+            ImuSample(imu.delta_angle_b[k], imu.delta_velocity_b[k], float(imu.dt_s[k]), valid[k]),
+            EncoderSample(wheel[k + 1], steer[k + 1]),
+        )
+        for k in range(len(imu))
+    ]
+    return series, steps, nates[0], nates[1]
+
+
+@pytest.mark.parametrize(
+    ("drive", "make_segment", "use_gyros", "reference", "invalid"),
+    [
+        (DriveCommand(DriveKind.STRAIGHT), lambda s: s.drive_straight(4.0), True, True, ()),
+        (DriveCommand(DriveKind.STRAIGHT), lambda s: s.drive_straight(2.0), True, False, (3, 40)),
+        (DriveCommand(DriveKind.ARC, 3.0), lambda s: s.drive_arc(3.0, 0.5), True, True, (7,)),
+        (DriveCommand(DriveKind.ARC, -2.0), lambda s: s.drive_arc(-2.0, 0.4), False, True, ()),
+        (DriveCommand(DriveKind.TURN_IN_PLACE), lambda s: s.turn_in_place(-0.6), False, False, ()),
+        (DriveCommand(DriveKind.TURN_IN_PLACE), lambda s: s.turn_in_place(0.8), True, True, ()),
+    ],
+)
+def test_a_segment_at_once_is_the_segment_cycle_by_cycle(
+    drive: DriveCommand,
+    make_segment: Callable[[RoverSim], object],
+    use_gyros: bool,
+    reference: bool,
+    invalid: tuple[int, ...],
+) -> None:
+    series, steps, at_once, by_cycle = _series_and_steps(
+        drive, make_segment, use_gyros, reference, invalid, fine_to_coarse_s=10.0
+    )
+    assert len(series) == len(steps) > 100
+    for name in ("q_b_ll", "p_s", "t_s", "imu_integration_s", "gyro_counter_s", "tilt_est_deg"):
+        expected = np.array([getattr(o, name) for o in steps])
+        assert np.allclose(getattr(series, name), expected, rtol=0.0, atol=1e-12), name
+    accel = np.array([o.tilt_accel_deg for o in steps])
+    assert np.allclose(series.tilt_accel_deg, accel, rtol=0.0, atol=1e-12, equal_nan=True)
+    assert np.isnan(series.tilt_accel_deg[list(invalid)]).all()
+    # the flag drops from Fine to Coarse at the same cycle (10 s of gyro counter here)
+    assert series.aqf == [o.aqf for o in steps] and Aqf.COARSE in series.aqf
+    assert series.mode == [o.mode for o in steps] and series.events == [o.events for o in steps]
+    last = series.output(len(steps) - 1)
+    assert np.allclose(last.p_s, steps[-1].p_s, rtol=0.0, atol=1e-12)
+    assert (last.aqf, last.mode, last.site_index, last.events) == (
+        steps[-1].aqf, steps[-1].mode, steps[-1].site_index, steps[-1].events,
+    )  # fmt: skip
+    # and NATE's state after it is the same
+    state_a, state_b = at_once.state(), by_cycle.state()
+    for key in ("q_b_ll", "p_s", "last_wheel_rad"):
+        assert np.allclose(state_a[key], state_b[key], rtol=0.0, atol=1e-12), key
+    for key in ("t_s", "gyro_counter_s", "imu_integration_s"):
+        assert state_a[key] == pytest.approx(state_b[key], abs=1e-9), key
+    assert state_a["aqf"] == state_b["aqf"] and state_a["mode"] == state_b["mode"]
+
+
+def test_step_series_outside_mobility_is_step_cycle_by_cycle() -> None:
+    """Articulate (and any 8 Hz mode) runs ``step`` per cycle inside ``step_series``."""
+    samples = _static(40, seed=3)
+    a, b = Nate(LAT, LON, T0), Nate(LAT, LON, T0)
+    for nate in (a, b):
+        nate.load_attitude(np.array([0.0, 0.0, 0.0, 1.0]), Aqf.COARSE)
+        nate.articulate()
+    series = a.step_series(
+        ImuSeries(
+            [s.delta_angle_b for s in samples],
+            [s.delta_velocity_b for s in samples],
+            [s.dt_s for s in samples],
+        )
+    )
+    steps = [b.step(s) for s in samples]
+    assert np.array_equal(series.q_b_ll, [o.q_b_ll for o in steps])
+    assert np.array_equal(series.t_s, [o.t_s for o in steps])
+    assert series.aqf == [o.aqf for o in steps] and series.events == [o.events for o in steps]
+    assert series.mode == [NateMode.ARTICULATE] * len(samples)
+
+
+@pytest.mark.parametrize(
+    ("imu", "message"),
+    [
+        (lambda: ImuSeries(np.full((3, 3), np.nan), np.zeros((3, 3)), np.full(3, 0.125)), "finite"),
+        (lambda: ImuSeries(np.zeros((3, 2)), np.zeros((3, 3)), np.full(3, 0.125)), "shape"),
+        (lambda: ImuSeries(np.zeros((3, 3)), np.zeros((2, 3)), np.full(3, 0.125)), "as many"),
+        (lambda: ImuSeries(np.zeros((3, 3)), np.zeros((3, 3)), [0.125, 0.0, 0.125]), "dt_s"),
+        (lambda: EncoderSeries(np.zeros((3, 6)), np.zeros((2, 6))), "as many"),
+        (lambda: EncoderSeries([[np.inf] * 6], [[0.0] * 6]), "finite"),
+    ],
+)
+def test_a_series_is_checked_once_at_the_boundary(imu: Callable[[], object], message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        imu()

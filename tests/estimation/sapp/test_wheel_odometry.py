@@ -266,3 +266,25 @@ def test_classification_and_centre() -> None:
 def test_bad_input_raises_value_error_naming_the_parameter(call: object, name: str) -> None:
     with pytest.raises(ValueError, match=f"^{name}:"):
         call()  # type: ignore[operator]
+
+
+@pytest.mark.parametrize(
+    ("kind", "radius_m"),
+    [
+        (DriveKind.STRAIGHT, 0.0),
+        (DriveKind.ARC, 2.5),
+        (DriveKind.ARC, -1.2),
+        (DriveKind.TURN_IN_PLACE, 0.0),
+    ],
+)
+def test_many_cycles_at_once_are_the_cycles_one_by_one(kind: DriveKind, radius_m: float) -> None:
+    rng = np.random.default_rng(16)
+    rotation = rng.normal(0.02, 0.01, (200, 6))
+    steer = wo.steer_six(rng.uniform(-0.8, 0.8, (200, 4)))  # rows at once, as steer_six does one
+    centre = wo.arc_centre_b(radius_m) if kind is DriveKind.ARC else None
+    dp_b, heading = wo.odometry_deltas(kind, rotation, steer, centre)
+    for k in range(200):
+        one = wo.odometry_step(kind, rotation[k], steer[k], centre)
+        assert np.allclose(dp_b[k], one.delta_p_b, rtol=0.0, atol=1e-15)
+        assert heading[k] == pytest.approx(one.delta_heading_rad, abs=1e-15)
+    assert np.array_equal(steer[7], wo.steer_six(steer[7][[0, 2, 3, 5]]))
