@@ -26,6 +26,10 @@ from sim.rover.truth import CONTROL_DT_S
 from sim.world.marsclock import SOL_S, lmst_h_from_t_s, sol_number_t_s, t_s_to_utc
 
 DEG_PER_H_PER_RAD_S = math.degrees(1.0) * 3600.0
+# A scenario with SAPP in the loop is read from its summary (the last frame and the
+# commands' events), so it keeps a frame a minute of 8 Hz activity; frames with events or
+# a mode change are kept whatever the rate (sim.loop.frames).
+SUMMARY_FRAME_EVERY_S = 60.0
 
 
 @dataclass(frozen=True)
@@ -205,6 +209,7 @@ def _run_sapp(
         scenario.start_utc,
         commands,
         estimators=estimators,
+        frame_every_s=SUMMARY_FRAME_EVERY_S,
     )
     base = summarize(scenario, distance_m, seed, session.sim, reports[0].start_t_s, wall_s)
     last = session.frames[-1]
