@@ -50,7 +50,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.signal import lfilter
 
 from estimation.mars_constants import MARS_GRAVITY_M_S2
-from estimation.quaternion import quat_multiply
+from estimation.quaternion import quat_multiply, quat_rotate
 from sim.errors import InputError
 
 FloatArray = NDArray[np.float64]
@@ -210,7 +210,7 @@ class Ln200Imu:
         q_mars = np.concatenate([half * sinc, np.cos(h)[None, :]], axis=0)
         dq = _qmul(_qmul(q_start_inv, q_mars), qt[:, 1:])
         true_angle_b = _rotvec(dq).T
-        true_dv_b = _rotate(q_start_inv, ((a - g[None, :]) * dt[:, None]).T).T
+        true_dv_b = quat_rotate(q_start_inv.T, (a - g[None, :]) * dt[:, None])
 
         angle_b, dv_b = self._add_errors(dt, true_angle_b, true_dv_b)
         self._t_s = float(t[-1])
@@ -236,8 +236,8 @@ class Ln200Imu:
         g = _vector3(gravity_ll, "gravity_ll")
         q_b_ll = q.T * np.array([[-1.0], [-1.0], [-1.0], [1.0]])
         dt = np.array([float(dt_s)])
-        true_angle_b = _rotate(q_b_ll, omega[:, None] * dt_s).T
-        true_dv_b = _rotate(q_b_ll, -g[:, None] * dt_s).T
+        true_angle_b = quat_rotate(q_b_ll.T, omega[None, :] * dt_s)
+        true_dv_b = quat_rotate(q_b_ll.T, -g[None, :] * dt_s)
         angle_b, dv_b = self._add_errors(dt, true_angle_b, true_dv_b)
         self._t_s += float(dt_s)
         return ImuSamples(np.array([self._t_s]), dt, angle_b, dv_b)
@@ -372,23 +372,6 @@ def _qmul(p: FloatArray, q: FloatArray) -> FloatArray:
     """Hamilton products ``p (x) q`` of scalar-last quaternions stored as rows (4, N)."""
     out: FloatArray = quat_multiply(p.T, q.T).T
     return out
-
-
-def _rotate(q: FloatArray, v: FloatArray) -> FloatArray:
-    """``R(q) v`` for unit quaternions (4, N) and vectors (3, N), as rows (3, N)."""
-    x, y, z, w = q
-    vx, vy, vz = v
-    # t = 2 q_v x v;  v' = v + w t + q_v x t
-    tx = 2.0 * (y * vz - z * vy)
-    ty = 2.0 * (z * vx - x * vz)
-    tz = 2.0 * (x * vy - y * vx)
-    return np.stack(
-        [
-            vx + w * tx + (y * tz - z * ty),
-            vy + w * ty + (z * tx - x * tz),
-            vz + w * tz + (x * ty - y * tx),
-        ]
-    )
 
 
 def _rotvec(q: FloatArray) -> FloatArray:
