@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 
 from estimation.quaternion import (
     Quat,
+    Vec3,
     q_canonical,
     q_from_rotvec,
     q_multiply,
@@ -129,3 +130,18 @@ def tilts_from_accelerometers_deg(imu: ImuSeries) -> FloatArray:
     out = np.full(len(imu), math.nan)
     out[usable] = np.degrees(np.arctan2(np.hypot(u[:, 0], u[:, 1]), -u[:, 2]))
     return out
+
+
+def cycle_tilts_deg(
+    q_b_ll: Quat, delta_velocity_b: Vec3, dt_s: float, valid: bool
+) -> tuple[float, float]:
+    """The two tilts of one cycle on plain floats, ``(tilt_est_deg, tilt_accel_deg)``: those
+    of ``tilt_of_estimates_deg`` and ``tilts_from_accelerometers_deg``, for ``Nate.step``."""
+    x, y, _, _ = q_normalised(q_b_ll)
+    tilt_est_deg = math.degrees(2.0 * math.asin(min(1.0, math.sqrt(x * x + y * y))))
+    f_x, f_y, f_z = delta_velocity_b
+    norm = math.sqrt(f_x * f_x + f_y * f_y + f_z * f_z)
+    if not (valid and math.isfinite(norm) and norm > 0.0):
+        return tilt_est_deg, math.nan
+    u_x, u_y, u_z = f_x / norm, f_y / norm, f_z / norm  # dt cancels from the direction
+    return tilt_est_deg, math.degrees(math.atan2(math.hypot(u_x, u_y), -u_z))

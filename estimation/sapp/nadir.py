@@ -72,7 +72,7 @@ from scipy.spatial.transform import Rotation
 
 from estimation.checks import angle_between_rad, unit_quaternion, unit_vector
 from estimation.mars_constants import MARS_GRAVITY_M_S2
-from estimation.quaternion import quat_canonical, quat_from_rotvec, quat_multiply
+from estimation.quaternion import Vec3, quat_canonical, quat_from_rotvec, quat_multiply
 from estimation.sapp.aqf import AttitudeQuality
 from estimation.state import load_params, params_state
 
@@ -197,6 +197,26 @@ class AccelAverager:
         self._n_rejected += n_take - int(np.count_nonzero(ok))
         self._elapsed_s += float(dt_time.sum())
         return n_take
+
+    def add_sample(self, delta_velocity_b: Vec3, dt_s: float, valid: bool) -> bool:
+        """``add`` for one sample on plain floats (``dt_s`` positive and finite, checked by
+        the caller): NATE's 8 Hz cycle. Returns whether it was consumed."""
+        before_s = (self._elapsed_s + dt_s) - dt_s  # as add's running sum computes it
+        if not before_s < self._p.window_s * (1.0 - _WINDOW_REL_TOL):
+            return False
+        x, y, z = delta_velocity_b
+        ok = valid and math.isfinite(x) and math.isfinite(y) and math.isfinite(z)
+        if ok:  # |f_b| = |dv_b| / dt within the gate of gravity
+            f_norm = math.sqrt(x * x + y * y + z * z) / dt_s
+            ok = abs(f_norm - self._p.gravity_m_s2) <= self._p.sample_gate_m_s2
+        if ok:
+            self._sum_dv_b += (x, y, z)
+            self._sum_dt_s += dt_s
+            self._n_valid += 1
+        else:
+            self._n_rejected += 1
+        self._elapsed_s += dt_s
+        return True
 
     def average(self) -> AccelAverage:
         """The average so far: ``f_b = sum(dv_b) / sum(dt)`` over the valid samples."""

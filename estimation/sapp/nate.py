@@ -115,10 +115,9 @@ from estimation.ivp import earth_ll
 from estimation.quaternion import quat_canonical
 from estimation.sapp.aqf import AttitudeQuality
 from estimation.sapp.hga_pointing import HgaCommand, point_hga
+from estimation.sapp.mobility import cycle_tilts_deg
 from estimation.sapp.nadir import (
     AccelAverager,
-    tilt_from_specific_force_rad,
-    tilt_of_estimate_rad,
 )
 from estimation.sapp.nate_io import (
     CONTROL_DT_S,
@@ -561,12 +560,12 @@ class Nate(NateProcedures):
         if completed is not None:
             self._after_primitive(completed)
 
-        tilt_accel = math.nan
-        if valid and np.all(np.isfinite(dv_b)) and float(np.linalg.norm(dv_b)) > 0.0:
-            tilt_accel = math.degrees(tilt_from_specific_force_rad(dv_b / dt))
+        x, y, z, w = self._q_b_ll.tolist()
+        f_x, f_y, f_z = dv_b.tolist()
+        tilt_est, tilt_accel = cycle_tilts_deg((x, y, z, w), (f_x, f_y, f_z), dt, valid)
         return NateOutput(
             q_b_ll=self._q_b_ll.copy(),
-            tilt_est_deg=math.degrees(tilt_of_estimate_rad(self._q_b_ll)),
+            tilt_est_deg=tilt_est,
             tilt_accel_deg=tilt_accel,
             p_s=self._p_s.copy(),
             site_index=self._sites.current.index,

@@ -318,7 +318,8 @@ class NateProcedures:
     ) -> NadirUpdateResult | NadirCheckResult | None:
         averager = self._averager
         assert averager is not None
-        averager.add(dv_b, dt, valid)
+        x, y, z = dv_b.tolist()
+        averager.add_sample((x, y, z), dt, valid)
         if not averager.full:
             return None
         average = averager.average()
@@ -350,7 +351,8 @@ class NateProcedures:
     def _sungaze_gravity_window(self, dv_b: FloatArray, dt: float, valid: bool) -> None:
         averager = self._averager
         assert averager is not None
-        averager.add(dv_b, dt, valid)
+        x, y, z = dv_b.tolist()
+        averager.add_sample((x, y, z), dt, valid)
         if not averager.full:
             return
         average = averager.average()
@@ -514,7 +516,8 @@ class NateProcedures:
     def _articulate_tilt(self, dv_b: FloatArray, dt: float, valid: bool) -> None:
         averager = self._averager
         assert averager is not None
-        averager.add(dv_b, dt, valid)
+        x, y, z = dv_b.tolist()
+        averager.add_sample((x, y, z), dt, valid)
         if not averager.full:
             return
         average = averager.average()

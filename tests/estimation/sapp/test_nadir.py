@@ -304,3 +304,25 @@ def test_bad_arguments_name_the_parameter() -> None:
         AccelAverager().add(np.zeros((5, 3)), np.ones(5), np.ones(5))
     with pytest.raises(ValueError, match="f_b_m_s2"):
         tilt_from_specific_force_rad([0.0, 0.0, 0.0])
+
+
+def test_a_sample_at_a_time_is_add_sample_by_sample() -> None:
+    """``add_sample`` (NATE's 8 Hz cycle, plain floats) consumes, gates and sums exactly as
+    ``add`` does, to the window's end: valid, flagged, non-finite and out-of-gate samples."""
+    rng = np.random.default_rng(16)
+    n = 120  # past the 10 s window, so the last samples are left unconsumed
+    dv = np.tile([0.0, 0.0, -3.711 * 0.125], (n, 1)) + rng.normal(0.0, 0.002, (n, 3))
+    dv[5] = np.nan
+    dv[9] *= 3.0  # far out of the gate
+    dt = rng.uniform(0.12, 0.13, n)
+    valid = rng.uniform(size=n) > 0.1
+    one, many = AccelAverager(), AccelAverager()
+    consumed = [
+        one.add_sample(tuple(dv[k].tolist()), float(dt[k]), bool(valid[k])) for k in range(n)
+    ]
+    taken = [many.add(dv[k], dt[k], np.array([valid[k]])) for k in range(n)]
+    assert consumed == [bool(t) for t in taken] and not all(consumed)
+    state_one, state_many = one.state(), many.state()
+    assert np.array_equal(state_one.pop("sum_dv_b"), state_many.pop("sum_dv_b"))
+    assert state_one == state_many  # bit for bit: the sums, counts and time covered
+    assert one.average().n_rejected >= 2
