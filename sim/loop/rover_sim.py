@@ -22,7 +22,7 @@ import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, fields
 from datetime import datetime
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 from numpy.typing import NDArray
@@ -72,6 +72,18 @@ class RunningTotals:
     unsettled_poses: int = 0
 
 
+class Placement(TypedDict, total=False):
+    """``RoverSim``'s keyword arguments after the site, seed and start (their defaults are
+    ``RoverSim``'s): what a ``RoverSession`` passes on without restating them."""
+
+    imu_params: Ln200Params | None
+    slip: bool
+    yaw_rad: float
+    x_m: float
+    y_m: float
+    mast_bias_sigma_deg: float
+
+
 class RoverSim:
     """A rover at a named site, from a UTC start, reproducible from ``seed``.
 
@@ -91,6 +103,7 @@ class RoverSim:
         mast_bias_sigma_deg: float = 0.05,
     ) -> None:
         self.site: Site = site(site_name)
+        self.start_xy_m = (x_m, y_m)  # where the rover was placed (the radio EKF starts there)
         self.terrain = make_terrain(site_name, seed)
         self.lat_rad = math.radians(self.site.lat_deg)
         self.lon_east_rad = math.radians(self.site.lon_east_deg)

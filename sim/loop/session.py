@@ -24,7 +24,7 @@ import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime
-from typing import Any
+from typing import Any, Unpack
 
 import numpy as np
 from numpy.typing import NDArray
@@ -38,11 +38,10 @@ from sim.errors import InputError
 from sim.loop.context import CommandRefusedError, LoopContext
 from sim.loop.frames import FrameRecorder
 from sim.loop.handlers import HANDLERS
-from sim.loop.rover_sim import RoverSim
+from sim.loop.rover_sim import Placement, RoverSim
 from sim.loop.side.estimators import SideEstimators
 from sim.loop.telemetry import TelemetryFrame
 from sim.loop.vo_drive import VO_RIG, VoDriveOptions
-from sim.sensors.imu import Ln200Params
 
 FloatArray = NDArray[np.float64]
 VoFactory = Callable[[RoverSim], VisualOdometry]
@@ -69,10 +68,10 @@ def flight_vo(sim: RoverSim) -> VisualOdometry:
 
 
 class RoverSession:
-    """A rover at a site with SAPP in the loop. Arguments as ``RoverSim`` (the rover's
-    placement, IMU and slip) plus NATE's parameters, and ``frame_every_s``: keep one
-    telemetry frame per that many seconds of 8 Hz data (0: every cycle; frames with events
-    or a mode change are always kept); ``vo_options``: the step limits and imaging of
+    """A rover at a site with SAPP in the loop. Arguments as ``RoverSim`` (the site, seed and
+    start, and as keywords the rover's placement, IMU and slip: ``Placement``) plus NATE's
+    parameters, and ``frame_every_s``: keep one telemetry frame per that many seconds of
+    8 Hz data (0: every cycle; frames with events or a mode change are always kept); ``vo_options``: the step limits and imaging of
     ``vo=on`` drives (``sim.loop.vo_drive.VoDriveOptions``; MER's by default);
     ``visual_odometry``: makes the VO of those drives from the simulator (a benchmark's
     wrapper that records each step; it must image through ``VO_RIG``); ``estimators``:
@@ -84,38 +83,23 @@ class RoverSession:
         seed: int,
         start_utc: datetime,
         *,
-        imu_params: Ln200Params | None = None,
-        slip: bool = True,
-        yaw_rad: float = 0.0,
-        x_m: float = 0.0,
-        y_m: float = 0.0,
-        mast_bias_sigma_deg: float = 0.05,
         nate_params: NateParams | None = None,
         frame_every_s: float = 0.0,
         vo_options: VoDriveOptions | None = None,
         visual_odometry: VoFactory = flight_vo,
         estimators: Sequence[str] = ("sapp",),
+        **placement: Unpack[Placement],
     ) -> None:
         if not (math.isfinite(frame_every_s) and frame_every_s >= 0.0):
             raise InputError("frame_every_s", "must be finite and non-negative")
         if vo_options is not None and not isinstance(vo_options, VoDriveOptions):
             raise InputError("vo_options", f"must be a VoDriveOptions, got {vo_options!r}")
-        sim = RoverSim(
-            site_name,
-            seed,
-            start_utc,
-            imu_params=imu_params,
-            slip=slip,
-            yaw_rad=yaw_rad,
-            x_m=x_m,
-            y_m=y_m,
-            mast_bias_sigma_deg=mast_bias_sigma_deg,
-        )
+        sim = RoverSim(site_name, seed, start_utc, **placement)
         vo = visual_odometry(sim)
         if not isinstance(vo, VisualOdometry) or vo.rig != VO_RIG:
             raise InputError("visual_odometry", "must make a VisualOdometry on VO_RIG")
         nate = Nate(sim.lat_rad, sim.lon_east_rad, sim.t_s, nate_params)
-        side = SideEstimators(sim, seed, x_m, y_m, estimators)
+        side = SideEstimators(sim, seed, *sim.start_xy_m, estimators)
         self.loop = LoopContext(
             sim=sim,
             nate=nate,
