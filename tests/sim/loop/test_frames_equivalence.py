@@ -2,7 +2,7 @@
 
 Issue 16 rewrote the per-cycle path (NATE's step, gyro and odometry propagation, the frames
 built over a segment in arrays) without changing what it computes. The reference,
-``data/frames_before_fast_loop.json.gz``, holds every frame (``TelemetryFrame.as_dict``) of
+``frames_before_fast_loop.json.gz`` (beside it), holds every frame (``TelemetryFrame.as_dict``) of
 the session below as the loop of commit 7a9fe57 made it, with the server's frame rate: a
 Fine attitude loaded from the truth, a straight drive, a turn in place, an arc, Articulate
 and an HGA pass, with both side estimators. It was written by running this module with
@@ -24,7 +24,7 @@ from estimation.sapp.aqf import AttitudeQuality
 from sequences import commands as cmd
 from sim.loop.session import RoverSession
 
-REFERENCE = Path(__file__).parent / "data" / "frames_before_fast_loop.json.gz"
+REFERENCE = Path(__file__).parent / "frames_before_fast_loop.json.gz"
 TOLERANCE = 1e-6
 
 
