@@ -24,6 +24,7 @@ The wheel order everywhere is ``WHEEL_NAMES`` of ``sim.rover.truth``: LF, LM, LR
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, fields
 
@@ -96,6 +97,13 @@ class RoverGeometry:
         half = 0.5 * self.track_m
         return np.array([[x, -half] for x in xs] + [[x, half] for x in xs])
 
+    def plane_fit_b(self) -> FloatArray:
+        """The least-squares plane through heights under the six wheels: this (3, 6) matrix
+        times the heights gives ``(h0, dh/dx, dh/dy)`` in the heading frame (the
+        pseudo-inverse of ``[1, x, y]`` at ``wheel_xy_b``). Computed once per geometry
+        (the drive asks for it at every step); read-only."""
+        return _plane_fit_b(self)
+
     def _offsets(self) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
         """Link vectors in (x, z): pivot P, front-P, bogie pivot-P, middle-B, rear-B."""
         p = np.array([self.rocker_pivot_x_m, self.rocker_pivot_z_m])
@@ -105,6 +113,13 @@ class RoverGeometry:
         middle = np.array([self.x_middle_m, zc]) - b
         rear = np.array([self.x_rear_m, zc]) - b
         return p, front, b - p, middle, rear
+
+
+@functools.lru_cache(maxsize=8)
+def _plane_fit_b(geometry: RoverGeometry) -> FloatArray:
+    out: FloatArray = np.linalg.pinv(np.column_stack([np.ones(6), geometry.wheel_xy_b()]))
+    out.flags.writeable = False
+    return out
 
 
 def _rot_xz(angle: FloatArray, v: FloatArray) -> tuple[FloatArray, FloatArray]:

@@ -195,7 +195,7 @@ def _initial_guess(
     h = terrain.height_m(
         x[:, None] + cp * wxy[:, 0] - sp * wxy[:, 1], y[:, None] + sp * wxy[:, 0] + cp * wxy[:, 1]
     )
-    h0, alpha, beta = np.linalg.pinv(np.column_stack([np.ones(6), wxy])) @ h.T
+    h0, alpha, beta = geometry.plane_fit_b() @ h.T
     norm = np.sqrt(1.0 + alpha**2 + beta**2)
     height = geometry.wheel_centre_z_m + np.mean(r_eff, axis=-1)
     zero = np.zeros_like(x)

@@ -33,12 +33,14 @@ are elevations (up); a surface point is ``(x, y, -h)`` in the Site frame.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from sim.rover.geometry import RoverGeometry, WheelKinematics, wheel_kinematics
+from sim.world.heightmap import kernel
 from sim.world.terrain import Terrain
 
 FloatArray = NDArray[np.float64]
@@ -58,6 +60,7 @@ CHECK_OFFSETS_RAD = np.deg2rad(np.concatenate([-np.array(_CHECK_DEG[::-1]), _CHE
 CHECK_NEAR_RAD = float(np.deg2rad(2.5))
 CHECK_SLACK_M = 3e-4  # a rim check counts a point this much below tol_m (see deeper)
 REFINE_SAMPLES = 9  # resampling across a suspect minimum of the rim check
+_CHECK_OWN = np.abs(CHECK_OFFSETS_RAD) < 1.5 * CHECK_NEAR_RAD  # next to the contact: its basin
 
 
 def unit_normal(hx: FloatArray, hy: FloatArray) -> FloatArray:
@@ -147,21 +150,56 @@ def _rim(
     Returns ``(f, df, point, normal)``: the vertical clearance ``f`` (m) of the rim point
     over the terrain, ``df/dθ`` (m/rad), the point (m, 6, K, 3) and the upward unit normal
     there; with ``slope=False`` only ``f`` (one height query, the others empty).
-    Component arrays rather than (..., 3) stacks: this is the solver's hot loop.
+    The rim points (and their derivatives) come from one compiled pass (``_rim_points``):
+    this is the solver's hot loop, and the rim check asks for 36 angles per wheel.
     """
-    c, s = np.cos(theta), np.sin(theta)
-    pos, der = [], []
-    for i in range(3):
-        lo = (w.r * w.e_low[..., i])[..., None]
-        fw = (w.r * w.e_fwd[..., i])[..., None]
-        pos.append(w.centre[..., i, None] + lo * c + fw * s)
-        der.append(fw * c - lo * s)
+    pos = np.empty((3, *theta.shape))
+    der = np.empty((3, *theta.shape)) if slope else np.empty((3, 0, 0, 0))
+    _rim_points(
+        np.ascontiguousarray(w.centre),
+        np.ascontiguousarray(w.e_low),
+        np.ascontiguousarray(w.e_fwd),
+        np.ascontiguousarray(w.r),
+        np.ascontiguousarray(theta),
+        pos,
+        der,
+    )
     if not slope:
         empty = np.empty(0)
         return -pos[2] - terrain.height_m(pos[0], pos[1]), empty, empty, empty
     h, hx, hy = height_and_gradient(terrain, pos[0], pos[1])
     df = -der[2] - hx * der[0] - hy * der[1]
     return -pos[2] - h, df, np.stack(pos, axis=-1), unit_normal(hx, hy)
+
+
+@kernel
+def _rim_points(
+    centre: FloatArray,
+    e_low: FloatArray,
+    e_fwd: FloatArray,
+    r: FloatArray,
+    theta: FloatArray,
+    pos: FloatArray,
+    der: FloatArray,
+) -> None:
+    """Rim points ``c + r (e_low cos θ + e_fwd sin θ)`` at the angles ``theta`` (m, 6, K)
+    into ``pos`` (3, m, 6, K), and their derivatives in ``θ`` into ``der`` if it is not
+    empty; ``centre``, ``e_low``, ``e_fwd`` (m, 6, 3), ``r`` (m, 6)."""
+    slope = der.size > 0
+    lo = np.empty(3)
+    fw = np.empty(3)
+    for a in range(theta.shape[0]):
+        for b in range(theta.shape[1]):
+            for i in range(3):
+                lo[i] = r[a, b] * e_low[a, b, i]
+                fw[i] = r[a, b] * e_fwd[a, b, i]
+            for k in range(theta.shape[2]):
+                c = math.cos(theta[a, b, k])
+                s = math.sin(theta[a, b, k])
+                for i in range(3):
+                    pos[i, a, b, k] = centre[a, b, i] + lo[i] * c + fw[i] * s
+                    if slope:
+                        der[i, a, b, k] = fw[i] * c - lo[i] * s
 
 
 def _tangent_meet(
@@ -272,22 +310,11 @@ def deeper(
     angles = np.clip(theta[..., None] + CHECK_OFFSETS_RAD, -SCAN_HALF_RAD, SCAN_HALF_RAD)
     f = _rim(terrain, w, angles, slope=False)[0]
     limit = clearance - margin_m
-    j = np.argmin(f, axis=-1)
-    best = np.take_along_axis(f, j[..., None], -1)[..., 0]
-    centre = np.take_along_axis(angles, j[..., None], -1)[..., 0]
+    best, centre = np.empty(limit.shape), np.empty(limit.shape)
+    k, bound = np.empty(limit.shape, dtype=np.int64), np.empty(limit.shape)
+    _scan_rim(f, angles, _CHECK_OWN, best, centre, k, bound)
     half = np.full(best.shape, CHECK_NEAR_RAD)
-    rise_l = np.full(f.shape, np.inf)
-    rise_r = np.full(f.shape, np.inf)
-    rise_l[..., 1:] = f[..., :-1] - f[..., 1:]
-    rise_r[..., :-1] = f[..., 1:] - f[..., :-1]
-    local_min = (rise_l >= 0.0) & (rise_r >= 0.0)
-    rise = np.maximum(
-        np.where(np.isinf(rise_l), rise_r, rise_l), np.where(np.isinf(rise_r), rise_l, rise_r)
-    )
-    own = np.abs(CHECK_OFFSETS_RAD) < 1.5 * CHECK_NEAR_RAD  # next to the contact: its basin
-    bound = np.where(local_min & ~own, f - rise, np.inf)
-    k = np.argmin(bound, axis=-1)
-    suspect = (np.take_along_axis(bound, k[..., None], -1)[..., 0] < limit) & (best >= limit)
+    suspect = (bound < limit) & (best >= limit)
     rows, cols = np.nonzero(suspect)
     if rows.size:
         n = np.arange(rows.size)
@@ -306,3 +333,54 @@ def deeper(
         half[r, c] = ((t_hi - t_lo) / (REFINE_SAMPLES - 1))[better]
     half = np.minimum(half, 0.5 * np.abs(centre - theta))
     return best < limit, centre - half, centre + half
+
+
+@kernel
+def _argmin(row: FloatArray) -> int:
+    """``np.argmin`` of a 1-D array: the first minimum, or the first NaN if there is one."""
+    j = 0
+    for i in range(row.size):
+        if math.isnan(row[i]):
+            return i
+        if row[i] < row[j]:
+            j = i
+    return j
+
+
+@kernel
+def _scan_rim(
+    f: FloatArray,
+    angles: FloatArray,
+    own: BoolArray,
+    best: FloatArray,
+    centre: FloatArray,
+    k_bound: IntArray,
+    bound_min: FloatArray,
+) -> None:
+    """The rim check's scan of the clearances ``f`` (m, 6, K) sampled at ``angles``, one
+    pass per wheel: the lowest sample (``best``, at ``centre``), and the sampled local
+    minimum (not ``own``, the contact's basin) whose rise to its neighbours bounds the
+    rim lowest between them, ``f - rise`` (its index ``k_bound``, the bound ``bound_min``;
+    ``inf`` where there is none)."""
+    n = f.shape[2]
+    bound = np.empty(n)
+    for a in range(f.shape[0]):
+        for b in range(f.shape[1]):
+            row = f[a, b]
+            j = _argmin(row)
+            best[a, b] = row[j]
+            centre[a, b] = angles[a, b, j]
+            for i in range(n):
+                rise_l = row[i - 1] - row[i] if i > 0 else np.inf
+                rise_r = row[i + 1] - row[i] if i < n - 1 else np.inf
+                left = rise_r if math.isinf(rise_l) else rise_l
+                right = rise_l if math.isinf(rise_r) else rise_r
+                # np.maximum: NaN if either is
+                rise = left if math.isnan(left) or left >= right else right
+                if rise_l >= 0.0 and rise_r >= 0.0 and not own[i]:
+                    bound[i] = row[i] - rise
+                else:
+                    bound[i] = np.inf
+            kb = _argmin(bound)
+            k_bound[a, b] = kb
+            bound_min[a, b] = bound[kb]
