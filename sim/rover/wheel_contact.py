@@ -169,7 +169,7 @@ def _rim(
         return -pos[2] - terrain.height_m(pos[0], pos[1]), empty, empty, empty
     h, hx, hy = height_and_gradient(terrain, pos[0], pos[1])
     df = -der[2] - hx * der[0] - hy * der[1]
-    return -pos[2] - h, df, np.stack(pos, axis=-1), unit_normal(hx, hy)
+    return -pos[2] - h, df, np.stack(tuple(pos), axis=-1), unit_normal(hx, hy)
 
 
 @kernel
