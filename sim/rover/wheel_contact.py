@@ -202,14 +202,29 @@ def _rim_points(
                         der[i, a, b, k] = fw[i] * c - lo[i] * s
 
 
+@kernel
+def _clip(x: float, low: float, high: float) -> float:
+    """``np.clip`` of one float, NaN included: ``min(max(x, low), high)``."""
+    y = x if math.isnan(x) or x > low else low
+    return y if math.isnan(y) or y < high else high
+
+
+@kernel
+def _minimum(a: float, b: float) -> float:
+    """``np.minimum`` of two floats (NaN if either is)."""
+    return a if math.isnan(a) or a <= b else b
+
+
+@kernel
+def _maximum(a: float, b: float) -> float:
+    """``np.maximum`` of two floats (NaN if either is)."""
+    return a if math.isnan(a) or a >= b else b
+
+
+@kernel
 def _tangent_meet(
-    t0: FloatArray,
-    f0: FloatArray,
-    d0: FloatArray,
-    t1: FloatArray,
-    f1: FloatArray,
-    d1: FloatArray,
-) -> tuple[FloatArray, FloatArray, BoolArray]:
+    t0: float, f0: float, d0: float, t1: float, f1: float, d1: float
+) -> tuple[float, float, bool]:
     """Where the tangents at ``t0`` (falling) and ``t1`` (rising) meet: (angle, value, ok).
 
     ``ok`` where the ends look convex (each tangent passes below the other end): then the
@@ -217,18 +232,16 @@ def _tangent_meet(
     in a kink, and the angle lies in ``[t0, t1]``.
     """
     den = d0 - d1
-    t = (f1 - f0 + d0 * t0 - d1 * t1) / np.where(den < 0.0, den, -1.0)
+    t = (f1 - f0 + d0 * t0 - d1 * t1) / (den if den < 0.0 else -1.0)
     ok = (d0 <= 0.0) & (d1 >= 0.0) & (f1 + d1 * (t0 - t1) <= f0) & (f0 + d0 * (t1 - t0) <= f1)
-    return np.clip(t, t0, t1), f0 + d0 * (t - t0), ok
+    return _clip(t, t0, t1), f0 + d0 * (t - t0), ok
 
 
-def _holds_minimum(f0: FloatArray, d0: FloatArray, f1: FloatArray, d1: FloatArray) -> BoolArray:
+@kernel
+def _holds_minimum(f0: float, d0: float, f1: float, d1: float) -> bool:
     """Whether an interval must hold a local minimum, from the clearance at its ends: it
     falls from the left end and rises into or ends higher at the right one, or mirrored."""
-    out: BoolArray = ((d0 <= 0.0) & ((d1 > 0.0) | (f1 > f0))) | (
-        (d1 >= 0.0) & ((d0 < 0.0) | (f0 > f1))
-    )
-    return out
+    return ((d0 <= 0.0) & ((d1 > 0.0) | (f1 > f0))) | ((d1 >= 0.0) & ((d0 < 0.0) | (f0 > f1)))
 
 
 @dataclass(frozen=True)
@@ -251,50 +264,107 @@ def contact(terrain: Terrain, w: Wheels, lo: FloatArray, hi: FloatArray) -> _Con
     A bracket holding a minimum (``_holds_minimum``) is split at a trial: where the end
     tangents meet if the ends look convex, else the middle; the half that still holds a
     minimum and has the lowest point is kept. A bracket that lost the minimum (the pose
-    moved) steps downhill by twice its width and is checked again next time.
+    moved) steps downhill by twice its width and is checked again next time. The logic
+    per wheel runs in two compiled passes (``_trial_angles``, ``_split``) round the two
+    clearance queries.
     """
+    lo, hi = np.ascontiguousarray(lo), np.ascontiguousarray(hi)
     f, df, pts, nrm = _rim(terrain, w, np.stack([lo, hi], axis=-1))
-    f0, f1, d0, d1 = f[..., 0], f[..., 1], df[..., 0], df[..., 1]
-    valid = _holds_minimum(f0, d0, f1, d1)
-    left = ~valid & (f0 <= f1)  # downhill lies below lo (else above hi)
-    step = np.clip(2.0 * (hi - lo), MIN_STEP_RAD, MAX_STEP_BRACKET_RAD)
-    t_meet, _, convex = _tangent_meet(lo, f0, d0, hi, f1, d1)
-    # Off the ends: at a kink the tangents meet exactly at the end already found, and a
-    # sample just past it closes the bracket.
-    nudge = np.minimum(0.25 * (hi - lo), NUDGE_RAD)
-    t_meet = np.clip(np.where(convex, t_meet, 0.5 * (lo + hi)), lo + nudge, hi - nudge)
-    trial = np.where(valid, t_meet, np.where(left, lo - step, hi + step))
-    trial = np.clip(trial, -SCAN_HALF_RAD, SCAN_HALF_RAD)
-    ft, dt, pt, nt = (
-        a[..., 0, :] if a.ndim == 4 else a[..., 0] for a in _rim(terrain, w, trial[..., None])
-    )
+    trial = np.empty(lo.shape)
+    _trial_angles(lo, hi, f, df, trial)
+    ft, dt, pt, nt = _rim(terrain, w, trial[..., None])
+    out = np.empty((6, *lo.shape))
+    point, normal = np.empty((*lo.shape, 3)), np.empty((*lo.shape, 3))
+    _split(lo, hi, f, df, pts, nrm, trial, ft, dt, pt, nt, out, point, normal)
+    new_lo, new_hi, theta, best, gap, error = out
+    return _Contact(new_lo, new_hi, theta, best, gap, error, point, normal)
 
-    right_ok = _holds_minimum(ft, dt, f1, d1)
-    lowest_left = np.where(ft <= np.minimum(f0, f1), dt > 0.0, f0 < f1)
-    keep_left = _holds_minimum(f0, d0, ft, dt) & (lowest_left | ~right_ok)
-    new_lo = np.where(valid, np.where(keep_left, lo, trial), np.where(left, trial, hi))
-    new_hi = np.where(valid, np.where(keep_left, trial, hi), np.where(left, lo, trial))
-    fl = np.where(valid, np.where(keep_left, f0, ft), np.where(left, ft, f1))
-    dl = np.where(valid, np.where(keep_left, d0, dt), np.where(left, dt, d1))
-    fh = np.where(valid, np.where(keep_left, ft, f1), np.where(left, f0, ft))
-    dh = np.where(valid, np.where(keep_left, dt, d1), np.where(left, d0, dt))
-    # Lower bound of the minimum in a narrow convex bracket: where the tangents meet, or
-    # the lower end less the steeper end slope times the width.
-    _, meet, convex = _tangent_meet(new_lo, fl, dl, new_hi, fh, dh)
-    flat = np.minimum(fl, fh) - np.maximum(-dl, dh) * (new_hi - new_lo)
-    trusted = convex & (new_hi - new_lo <= TRUST_BRACKET_RAD)
-    lower = np.where(trusted, np.maximum(meet, flat), -np.inf)
 
-    f3 = np.stack([f0, f1, ft], axis=-1)  # the best of lo, hi and the trial
-    j = np.argmin(f3, axis=-1)
-    best = np.take_along_axis(f3, j[..., None], -1)[..., 0]
-    theta = np.take_along_axis(np.stack([lo, hi, trial], axis=-1), j[..., None], -1)[..., 0]
-    jj = j[..., None, None]
-    point = np.take_along_axis(np.concatenate([pts, pt[..., None, :]], -2), jj, -2)[..., 0, :]
-    normal = np.take_along_axis(np.concatenate([nrm, nt[..., None, :]], -2), jj, -2)[..., 0, :]
-    return _Contact(
-        new_lo, new_hi, theta, best, best * -normal[..., 2], best - lower, point, normal
-    )
+@kernel
+def _trial_angles(
+    lo: FloatArray, hi: FloatArray, f: FloatArray, df: FloatArray, trial: FloatArray
+) -> None:
+    """The trial angle of each bracket ``[lo, hi]`` (m, 6) from the clearance ``f`` and
+    its slope ``df`` (m, 6, 2) at its ends (see ``contact``), into ``trial``."""
+    for a in range(lo.shape[0]):
+        for b in range(lo.shape[1]):
+            t0, t1 = lo[a, b], hi[a, b]
+            f0, f1, d0, d1 = f[a, b, 0], f[a, b, 1], df[a, b, 0], df[a, b, 1]
+            valid = _holds_minimum(f0, d0, f1, d1)
+            left = (not valid) & (f0 <= f1)  # downhill lies below lo (else above hi)
+            step = _clip(2.0 * (t1 - t0), MIN_STEP_RAD, MAX_STEP_BRACKET_RAD)
+            t_meet, _, convex = _tangent_meet(t0, f0, d0, t1, f1, d1)
+            # Off the ends: at a kink the tangents meet exactly at the end already found,
+            # and a sample just past it closes the bracket.
+            nudge = _minimum(0.25 * (t1 - t0), NUDGE_RAD)
+            t_meet = _clip(t_meet if convex else 0.5 * (t0 + t1), t0 + nudge, t1 - nudge)
+            t = t_meet if valid else (t0 - step if left else t1 + step)
+            trial[a, b] = _clip(t, -SCAN_HALF_RAD, SCAN_HALF_RAD)
+
+
+@kernel
+def _split(
+    lo: FloatArray,
+    hi: FloatArray,
+    f: FloatArray,
+    df: FloatArray,
+    pts: FloatArray,
+    nrm: FloatArray,
+    trial: FloatArray,
+    ft: FloatArray,
+    dt: FloatArray,
+    pt: FloatArray,
+    nt: FloatArray,
+    out: FloatArray,
+    point: FloatArray,
+    normal: FloatArray,
+) -> None:
+    """The next bracket of each wheel from its ends (``f``, ``df``, ``pts``, ``nrm``:
+    (m, 6, 2) and (m, 6, 2, 3)) and its trial (``ft``, ``dt``, ``pt``, ``nt``: one
+    sample); into ``out`` (6, m, 6) the new ``lo``, ``hi``, the best angle, its clearance,
+    gap and error, and its ``point`` and ``normal`` (m, 6, 3)."""
+    for a in range(lo.shape[0]):
+        for b in range(lo.shape[1]):
+            t0, t1, tt = lo[a, b], hi[a, b], trial[a, b]
+            f0, f1, d0, d1 = f[a, b, 0], f[a, b, 1], df[a, b, 0], df[a, b, 1]
+            fx, dx = ft[a, b, 0], dt[a, b, 0]
+            valid = _holds_minimum(f0, d0, f1, d1)
+            left = (not valid) & (f0 <= f1)
+            right_ok = _holds_minimum(fx, dx, f1, d1)
+            lowest_left = (dx > 0.0) if fx <= _minimum(f0, f1) else (f0 < f1)
+            keep_left = _holds_minimum(f0, d0, fx, dx) & (lowest_left | (not right_ok))
+            if valid and keep_left:
+                nl, nh, fl, dl, fh, dh = t0, tt, f0, d0, fx, dx
+            elif valid:
+                nl, nh, fl, dl, fh, dh = tt, t1, fx, dx, f1, d1
+            elif left:
+                nl, nh, fl, dl, fh, dh = tt, t0, fx, dx, f0, d0
+            else:
+                nl, nh, fl, dl, fh, dh = t1, tt, f1, d1, fx, dx
+            # Lower bound of the minimum in a narrow convex bracket: where the tangents
+            # meet, or the lower end less the steeper end slope times the width.
+            _, meet, convex = _tangent_meet(nl, fl, dl, nh, fh, dh)
+            flat = _minimum(fl, fh) - _maximum(-dl, dh) * (nh - nl)
+            trusted = convex & (nh - nl <= TRUST_BRACKET_RAD)
+            lower = _maximum(meet, flat) if trusted else -np.inf
+            # the best of lo, hi and the trial (np.argmin: the first NaN, else first least)
+            j = 0
+            if not math.isnan(f0):
+                if math.isnan(f1):
+                    j = 1
+                else:
+                    j = 1 if f1 < f0 else 0
+                    if math.isnan(fx) or fx < (f1 if j == 1 else f0):
+                        j = 2
+            best = f0 if j == 0 else (f1 if j == 1 else fx)
+            for i in range(3):
+                point[a, b, i] = pts[a, b, j, i] if j < 2 else pt[a, b, 0, i]
+                normal[a, b, i] = nrm[a, b, j, i] if j < 2 else nt[a, b, 0, i]
+            out[0, a, b], out[1, a, b] = nl, nh
+            out[2, a, b] = t0 if j == 0 else (t1 if j == 1 else tt)
+            out[3, a, b] = best
+            out[4, a, b] = best * -normal[a, b, 2]
+            out[5, a, b] = best - lower
 
 
 def deeper(

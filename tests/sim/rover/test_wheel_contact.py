@@ -11,6 +11,7 @@ from sim.rover import wheel_contact as wc
 from sim.rover.geometry import MER_GEOMETRY
 from sim.rover.settle import rotation_s_b
 from sim.world.sites import make_terrain
+from sim.world.terrain import Terrain
 
 FloatArray = NDArray[np.float64]
 
@@ -31,7 +32,7 @@ def _random_wheels(rng: np.random.Generator, m: int) -> wc.Wheels:
 
 
 def _rim_reference(
-    terrain: wc.Terrain, w: wc.Wheels, theta: FloatArray
+    terrain: Terrain, w: wc.Wheels, theta: FloatArray
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """``_rim`` as it was written in numpy before its points were compiled."""
     c, s = np.cos(theta), np.sin(theta)
@@ -99,3 +100,93 @@ def test_rim_scan_equals_the_numpy_reference() -> None:
     wc._scan_rim(f, angles, wc._CHECK_OWN, best, centre, k, bound)
     for got, want in zip((best, centre, k, bound), _scan_reference(f, angles), strict=True):
         np.testing.assert_array_equal(got, want)
+
+
+def _contact_reference(
+    terrain: Terrain, w: wc.Wheels, lo: FloatArray, hi: FloatArray
+) -> tuple[FloatArray, ...]:
+    """``contact`` as it was written in numpy before its per-wheel logic was compiled."""
+
+    def tangent_meet(
+        t0: FloatArray,
+        f0: FloatArray,
+        d0: FloatArray,
+        t1: FloatArray,
+        f1: FloatArray,
+        d1: FloatArray,
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        den = d0 - d1
+        t = (f1 - f0 + d0 * t0 - d1 * t1) / np.where(den < 0.0, den, -1.0)
+        ok = (d0 <= 0.0) & (d1 >= 0.0) & (f1 + d1 * (t0 - t1) <= f0) & (f0 + d0 * (t1 - t0) <= f1)
+        return np.clip(t, t0, t1), f0 + d0 * (t - t0), ok
+
+    def holds(f0: FloatArray, d0: FloatArray, f1: FloatArray, d1: FloatArray) -> FloatArray:
+        out: FloatArray = ((d0 <= 0.0) & ((d1 > 0.0) | (f1 > f0))) | (
+            (d1 >= 0.0) & ((d0 < 0.0) | (f0 > f1))
+        )
+        return out
+
+    f, df, pts, nrm = wc._rim(terrain, w, np.stack([lo, hi], axis=-1))
+    f0, f1, d0, d1 = f[..., 0], f[..., 1], df[..., 0], df[..., 1]
+    valid = holds(f0, d0, f1, d1)
+    left = ~valid & (f0 <= f1)
+    step = np.clip(2.0 * (hi - lo), wc.MIN_STEP_RAD, wc.MAX_STEP_BRACKET_RAD)
+    t_meet, _, convex = tangent_meet(lo, f0, d0, hi, f1, d1)
+    nudge = np.minimum(0.25 * (hi - lo), wc.NUDGE_RAD)
+    t_meet = np.clip(np.where(convex, t_meet, 0.5 * (lo + hi)), lo + nudge, hi - nudge)
+    trial = np.where(valid, t_meet, np.where(left, lo - step, hi + step))
+    trial = np.clip(trial, -wc.SCAN_HALF_RAD, wc.SCAN_HALF_RAD)
+    ft, dt, pt, nt = (
+        a[..., 0, :] if a.ndim == 4 else a[..., 0] for a in wc._rim(terrain, w, trial[..., None])
+    )
+    right_ok = holds(ft, dt, f1, d1)
+    lowest_left = np.where(ft <= np.minimum(f0, f1), dt > 0.0, f0 < f1)
+    keep_left = holds(f0, d0, ft, dt) & (lowest_left | ~right_ok)
+    new_lo = np.where(valid, np.where(keep_left, lo, trial), np.where(left, trial, hi))
+    new_hi = np.where(valid, np.where(keep_left, trial, hi), np.where(left, lo, trial))
+    fl = np.where(valid, np.where(keep_left, f0, ft), np.where(left, ft, f1))
+    dl = np.where(valid, np.where(keep_left, d0, dt), np.where(left, dt, d1))
+    fh = np.where(valid, np.where(keep_left, ft, f1), np.where(left, f0, ft))
+    dh = np.where(valid, np.where(keep_left, dt, d1), np.where(left, d0, dt))
+    _, meet, convex = tangent_meet(new_lo, fl, dl, new_hi, fh, dh)
+    flat = np.minimum(fl, fh) - np.maximum(-dl, dh) * (new_hi - new_lo)
+    trusted = convex & (new_hi - new_lo <= wc.TRUST_BRACKET_RAD)
+    lower = np.where(trusted, np.maximum(meet, flat), -np.inf)
+    f3 = np.stack([f0, f1, ft], axis=-1)
+    j = np.argmin(f3, axis=-1)
+    best = np.take_along_axis(f3, j[..., None], -1)[..., 0]
+    theta = np.take_along_axis(np.stack([lo, hi, trial], axis=-1), j[..., None], -1)[..., 0]
+    jj = j[..., None, None]
+    point = np.take_along_axis(np.concatenate([pts, pt[..., None, :]], -2), jj, -2)[..., 0, :]
+    normal = np.take_along_axis(np.concatenate([nrm, nt[..., None, :]], -2), jj, -2)[..., 0, :]
+    return new_lo, new_hi, theta, best, best * -normal[..., 2], best - lower, point, normal
+
+
+class _Holes:
+    """Gusev with NaN heights in narrow stripes: the NaN paths of the search."""
+
+    def __init__(self) -> None:
+        self.terrain = make_terrain("gusev", 2)
+        self.soil = self.terrain.soil
+
+    def height_and_gradient(
+        self, x: FloatArray, y: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        h, hx, hy = self.terrain.height_and_gradient(x, y)
+        hole = np.mod(x, 0.5) < 0.01
+        return np.where(hole, np.nan, h), hx, np.where(hole, np.nan, hy)
+
+
+@pytest.mark.parametrize("holes", [False, True])
+def test_contact_step_equals_the_numpy_reference(holes: bool) -> None:
+    terrain = _Holes() if holes else make_terrain("gusev", 2)
+    rng = np.random.default_rng(17)
+    w = _random_wheels(rng, 400)
+    # brackets wide and narrow, some round the minimum, some beside it, some degenerate
+    lo = rng.uniform(-0.6, 0.6, (400, 6))
+    hi = lo + rng.choice([0.0, 1e-4, 0.01, 0.05, 0.3], (400, 6))
+    got = wc.contact(terrain, w, lo, hi)  # type: ignore[arg-type]
+    want = _contact_reference(terrain, w, lo, hi)  # type: ignore[arg-type]
+    fields = ("lo", "hi", "theta", "clearance", "gap", "error", "point", "normal")
+    for name, value in zip(fields, want, strict=True):
+        np.testing.assert_array_equal(getattr(got, name), value, err_msg=name)
