@@ -39,8 +39,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from sim.compiled import kernel
 from sim.rover.geometry import RoverGeometry, WheelKinematics, wheel_kinematics
-from sim.world.heightmap import kernel
 from sim.world.terrain import Terrain
 
 FloatArray = NDArray[np.float64]

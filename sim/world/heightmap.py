@@ -31,19 +31,18 @@ import logging
 import threading
 from collections import OrderedDict
 from collections.abc import Callable
-from typing import Any, Protocol, TypeVar, cast
+from typing import Protocol
 
-import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sim.compiled import kernel
 from sim.errors import InputError
 from sim.world.noise import GroundField
 from sim.world.terrain import Soil
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
-_F = TypeVar("_F", bound=Callable[..., Any])
 
 RESOLUTION_M = 0.05  # grid spacing, see the module docstring
 TILE_CELLS = 160  # cells per tile side: 8 m tiles at 5 cm
@@ -246,11 +245,6 @@ class HeightmapTerrain:
         """Reflectance in [0, 1] from the terrain's texture; broadcasts."""
         x, y = as_coordinates(x_m, y_m)
         return self._albedo(x, y)
-
-
-def kernel(fn: _F) -> _F:
-    """Compile ``fn`` with numba: nopython, cached on disk (a fresh process loads it)."""
-    return cast(_F, numba.njit(cache=True, nogil=True)(fn))
 
 
 @kernel

@@ -1,5 +1,6 @@
-"""The compiled passes of the rim search (``sim.rover.wheel_contact``) against the numpy
-they replaced, on random wheels and random clearance profiles."""
+"""The compiled passes of the settling against the numpy they replaced, on random inputs:
+the suspension's kinematics (``sim.rover.geometry``) and the rim search
+(``sim.rover.wheel_contact``), to the last bit (and the sign of zero)."""
 
 from __future__ import annotations
 
@@ -8,12 +9,90 @@ import pytest
 from numpy.typing import NDArray
 
 from sim.rover import wheel_contact as wc
-from sim.rover.geometry import MER_GEOMETRY
+from sim.rover.geometry import MER_GEOMETRY, STEERED_INDEX, RoverGeometry, wheel_kinematics
 from sim.rover.settle import rotation_s_b
 from sim.world.sites import make_terrain
 from sim.world.terrain import Terrain
 
 FloatArray = NDArray[np.float64]
+
+
+def _kinematics_reference(
+    geometry: RoverGeometry, rocker: FloatArray, bogie: FloatArray, steer: FloatArray
+) -> tuple[FloatArray, ...]:
+    """``wheel_kinematics`` as it was written in numpy before it was compiled."""
+    lead = np.broadcast_shapes(rocker.shape, bogie.shape[:-1])
+    rocker = np.broadcast_to(rocker, lead)
+    bogie = np.broadcast_to(bogie, (*lead, 2))
+    p, f_off, b_off, m_off, r_off = geometry._offsets()
+
+    def rot_xz(angle: FloatArray, v: FloatArray) -> tuple[FloatArray, FloatArray]:
+        c, s = np.cos(angle), np.sin(angle)
+        return c * v[0] + s * v[1], -s * v[0] + c * v[1]
+
+    def gen_y(v: FloatArray) -> FloatArray:
+        out = np.zeros_like(v)
+        out[..., 0] = v[..., 2]
+        out[..., 2] = -v[..., 0]
+        return out
+
+    centre = np.empty((*lead, 6, 3))
+    link = np.empty((*lead, 6))
+    dcentre = np.zeros((*lead, 6, 3, 3))
+    half = 0.5 * geometry.track_m
+    for side, (rock_sign, idx) in enumerate(((1.0, (0, 1, 2)), (-1.0, (3, 4, 5)))):
+        rho = rock_sign * rocker
+        beta = bogie[..., side]
+        fx, fz = rot_xz(rho, f_off)
+        bx, bz = rot_xz(rho, b_off)
+        mx, mz = rot_xz(rho + beta, m_off)
+        rx, rz = rot_xz(rho + beta, r_off)
+        y = -half if side == 0 else half
+        i_f, i_m, i_r = idx
+        centre[..., i_f, :] = np.stack([p[0] + fx, np.full(lead, y), p[1] + fz], axis=-1)
+        centre[..., i_m, :] = np.stack([p[0] + bx + mx, np.full(lead, y), p[1] + bz + mz], -1)
+        centre[..., i_r, :] = np.stack([p[0] + bx + rx, np.full(lead, y), p[1] + bz + rz], -1)
+        link[..., i_f] = rho
+        link[..., i_m] = rho + beta
+        link[..., i_r] = rho + beta
+        pivot = np.array([p[0], 0.0, p[1]])
+        bogie_pivot = np.stack([p[0] + bx, np.zeros(lead), p[1] + bz], axis=-1)
+        for i in idx:
+            arm = centre[..., i, :].copy()
+            arm[..., 1] = 0.0
+            dcentre[..., i, :, 0] = rock_sign * gen_y(arm - pivot)
+            if i != i_f:
+                dcentre[..., i, :, 1 + side] = gen_y(arm - bogie_pivot)
+    steer = np.broadcast_to(steer, (*lead, 4))
+    sigma = np.zeros((*lead, 6))
+    sigma[..., list(STEERED_INDEX)] = steer
+    ax_x, ax_z = rot_xz(link, np.stack([-np.sin(sigma), np.zeros_like(sigma)]))
+    axle = np.stack([ax_x, np.cos(sigma), ax_z], axis=-1)
+    daxle = np.zeros((*lead, 6, 3, 3))
+    g_axle = gen_y(axle)
+    for side, (rock_sign, idx) in enumerate(((1.0, (0, 1, 2)), (-1.0, (3, 4, 5)))):
+        for i in idx:
+            daxle[..., i, :, 0] = rock_sign * g_axle[..., i, :]
+            if i != idx[0]:
+                daxle[..., i, :, 1 + side] = g_axle[..., i, :]
+    return centre, axle, link, dcentre, daxle
+
+
+@pytest.mark.parametrize("lead", [(), (7,), (3, 5), (0,)])
+def test_kinematics_equal_the_numpy_reference(lead: tuple[int, ...]) -> None:
+    rng = np.random.default_rng(2)
+    rocker = rng.uniform(-1.0, 1.0, lead)
+    bogie = rng.uniform(-1.5, 1.5, (*lead, 2))
+    steer = np.where(rng.random((*lead, 4)) < 0.3, 0.0, rng.uniform(-1.6, 1.6, (*lead, 4)))
+    geometry = RoverGeometry(track_m=1.1, bogie_pivot_z_m=0.03)
+    for s in (steer, np.zeros(4)):
+        got = wheel_kinematics(geometry, rocker, bogie, s)
+        want = _kinematics_reference(geometry, rocker, bogie, s)
+        for name, value in zip(
+            ("centre_b", "axle_b", "link_rad", "dcentre_dq", "daxle_dq"), want, strict=True
+        ):
+            np.testing.assert_array_equal(getattr(got, name), value, err_msg=name)
+            np.testing.assert_array_equal(np.signbit(getattr(got, name)), np.signbit(value))
 
 
 def _random_wheels(rng: np.random.Generator, m: int) -> wc.Wheels:
