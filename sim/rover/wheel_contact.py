@@ -64,10 +64,27 @@ _CHECK_OWN = np.abs(CHECK_OFFSETS_RAD) < 1.5 * CHECK_NEAR_RAD  # next to the con
 
 
 def unit_normal(hx: FloatArray, hy: FloatArray) -> FloatArray:
-    """Upward unit normal in the Site frame (z Down, so n_z < 0) from the slopes."""
-    n = np.stack([-hx, -hy, -np.ones_like(hx)], axis=-1)
-    out: FloatArray = n / np.linalg.norm(n, axis=-1, keepdims=True)
+    """Upward unit normal in the Site frame (z Down, so n_z < 0) from the slopes,
+    ``(-hx, -hy, -1) / sqrt(hx² + hy² + 1)`` (summed in that order, as ``np.linalg.norm``
+    sums the squares), shape ``(..., 3)``."""
+    hx, hy = np.broadcast_arrays(np.asarray(hx, np.float64), np.asarray(hy, np.float64))
+    out = np.empty((*hx.shape, 3))
+    _unit_normal(
+        np.ascontiguousarray(hx).reshape(-1),
+        np.ascontiguousarray(hy).reshape(-1),
+        out.reshape(-1, 3),
+    )
     return out
+
+
+@kernel
+def _unit_normal(hx: FloatArray, hy: FloatArray, out: FloatArray) -> None:
+    """``unit_normal`` of flat slope arrays into ``out`` (n, 3)."""
+    for k in range(hx.size):
+        norm = np.sqrt(hx[k] * hx[k] + hy[k] * hy[k] + 1.0)
+        out[k, 0] = -hx[k] / norm
+        out[k, 1] = -hy[k] / norm
+        out[k, 2] = -1.0 / norm
 
 
 def height_and_gradient(

@@ -269,3 +269,61 @@ def test_contact_step_equals_the_numpy_reference(holes: bool) -> None:
     fields = ("lo", "hi", "theta", "clearance", "gap", "error", "point", "normal")
     for name, value in zip(fields, want, strict=True):
         np.testing.assert_array_equal(getattr(got, name), value, err_msg=name)
+
+
+def _rotation_reference(
+    roll: FloatArray, pitch: FloatArray, yaw: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``rotation_s_b`` as it was written in numpy before it was compiled."""
+    cf, sf = np.cos(roll), np.sin(roll)
+    ct, st = np.cos(pitch), np.sin(pitch)
+    cp, sp = np.cos(yaw), np.sin(yaw)
+    z = np.zeros_like(cf)
+
+    def mat(rows: list[list[FloatArray]]) -> FloatArray:
+        return np.stack([np.stack(r, -1) for r in rows], -2)
+
+    R = mat(
+        [
+            [cp * ct, cp * st * sf - sp * cf, cp * st * cf + sp * sf],
+            [sp * ct, sp * st * sf + cp * cf, sp * st * cf - cp * sf],
+            [-st, ct * sf, ct * cf],
+        ]
+    )
+    dR_droll = mat(
+        [
+            [z, cp * st * cf + sp * sf, -cp * st * sf + sp * cf],
+            [z, sp * st * cf - cp * sf, -sp * st * sf - cp * cf],
+            [z, ct * cf, -ct * sf],
+        ]
+    )
+    dR_dpitch = mat(
+        [
+            [-cp * st, cp * ct * sf, cp * ct * cf],
+            [-sp * st, sp * ct * sf, sp * ct * cf],
+            [-ct, -st * sf, -st * cf],
+        ]
+    )
+    return R, dR_droll, dR_dpitch
+
+
+@pytest.mark.parametrize("shape", [(), (9,), (4, 6)])
+def test_rotations_equal_the_numpy_reference(shape: tuple[int, ...]) -> None:
+    rng = np.random.default_rng(23)
+    roll, pitch, yaw = (rng.uniform(-np.pi, np.pi, shape) for _ in range(3))
+    for got, want in zip(
+        rotation_s_b(roll, pitch, yaw), _rotation_reference(roll, pitch, yaw), strict=True
+    ):
+        np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(np.signbit(got), np.signbit(want))
+
+
+def test_unit_normal_equals_numpy_norm() -> None:
+    rng = np.random.default_rng(29)
+    hx = rng.normal(0.0, 1.0, (50, 6, 2)) * rng.choice([1e-3, 1.0, 100.0], (50, 6, 2))
+    hy = rng.normal(0.0, 1.0, (50, 6, 2)) * rng.choice([1e-3, 1.0, 100.0], (50, 6, 2))
+    n = np.stack([-hx, -hy, -np.ones_like(hx)], axis=-1)
+    np.testing.assert_array_equal(
+        wc.unit_normal(hx, hy), n / np.linalg.norm(n, axis=-1, keepdims=True)
+    )
+    assert wc.unit_normal(np.zeros(0), np.zeros(0)).shape == (0, 3)
