@@ -21,6 +21,10 @@ Design numbers (approximate, chosen for the MER wheel and the Navcam):
   dropped and rebuilt on demand; a single query needing more tiles at once grows the pool
   for its duration, then the pool shrinks back.
 
+A query is two compiled passes over its points (``sim.compiled``): one finds the tiles they
+fall in, the other interpolates, with the arithmetic of the numpy it replaced (the settling
+asks for millions of points per drive).
+
 The ground fields are fractal value noise (``sim.world.noise``; Ebert et al., *Texturing and
 Modeling*, ch. 2; Perlin 1985), evaluated on the tile grid with separable interpolation.
 """
