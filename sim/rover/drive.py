@@ -219,7 +219,7 @@ def _slopes(
     h = terrain.height_m(
         x[:, None] + c * wxy[:, 0] - s * wxy[:, 1], y[:, None] + s * wxy[:, 0] + c * wxy[:, 1]
     )
-    _, along, across = np.linalg.pinv(np.column_stack([np.ones(6), wxy])) @ h.T
+    _, along, across = geometry.plane_fit_b() @ h.T
     return along, across
 
 

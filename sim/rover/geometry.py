@@ -24,16 +24,19 @@ The wheel order everywhere is ``WHEEL_NAMES`` of ``sim.rover.truth``: LF, LM, LR
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, fields
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sim.compiled import kernel
 from sim.errors import InputError
 from sim.rover.truth import STEERED_WHEELS, WHEEL_NAMES
 
 FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
 
 # Index of each steered wheel (STEERED_WHEELS order) in WHEEL_NAMES order.
 STEERED_INDEX = tuple(WHEEL_NAMES.index(name) for name in STEERED_WHEELS)
@@ -96,6 +99,13 @@ class RoverGeometry:
         half = 0.5 * self.track_m
         return np.array([[x, -half] for x in xs] + [[x, half] for x in xs])
 
+    def plane_fit_b(self) -> FloatArray:
+        """The least-squares plane through heights under the six wheels: this (3, 6) matrix
+        times the heights gives ``(h0, dh/dx, dh/dy)`` in the heading frame (the
+        pseudo-inverse of ``[1, x, y]`` at ``wheel_xy_b``). Computed once per geometry
+        (the drive asks for it at every step); read-only."""
+        return _plane_fit_b(self)
+
     def _offsets(self) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
         """Link vectors in (x, z): pivot P, front-P, bogie pivot-P, middle-B, rear-B."""
         p = np.array([self.rocker_pivot_x_m, self.rocker_pivot_z_m])
@@ -107,13 +117,11 @@ class RoverGeometry:
         return p, front, b - p, middle, rear
 
 
-def _rot_xz(angle: FloatArray, v: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Rotate the (x, z) link vector ``v`` by ``angle`` about +y; returns (x, z) arrays.
-
-    Ry = [[c, 0, s], [0, 1, 0], [-s, 0, c]], so x' = c x + s z and z' = -s x + c z.
-    """
-    c, s = np.cos(angle), np.sin(angle)
-    return c * v[0] + s * v[1], -s * v[0] + c * v[1]
+@functools.lru_cache(maxsize=8)
+def _plane_fit_b(geometry: RoverGeometry) -> FloatArray:
+    out: FloatArray = np.linalg.pinv(np.column_stack([np.ones(6), geometry.wheel_xy_b()]))
+    out.flags.writeable = False
+    return out
 
 
 @dataclass(frozen=True)
@@ -134,14 +142,6 @@ class WheelKinematics:
     daxle_dq: FloatArray
 
 
-def _gen_y(v: FloatArray) -> FloatArray:
-    """d/dθ of Ry(θ) v expressed on the rotated vector: (x, y, z) -> (z, 0, -x)."""
-    out = np.zeros_like(v)
-    out[..., 0] = v[..., 2]
-    out[..., 2] = -v[..., 0]
-    return out
-
-
 def wheel_kinematics(
     geometry: RoverGeometry,
     rocker_rad: ArrayLike,
@@ -153,7 +153,9 @@ def wheel_kinematics(
     ``rocker_rad`` (...,) is the left rocker angle (the right one is its negative),
     ``bogie_rad`` (..., 2) the [left, right] bogie angles relative to their rockers,
     ``steer_rad`` (..., 4) the corner steering angles in ``STEERED_WHEELS`` order (zero
-    if omitted). Returns wheel centres and axles in the body frame with their derivatives.
+    if omitted). Returns wheel centres and axles in the body frame with their derivatives
+    (one compiled pass over the poses, ``_kinematics``: the settling asks at every Newton
+    iteration).
 
     >>> g = RoverGeometry()
     >>> k = wheel_kinematics(g, 0.0, [0.0, 0.0])
@@ -163,56 +165,111 @@ def wheel_kinematics(
     rocker = np.asarray(rocker_rad, dtype=float)
     bogie = np.asarray(bogie_rad, dtype=float)
     lead = np.broadcast_shapes(rocker.shape, bogie.shape[:-1])
-    rocker = np.broadcast_to(rocker, lead)
-    bogie = np.broadcast_to(bogie, (*lead, 2))
-    p, f_off, b_off, m_off, r_off = geometry._offsets()
+    steer = np.zeros(4) if steer_rad is None else np.asarray(steer_rad, dtype=float)
+    n = math.prod(lead)
+    centre = np.empty((n, 6, 3))
+    axle = np.empty((n, 6, 3))
+    link = np.empty((n, 6))
+    dcentre = np.zeros((n, 6, 3, 3))
+    daxle = np.zeros((n, 6, 3, 3))
+    _kinematics(
+        np.ascontiguousarray(np.broadcast_to(rocker, lead)).reshape(n),
+        np.ascontiguousarray(np.broadcast_to(bogie, (*lead, 2))).reshape(n, 2),
+        np.ascontiguousarray(np.broadcast_to(steer, (*lead, 4))).reshape(n, 4),
+        np.stack(geometry._offsets()),
+        0.5 * geometry.track_m,
+        _STEERED,
+        centre,
+        axle,
+        link,
+        dcentre,
+        daxle,
+    )
+    return WheelKinematics(
+        centre.reshape(*lead, 6, 3),
+        axle.reshape(*lead, 6, 3),
+        link.reshape(*lead, 6),
+        dcentre.reshape(*lead, 6, 3, 3),
+        daxle.reshape(*lead, 6, 3, 3),
+    )
 
-    centre = np.empty((*lead, 6, 3))
-    link = np.empty((*lead, 6))
-    dcentre = np.zeros((*lead, 6, 3, 3))
-    half = 0.5 * geometry.track_m
-    for side, (rock_sign, idx) in enumerate(((1.0, LEFT), (-1.0, RIGHT))):
-        rho = rock_sign * rocker  # the differential: right rocker = -left rocker
-        beta = bogie[..., side]
-        fx, fz = _rot_xz(rho, f_off)
-        bx, bz = _rot_xz(rho, b_off)
-        mx, mz = _rot_xz(rho + beta, m_off)
-        rx, rz = _rot_xz(rho + beta, r_off)
-        y = -half if side == 0 else half
-        i_f, i_m, i_r = idx
-        centre[..., i_f, :] = np.stack([p[0] + fx, np.full(lead, y), p[1] + fz], axis=-1)
-        centre[..., i_m, :] = np.stack([p[0] + bx + mx, np.full(lead, y), p[1] + bz + mz], -1)
-        centre[..., i_r, :] = np.stack([p[0] + bx + rx, np.full(lead, y), p[1] + bz + rz], -1)
-        link[..., i_f] = rho
-        link[..., i_m] = rho + beta
-        link[..., i_r] = rho + beta
-        pivot = np.array([p[0], 0.0, p[1]])
-        bogie_pivot = np.stack([p[0] + bx, np.zeros(lead), p[1] + bz], axis=-1)
-        bogie_col = 1 + side
-        for i in idx:
-            arm = centre[..., i, :].copy()
-            arm[..., 1] = 0.0
-            # d centre / d rocker: rotation of the whole side about the rocker pivot,
-            # with the chain rule sign of the differential.
-            dcentre[..., i, :, 0] = rock_sign * _gen_y(arm - pivot)
-            if i != i_f:
-                dcentre[..., i, :, bogie_col] = _gen_y(arm - bogie_pivot)
 
-    steer = np.zeros((*lead, 4)) if steer_rad is None else np.asarray(steer_rad, dtype=float)
-    steer = np.broadcast_to(steer, (*lead, 4))
-    sigma = np.zeros((*lead, 6))
-    sigma[..., list(STEERED_INDEX)] = steer
-    # axle = Ry(link) Rz(sigma) ŷ, with Rz(sigma) ŷ = (-sin sigma, cos sigma, 0)
-    ax_x, ax_z = _rot_xz(link, np.stack([-np.sin(sigma), np.zeros_like(sigma)]))
-    axle = np.stack([ax_x, np.cos(sigma), ax_z], axis=-1)
-    daxle = np.zeros((*lead, 6, 3, 3))
-    g_axle = _gen_y(axle)  # d axle / d link
-    for side, (rock_sign, idx) in enumerate(((1.0, LEFT), (-1.0, RIGHT))):
-        for i in idx:
-            daxle[..., i, :, 0] = rock_sign * g_axle[..., i, :]
-            if i != idx[0]:
-                daxle[..., i, :, 1 + side] = g_axle[..., i, :]
-    return WheelKinematics(centre, axle, link, dcentre, daxle)
+_STEERED = np.array(STEERED_INDEX, dtype=np.int64)
+
+
+@kernel
+def _rot_xz(c: float, s: float, v: FloatArray) -> tuple[float, float]:
+    """Rotate the (x, z) link vector ``v`` by the angle of cosine ``c``, sine ``s`` about
+    +y: Ry = [[c, 0, s], [0, 1, 0], [-s, 0, c]], so x' = c x + s z and z' = -s x + c z."""
+    return c * v[0] + s * v[1], -s * v[0] + c * v[1]
+
+
+@kernel
+def _kinematics(
+    rocker: FloatArray,
+    bogie: FloatArray,
+    steer: FloatArray,
+    offsets: FloatArray,
+    half_track: float,
+    steered: IntArray,
+    centre: FloatArray,
+    axle: FloatArray,
+    link: FloatArray,
+    dcentre: FloatArray,
+    daxle: FloatArray,
+) -> None:
+    """``wheel_kinematics`` of ``n`` poses into ``centre``, ``axle`` (n, 6, 3), ``link``
+    (n, 6) and the derivatives ``dcentre``, ``daxle`` (n, 6, 3, 3, zeroed by the caller).
+    ``offsets`` (5, 2): the link vectors of ``RoverGeometry._offsets``."""
+    p, f_off, b_off, m_off, r_off = offsets[0], offsets[1], offsets[2], offsets[3], offsets[4]
+    for k in range(rocker.shape[0]):
+        for side in range(2):
+            rock_sign = 1.0 if side == 0 else -1.0
+            rho = rock_sign * rocker[k]  # the differential: right rocker = -left rocker
+            beta = bogie[k, side]
+            fx, fz = _rot_xz(np.cos(rho), np.sin(rho), f_off)
+            bx, bz = _rot_xz(np.cos(rho), np.sin(rho), b_off)
+            mx, mz = _rot_xz(np.cos(rho + beta), np.sin(rho + beta), m_off)
+            rx, rz = _rot_xz(np.cos(rho + beta), np.sin(rho + beta), r_off)
+            y = -half_track if side == 0 else half_track
+            i_f = 3 * side  # front, middle, rear: LF, LM, LR or RF, RM, RR
+            centre[k, i_f, 0], centre[k, i_f, 1], centre[k, i_f, 2] = p[0] + fx, y, p[1] + fz
+            centre[k, i_f + 1, 0] = p[0] + bx + mx
+            centre[k, i_f + 1, 1] = y
+            centre[k, i_f + 1, 2] = p[1] + bz + mz
+            centre[k, i_f + 2, 0] = p[0] + bx + rx
+            centre[k, i_f + 2, 1] = y
+            centre[k, i_f + 2, 2] = p[1] + bz + rz
+            link[k, i_f], link[k, i_f + 1], link[k, i_f + 2] = rho, rho + beta, rho + beta
+            for i in range(i_f, i_f + 3):
+                cx, cz = centre[k, i, 0], centre[k, i, 2]
+                # d centre / d rocker: rotation of the whole side about the rocker pivot,
+                # with the chain rule sign of the differential; the generator of Ry takes
+                # (x, y, z) to (z, 0, -x).
+                dcentre[k, i, 0, 0] = rock_sign * (cz - p[1])
+                dcentre[k, i, 1, 0] = rock_sign * 0.0
+                dcentre[k, i, 2, 0] = rock_sign * -(cx - p[0])
+                if i != i_f:  # d centre / d bogie: about the bogie pivot
+                    dcentre[k, i, 0, 1 + side] = cz - (p[1] + bz)
+                    dcentre[k, i, 2, 1 + side] = -(cx - (p[0] + bx))
+        # axle = Ry(link) Rz(sigma) ŷ, with Rz(sigma) ŷ = (-sin sigma, cos sigma, 0)
+        for i in range(6):
+            sigma = 0.0
+            for j in range(4):
+                if steered[j] == i:
+                    sigma = steer[k, j]
+            side = i // 3
+            rock_sign = 1.0 if side == 0 else -1.0
+            v = np.array([-np.sin(sigma), 0.0])
+            ax_x, ax_z = _rot_xz(np.cos(link[k, i]), np.sin(link[k, i]), v)
+            axle[k, i, 0], axle[k, i, 1], axle[k, i, 2] = ax_x, np.cos(sigma), ax_z
+            # d axle / d link by the generator of Ry: (z, 0, -x)
+            daxle[k, i, 0, 0] = rock_sign * ax_z
+            daxle[k, i, 1, 0] = rock_sign * 0.0
+            daxle[k, i, 2, 0] = rock_sign * -ax_x
+            if i != 3 * side:
+                daxle[k, i, 0, 1 + side] = ax_z
+                daxle[k, i, 2, 1 + side] = -ax_x
 
 
 MER_GEOMETRY = RoverGeometry()

@@ -52,6 +52,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
+from sim.compiled import kernel
 from sim.errors import InputError
 from sim.rover.geometry import MER_GEOMETRY, RoverGeometry
 from sim.rover.wheel_contact import (
@@ -137,37 +138,38 @@ def rotation_s_b(
     >>> np.round(R @ [1.0, 0.0, 0.0], 12)  # heading East: body x is Site +y
     array([0., 1., 0.])
     """
-    cf, sf = np.cos(roll), np.sin(roll)
-    ct, st = np.cos(pitch), np.sin(pitch)
-    cp, sp = np.cos(yaw), np.sin(yaw)
-    z = np.zeros_like(cf)
+    angles = np.broadcast_arrays(
+        np.asarray(roll, np.float64), np.asarray(pitch, np.float64), np.asarray(yaw, np.float64)
+    )
+    shape = angles[0].shape
+    out = np.empty((3, angles[0].size, 3, 3))
+    roll_f, pitch_f, yaw_f = (np.ascontiguousarray(a).reshape(-1) for a in angles)
+    _rotations(roll_f, pitch_f, yaw_f, out)
+    out = out.reshape(3, *shape, 3, 3)
+    return out[0], out[1], out[2]
 
-    def mat(rows: list[list[FloatArray]]) -> FloatArray:
-        out: FloatArray = np.stack([np.stack(r, -1) for r in rows], -2)
-        return out
 
-    R = mat(
-        [
-            [cp * ct, cp * st * sf - sp * cf, cp * st * cf + sp * sf],
-            [sp * ct, sp * st * sf + cp * cf, sp * st * cf - cp * sf],
-            [-st, ct * sf, ct * cf],
-        ]
-    )
-    dR_droll = mat(
-        [
-            [z, cp * st * cf + sp * sf, -cp * st * sf + sp * cf],
-            [z, sp * st * cf - cp * sf, -sp * st * sf - cp * cf],
-            [z, ct * cf, -ct * sf],
-        ]
-    )
-    dR_dpitch = mat(
-        [
-            [-cp * st, cp * ct * sf, cp * ct * cf],
-            [-sp * st, sp * ct * sf, sp * ct * cf],
-            [-ct, -st * sf, -st * cf],
-        ]
-    )
-    return R, dR_droll, dR_dpitch
+@kernel
+def _rotations(roll: FloatArray, pitch: FloatArray, yaw: FloatArray, out: FloatArray) -> None:
+    """``rotation_s_b`` of flat angle arrays into ``out`` (3, n, 3, 3): R and its partials."""
+    for k in range(roll.size):
+        cf, sf = np.cos(roll[k]), np.sin(roll[k])
+        ct, st = np.cos(pitch[k]), np.sin(pitch[k])
+        cp, sp = np.cos(yaw[k]), np.sin(yaw[k])
+        R, dR_droll, dR_dpitch = out[0, k], out[1, k], out[2, k]
+        R[0, 0], R[0, 1], R[0, 2] = cp * ct, cp * st * sf - sp * cf, cp * st * cf + sp * sf
+        R[1, 0], R[1, 1], R[1, 2] = sp * ct, sp * st * sf + cp * cf, sp * st * cf - cp * sf
+        R[2, 0], R[2, 1], R[2, 2] = -st, ct * sf, ct * cf
+        dR_droll[0, 0] = 0.0
+        dR_droll[0, 1] = cp * st * cf + sp * sf
+        dR_droll[0, 2] = -cp * st * sf + sp * cf
+        dR_droll[1, 0] = 0.0
+        dR_droll[1, 1] = sp * st * cf - cp * sf
+        dR_droll[1, 2] = -sp * st * sf - cp * cf
+        dR_droll[2, 0], dR_droll[2, 1], dR_droll[2, 2] = 0.0, ct * cf, -ct * sf
+        dR_dpitch[0, 0], dR_dpitch[0, 1], dR_dpitch[0, 2] = -cp * st, cp * ct * sf, cp * ct * cf
+        dR_dpitch[1, 0], dR_dpitch[1, 1], dR_dpitch[1, 2] = -sp * st, sp * ct * sf, sp * ct * cf
+        dR_dpitch[2, 0], dR_dpitch[2, 1], dR_dpitch[2, 2] = -ct, -st * sf, -st * cf
 
 
 def _dot(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -195,7 +197,7 @@ def _initial_guess(
     h = terrain.height_m(
         x[:, None] + cp * wxy[:, 0] - sp * wxy[:, 1], y[:, None] + sp * wxy[:, 0] + cp * wxy[:, 1]
     )
-    h0, alpha, beta = np.linalg.pinv(np.column_stack([np.ones(6), wxy])) @ h.T
+    h0, alpha, beta = geometry.plane_fit_b() @ h.T
     norm = np.sqrt(1.0 + alpha**2 + beta**2)
     height = geometry.wheel_centre_z_m + np.mean(r_eff, axis=-1)
     zero = np.zeros_like(x)

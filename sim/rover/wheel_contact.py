@@ -33,11 +33,13 @@ are elevations (up); a surface point is ``(x, y, -h)`` in the Site frame.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
+from sim.compiled import kernel
 from sim.rover.geometry import RoverGeometry, WheelKinematics, wheel_kinematics
 from sim.world.terrain import Terrain
 
@@ -58,13 +60,31 @@ CHECK_OFFSETS_RAD = np.deg2rad(np.concatenate([-np.array(_CHECK_DEG[::-1]), _CHE
 CHECK_NEAR_RAD = float(np.deg2rad(2.5))
 CHECK_SLACK_M = 3e-4  # a rim check counts a point this much below tol_m (see deeper)
 REFINE_SAMPLES = 9  # resampling across a suspect minimum of the rim check
+_CHECK_OWN = np.abs(CHECK_OFFSETS_RAD) < 1.5 * CHECK_NEAR_RAD  # next to the contact: its basin
 
 
 def unit_normal(hx: FloatArray, hy: FloatArray) -> FloatArray:
-    """Upward unit normal in the Site frame (z Down, so n_z < 0) from the slopes."""
-    n = np.stack([-hx, -hy, -np.ones_like(hx)], axis=-1)
-    out: FloatArray = n / np.linalg.norm(n, axis=-1, keepdims=True)
+    """Upward unit normal in the Site frame (z Down, so n_z < 0) from the slopes,
+    ``(-hx, -hy, -1) / sqrt(hx² + hy² + 1)`` (summed in that order, as ``np.linalg.norm``
+    sums the squares), shape ``(..., 3)``."""
+    hx, hy = np.broadcast_arrays(np.asarray(hx, np.float64), np.asarray(hy, np.float64))
+    out = np.empty((*hx.shape, 3))
+    _unit_normal(
+        np.ascontiguousarray(hx).reshape(-1),
+        np.ascontiguousarray(hy).reshape(-1),
+        out.reshape(-1, 3),
+    )
     return out
+
+
+@kernel
+def _unit_normal(hx: FloatArray, hy: FloatArray, out: FloatArray) -> None:
+    """``unit_normal`` of flat slope arrays into ``out`` (n, 3)."""
+    for k in range(hx.size):
+        norm = np.sqrt(hx[k] * hx[k] + hy[k] * hy[k] + 1.0)
+        out[k, 0] = -hx[k] / norm
+        out[k, 1] = -hy[k] / norm
+        out[k, 2] = -1.0 / norm
 
 
 def height_and_gradient(
@@ -147,31 +167,81 @@ def _rim(
     Returns ``(f, df, point, normal)``: the vertical clearance ``f`` (m) of the rim point
     over the terrain, ``df/dθ`` (m/rad), the point (m, 6, K, 3) and the upward unit normal
     there; with ``slope=False`` only ``f`` (one height query, the others empty).
-    Component arrays rather than (..., 3) stacks: this is the solver's hot loop.
+    The rim points (and their derivatives) come from one compiled pass (``_rim_points``):
+    this is the solver's hot loop, and the rim check asks for 36 angles per wheel.
     """
-    c, s = np.cos(theta), np.sin(theta)
-    pos, der = [], []
-    for i in range(3):
-        lo = (w.r * w.e_low[..., i])[..., None]
-        fw = (w.r * w.e_fwd[..., i])[..., None]
-        pos.append(w.centre[..., i, None] + lo * c + fw * s)
-        der.append(fw * c - lo * s)
+    pos = np.empty((3, *theta.shape))
+    der = np.empty((3, *theta.shape)) if slope else np.empty((3, 0, 0, 0))
+    _rim_points(
+        np.ascontiguousarray(w.centre),
+        np.ascontiguousarray(w.e_low),
+        np.ascontiguousarray(w.e_fwd),
+        np.ascontiguousarray(w.r),
+        np.ascontiguousarray(theta),
+        pos,
+        der,
+    )
     if not slope:
         empty = np.empty(0)
         return -pos[2] - terrain.height_m(pos[0], pos[1]), empty, empty, empty
     h, hx, hy = height_and_gradient(terrain, pos[0], pos[1])
     df = -der[2] - hx * der[0] - hy * der[1]
-    return -pos[2] - h, df, np.stack(pos, axis=-1), unit_normal(hx, hy)
+    return -pos[2] - h, df, np.stack(tuple(pos), axis=-1), unit_normal(hx, hy)
 
 
+@kernel
+def _rim_points(
+    centre: FloatArray,
+    e_low: FloatArray,
+    e_fwd: FloatArray,
+    r: FloatArray,
+    theta: FloatArray,
+    pos: FloatArray,
+    der: FloatArray,
+) -> None:
+    """Rim points ``c + r (e_low cos θ + e_fwd sin θ)`` at the angles ``theta`` (m, 6, K)
+    into ``pos`` (3, m, 6, K), and their derivatives in ``θ`` into ``der`` if it is not
+    empty; ``centre``, ``e_low``, ``e_fwd`` (m, 6, 3), ``r`` (m, 6)."""
+    slope = der.size > 0
+    lo = np.empty(3)
+    fw = np.empty(3)
+    for a in range(theta.shape[0]):
+        for b in range(theta.shape[1]):
+            for i in range(3):
+                lo[i] = r[a, b] * e_low[a, b, i]
+                fw[i] = r[a, b] * e_fwd[a, b, i]
+            for k in range(theta.shape[2]):
+                c = math.cos(theta[a, b, k])
+                s = math.sin(theta[a, b, k])
+                for i in range(3):
+                    pos[i, a, b, k] = centre[a, b, i] + lo[i] * c + fw[i] * s
+                    if slope:
+                        der[i, a, b, k] = fw[i] * c - lo[i] * s
+
+
+@kernel
+def _clip(x: float, low: float, high: float) -> float:
+    """``np.clip`` of one float, NaN included: ``min(max(x, low), high)``."""
+    y = x if math.isnan(x) or x > low else low
+    return y if math.isnan(y) or y < high else high
+
+
+@kernel
+def _minimum(a: float, b: float) -> float:
+    """``np.minimum`` of two floats (NaN if either is)."""
+    return a if math.isnan(a) or a <= b else b
+
+
+@kernel
+def _maximum(a: float, b: float) -> float:
+    """``np.maximum`` of two floats (NaN if either is)."""
+    return a if math.isnan(a) or a >= b else b
+
+
+@kernel
 def _tangent_meet(
-    t0: FloatArray,
-    f0: FloatArray,
-    d0: FloatArray,
-    t1: FloatArray,
-    f1: FloatArray,
-    d1: FloatArray,
-) -> tuple[FloatArray, FloatArray, BoolArray]:
+    t0: float, f0: float, d0: float, t1: float, f1: float, d1: float
+) -> tuple[float, float, bool]:
     """Where the tangents at ``t0`` (falling) and ``t1`` (rising) meet: (angle, value, ok).
 
     ``ok`` where the ends look convex (each tangent passes below the other end): then the
@@ -179,18 +249,16 @@ def _tangent_meet(
     in a kink, and the angle lies in ``[t0, t1]``.
     """
     den = d0 - d1
-    t = (f1 - f0 + d0 * t0 - d1 * t1) / np.where(den < 0.0, den, -1.0)
+    t = (f1 - f0 + d0 * t0 - d1 * t1) / (den if den < 0.0 else -1.0)
     ok = (d0 <= 0.0) & (d1 >= 0.0) & (f1 + d1 * (t0 - t1) <= f0) & (f0 + d0 * (t1 - t0) <= f1)
-    return np.clip(t, t0, t1), f0 + d0 * (t - t0), ok
+    return _clip(t, t0, t1), f0 + d0 * (t - t0), ok
 
 
-def _holds_minimum(f0: FloatArray, d0: FloatArray, f1: FloatArray, d1: FloatArray) -> BoolArray:
+@kernel
+def _holds_minimum(f0: float, d0: float, f1: float, d1: float) -> bool:
     """Whether an interval must hold a local minimum, from the clearance at its ends: it
     falls from the left end and rises into or ends higher at the right one, or mirrored."""
-    out: BoolArray = ((d0 <= 0.0) & ((d1 > 0.0) | (f1 > f0))) | (
-        (d1 >= 0.0) & ((d0 < 0.0) | (f0 > f1))
-    )
-    return out
+    return ((d0 <= 0.0) & ((d1 > 0.0) | (f1 > f0))) | ((d1 >= 0.0) & ((d0 < 0.0) | (f0 > f1)))
 
 
 @dataclass(frozen=True)
@@ -213,50 +281,107 @@ def contact(terrain: Terrain, w: Wheels, lo: FloatArray, hi: FloatArray) -> _Con
     A bracket holding a minimum (``_holds_minimum``) is split at a trial: where the end
     tangents meet if the ends look convex, else the middle; the half that still holds a
     minimum and has the lowest point is kept. A bracket that lost the minimum (the pose
-    moved) steps downhill by twice its width and is checked again next time.
+    moved) steps downhill by twice its width and is checked again next time. The logic
+    per wheel runs in two compiled passes (``_trial_angles``, ``_split``) round the two
+    clearance queries.
     """
+    lo, hi = np.ascontiguousarray(lo), np.ascontiguousarray(hi)
     f, df, pts, nrm = _rim(terrain, w, np.stack([lo, hi], axis=-1))
-    f0, f1, d0, d1 = f[..., 0], f[..., 1], df[..., 0], df[..., 1]
-    valid = _holds_minimum(f0, d0, f1, d1)
-    left = ~valid & (f0 <= f1)  # downhill lies below lo (else above hi)
-    step = np.clip(2.0 * (hi - lo), MIN_STEP_RAD, MAX_STEP_BRACKET_RAD)
-    t_meet, _, convex = _tangent_meet(lo, f0, d0, hi, f1, d1)
-    # Off the ends: at a kink the tangents meet exactly at the end already found, and a
-    # sample just past it closes the bracket.
-    nudge = np.minimum(0.25 * (hi - lo), NUDGE_RAD)
-    t_meet = np.clip(np.where(convex, t_meet, 0.5 * (lo + hi)), lo + nudge, hi - nudge)
-    trial = np.where(valid, t_meet, np.where(left, lo - step, hi + step))
-    trial = np.clip(trial, -SCAN_HALF_RAD, SCAN_HALF_RAD)
-    ft, dt, pt, nt = (
-        a[..., 0, :] if a.ndim == 4 else a[..., 0] for a in _rim(terrain, w, trial[..., None])
-    )
+    trial = np.empty(lo.shape)
+    _trial_angles(lo, hi, f, df, trial)
+    ft, dt, pt, nt = _rim(terrain, w, trial[..., None])
+    out = np.empty((6, *lo.shape))
+    point, normal = np.empty((*lo.shape, 3)), np.empty((*lo.shape, 3))
+    _split(lo, hi, f, df, pts, nrm, trial, ft, dt, pt, nt, out, point, normal)
+    new_lo, new_hi, theta, best, gap, error = out
+    return _Contact(new_lo, new_hi, theta, best, gap, error, point, normal)
 
-    right_ok = _holds_minimum(ft, dt, f1, d1)
-    lowest_left = np.where(ft <= np.minimum(f0, f1), dt > 0.0, f0 < f1)
-    keep_left = _holds_minimum(f0, d0, ft, dt) & (lowest_left | ~right_ok)
-    new_lo = np.where(valid, np.where(keep_left, lo, trial), np.where(left, trial, hi))
-    new_hi = np.where(valid, np.where(keep_left, trial, hi), np.where(left, lo, trial))
-    fl = np.where(valid, np.where(keep_left, f0, ft), np.where(left, ft, f1))
-    dl = np.where(valid, np.where(keep_left, d0, dt), np.where(left, dt, d1))
-    fh = np.where(valid, np.where(keep_left, ft, f1), np.where(left, f0, ft))
-    dh = np.where(valid, np.where(keep_left, dt, d1), np.where(left, d0, dt))
-    # Lower bound of the minimum in a narrow convex bracket: where the tangents meet, or
-    # the lower end less the steeper end slope times the width.
-    _, meet, convex = _tangent_meet(new_lo, fl, dl, new_hi, fh, dh)
-    flat = np.minimum(fl, fh) - np.maximum(-dl, dh) * (new_hi - new_lo)
-    trusted = convex & (new_hi - new_lo <= TRUST_BRACKET_RAD)
-    lower = np.where(trusted, np.maximum(meet, flat), -np.inf)
 
-    f3 = np.stack([f0, f1, ft], axis=-1)  # the best of lo, hi and the trial
-    j = np.argmin(f3, axis=-1)
-    best = np.take_along_axis(f3, j[..., None], -1)[..., 0]
-    theta = np.take_along_axis(np.stack([lo, hi, trial], axis=-1), j[..., None], -1)[..., 0]
-    jj = j[..., None, None]
-    point = np.take_along_axis(np.concatenate([pts, pt[..., None, :]], -2), jj, -2)[..., 0, :]
-    normal = np.take_along_axis(np.concatenate([nrm, nt[..., None, :]], -2), jj, -2)[..., 0, :]
-    return _Contact(
-        new_lo, new_hi, theta, best, best * -normal[..., 2], best - lower, point, normal
-    )
+@kernel
+def _trial_angles(
+    lo: FloatArray, hi: FloatArray, f: FloatArray, df: FloatArray, trial: FloatArray
+) -> None:
+    """The trial angle of each bracket ``[lo, hi]`` (m, 6) from the clearance ``f`` and
+    its slope ``df`` (m, 6, 2) at its ends (see ``contact``), into ``trial``."""
+    for a in range(lo.shape[0]):
+        for b in range(lo.shape[1]):
+            t0, t1 = lo[a, b], hi[a, b]
+            f0, f1, d0, d1 = f[a, b, 0], f[a, b, 1], df[a, b, 0], df[a, b, 1]
+            valid = _holds_minimum(f0, d0, f1, d1)
+            left = (not valid) & (f0 <= f1)  # downhill lies below lo (else above hi)
+            step = _clip(2.0 * (t1 - t0), MIN_STEP_RAD, MAX_STEP_BRACKET_RAD)
+            t_meet, _, convex = _tangent_meet(t0, f0, d0, t1, f1, d1)
+            # Off the ends: at a kink the tangents meet exactly at the end already found,
+            # and a sample just past it closes the bracket.
+            nudge = _minimum(0.25 * (t1 - t0), NUDGE_RAD)
+            t_meet = _clip(t_meet if convex else 0.5 * (t0 + t1), t0 + nudge, t1 - nudge)
+            t = t_meet if valid else (t0 - step if left else t1 + step)
+            trial[a, b] = _clip(t, -SCAN_HALF_RAD, SCAN_HALF_RAD)
+
+
+@kernel
+def _split(
+    lo: FloatArray,
+    hi: FloatArray,
+    f: FloatArray,
+    df: FloatArray,
+    pts: FloatArray,
+    nrm: FloatArray,
+    trial: FloatArray,
+    ft: FloatArray,
+    dt: FloatArray,
+    pt: FloatArray,
+    nt: FloatArray,
+    out: FloatArray,
+    point: FloatArray,
+    normal: FloatArray,
+) -> None:
+    """The next bracket of each wheel from its ends (``f``, ``df``, ``pts``, ``nrm``:
+    (m, 6, 2) and (m, 6, 2, 3)) and its trial (``ft``, ``dt``, ``pt``, ``nt``: one
+    sample); into ``out`` (6, m, 6) the new ``lo``, ``hi``, the best angle, its clearance,
+    gap and error, and its ``point`` and ``normal`` (m, 6, 3)."""
+    for a in range(lo.shape[0]):
+        for b in range(lo.shape[1]):
+            t0, t1, tt = lo[a, b], hi[a, b], trial[a, b]
+            f0, f1, d0, d1 = f[a, b, 0], f[a, b, 1], df[a, b, 0], df[a, b, 1]
+            fx, dx = ft[a, b, 0], dt[a, b, 0]
+            valid = _holds_minimum(f0, d0, f1, d1)
+            left = (not valid) & (f0 <= f1)
+            right_ok = _holds_minimum(fx, dx, f1, d1)
+            lowest_left = (dx > 0.0) if fx <= _minimum(f0, f1) else (f0 < f1)
+            keep_left = _holds_minimum(f0, d0, fx, dx) & (lowest_left | (not right_ok))
+            if valid and keep_left:
+                nl, nh, fl, dl, fh, dh = t0, tt, f0, d0, fx, dx
+            elif valid:
+                nl, nh, fl, dl, fh, dh = tt, t1, fx, dx, f1, d1
+            elif left:
+                nl, nh, fl, dl, fh, dh = tt, t0, fx, dx, f0, d0
+            else:
+                nl, nh, fl, dl, fh, dh = t1, tt, f1, d1, fx, dx
+            # Lower bound of the minimum in a narrow convex bracket: where the tangents
+            # meet, or the lower end less the steeper end slope times the width.
+            _, meet, convex = _tangent_meet(nl, fl, dl, nh, fh, dh)
+            flat = _minimum(fl, fh) - _maximum(-dl, dh) * (nh - nl)
+            trusted = convex & (nh - nl <= TRUST_BRACKET_RAD)
+            lower = _maximum(meet, flat) if trusted else -np.inf
+            # the best of lo, hi and the trial (np.argmin: the first NaN, else first least)
+            j = 0
+            if not math.isnan(f0):
+                if math.isnan(f1):
+                    j = 1
+                else:
+                    j = 1 if f1 < f0 else 0
+                    if math.isnan(fx) or fx < (f1 if j == 1 else f0):
+                        j = 2
+            best = f0 if j == 0 else (f1 if j == 1 else fx)
+            for i in range(3):
+                point[a, b, i] = pts[a, b, j, i] if j < 2 else pt[a, b, 0, i]
+                normal[a, b, i] = nrm[a, b, j, i] if j < 2 else nt[a, b, 0, i]
+            out[0, a, b], out[1, a, b] = nl, nh
+            out[2, a, b] = t0 if j == 0 else (t1 if j == 1 else tt)
+            out[3, a, b] = best
+            out[4, a, b] = best * -normal[a, b, 2]
+            out[5, a, b] = best - lower
 
 
 def deeper(
@@ -272,22 +397,11 @@ def deeper(
     angles = np.clip(theta[..., None] + CHECK_OFFSETS_RAD, -SCAN_HALF_RAD, SCAN_HALF_RAD)
     f = _rim(terrain, w, angles, slope=False)[0]
     limit = clearance - margin_m
-    j = np.argmin(f, axis=-1)
-    best = np.take_along_axis(f, j[..., None], -1)[..., 0]
-    centre = np.take_along_axis(angles, j[..., None], -1)[..., 0]
+    best, centre = np.empty(limit.shape), np.empty(limit.shape)
+    k, bound = np.empty(limit.shape, dtype=np.int64), np.empty(limit.shape)
+    _scan_rim(f, angles, _CHECK_OWN, best, centre, k, bound)
     half = np.full(best.shape, CHECK_NEAR_RAD)
-    rise_l = np.full(f.shape, np.inf)
-    rise_r = np.full(f.shape, np.inf)
-    rise_l[..., 1:] = f[..., :-1] - f[..., 1:]
-    rise_r[..., :-1] = f[..., 1:] - f[..., :-1]
-    local_min = (rise_l >= 0.0) & (rise_r >= 0.0)
-    rise = np.maximum(
-        np.where(np.isinf(rise_l), rise_r, rise_l), np.where(np.isinf(rise_r), rise_l, rise_r)
-    )
-    own = np.abs(CHECK_OFFSETS_RAD) < 1.5 * CHECK_NEAR_RAD  # next to the contact: its basin
-    bound = np.where(local_min & ~own, f - rise, np.inf)
-    k = np.argmin(bound, axis=-1)
-    suspect = (np.take_along_axis(bound, k[..., None], -1)[..., 0] < limit) & (best >= limit)
+    suspect = (bound < limit) & (best >= limit)
     rows, cols = np.nonzero(suspect)
     if rows.size:
         n = np.arange(rows.size)
@@ -306,3 +420,54 @@ def deeper(
         half[r, c] = ((t_hi - t_lo) / (REFINE_SAMPLES - 1))[better]
     half = np.minimum(half, 0.5 * np.abs(centre - theta))
     return best < limit, centre - half, centre + half
+
+
+@kernel
+def _argmin(row: FloatArray) -> int:
+    """``np.argmin`` of a 1-D array: the first minimum, or the first NaN if there is one."""
+    j = 0
+    for i in range(row.size):
+        if math.isnan(row[i]):
+            return i
+        if row[i] < row[j]:
+            j = i
+    return j
+
+
+@kernel
+def _scan_rim(
+    f: FloatArray,
+    angles: FloatArray,
+    own: BoolArray,
+    best: FloatArray,
+    centre: FloatArray,
+    k_bound: IntArray,
+    bound_min: FloatArray,
+) -> None:
+    """The rim check's scan of the clearances ``f`` (m, 6, K) sampled at ``angles``, one
+    pass per wheel: the lowest sample (``best``, at ``centre``), and the sampled local
+    minimum (not ``own``, the contact's basin) whose rise to its neighbours bounds the
+    rim lowest between them, ``f - rise`` (its index ``k_bound``, the bound ``bound_min``;
+    ``inf`` where there is none)."""
+    n = f.shape[2]
+    bound = np.empty(n)
+    for a in range(f.shape[0]):
+        for b in range(f.shape[1]):
+            row = f[a, b]
+            j = _argmin(row)
+            best[a, b] = row[j]
+            centre[a, b] = angles[a, b, j]
+            for i in range(n):
+                rise_l = row[i - 1] - row[i] if i > 0 else np.inf
+                rise_r = row[i + 1] - row[i] if i < n - 1 else np.inf
+                left = rise_r if math.isinf(rise_l) else rise_l
+                right = rise_l if math.isinf(rise_r) else rise_r
+                # np.maximum: NaN if either is
+                rise = left if math.isnan(left) or left >= right else right
+                if rise_l >= 0.0 and rise_r >= 0.0 and not own[i]:
+                    bound[i] = row[i] - rise
+                else:
+                    bound[i] = np.inf
+            kb = _argmin(bound)
+            k_bound[a, b] = kb
+            bound_min[a, b] = bound[kb]

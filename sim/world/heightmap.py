@@ -21,6 +21,10 @@ Design numbers (approximate, chosen for the MER wheel and the Navcam):
   dropped and rebuilt on demand; a single query needing more tiles at once grows the pool
   for its duration, then the pool shrinks back.
 
+A query is two compiled passes over its points (``sim.compiled``): one finds the tiles they
+fall in, the other interpolates, with the arithmetic of the numpy it replaced (the settling
+asks for millions of points per drive).
+
 The ground fields are fractal value noise (``sim.world.noise``; Ebert et al., *Texturing and
 Modeling*, ch. 2; Perlin 1985), evaluated on the tile grid with separable interpolation.
 """
@@ -36,6 +40,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sim.compiled import kernel
 from sim.errors import InputError
 from sim.world.noise import GroundField
 from sim.world.terrain import Soil
@@ -47,6 +52,7 @@ RESOLUTION_M = 0.05  # grid spacing, see the module docstring
 TILE_CELLS = 160  # cells per tile side: 8 m tiles at 5 cm
 DEFAULT_CACHE_TILES = 128  # 128 x 161^2 x 8 B = 26 MB
 MAX_COORD_M = 1.0e6  # queries beyond 1000 km of the Site origin are rejected
+MAX_LUT_TILES = 65536  # a query's bounding box of tiles up to this size uses a lookup table
 
 
 class AlbedoField(Protocol):
@@ -158,32 +164,6 @@ class HeightmapTerrain:
             slots.append(slot)
         return slots
 
-    def _corners(
-        self, x: FloatArray, y: FloatArray
-    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
-        """Cell corner heights and in-cell fractions for flat query arrays."""
-        gx = x / self.resolution_m
-        gy = y / self.resolution_m
-        fx = np.floor(gx)
-        fy = np.floor(gy)
-        u = gx - fx
-        v = gy - fy
-        gi = fx.astype(np.int64)
-        gj = fy.astype(np.int64)
-        ti = gi // self.tile_cells
-        tj = gj // self.tile_cells
-        local = (gi - ti * self.tile_cells) * self._m + (gj - tj * self.tile_cells)
-        with self._lock:
-            slot = self._slots(ti, tj)
-            flat = self._pool.reshape(-1)
-            idx = slot * (self._m * self._m) + local
-            h00 = flat.take(idx)
-            h10 = flat.take(idx + self._m)
-            h01 = flat.take(idx + 1)
-            h11 = flat.take(idx + self._m + 1)
-            self._shrink()
-        return h00, h10, h01, h11, u, v
-
     def _shrink(self) -> None:
         """After a query that grew the pool, keep only the most recently used tiles."""
         if self._pool.shape[0] <= self._capacity:
@@ -193,52 +173,72 @@ class HeightmapTerrain:
         self._slot_of = OrderedDict((tile, i) for i, (tile, _) in enumerate(keep))
         self._free = list(range(self._capacity - 1, len(keep) - 1, -1))
 
-    def _slots(self, ti: IntArray, tj: IntArray) -> IntArray:
-        """Pool slot of each query point's tile (building tiles as needed)."""
-        ti0, ti1, tj0, tj1 = int(ti.min()), int(ti.max()), int(tj.min()), int(tj.max())
-        ni, nj = ti1 - ti0 + 1, tj1 - tj0 + 1
-        if ni * nj == 1:
-            (s,) = self._ensure([(ti0, tj0)])
-            return np.full(ti.shape, s, dtype=np.int64)
-        if ni * nj <= 65536:  # dense lookup table over the bounding box of tiles
-            rel = (ti - ti0) * nj + (tj - tj0)
-            present = np.zeros(ni * nj, dtype=bool)
-            present[rel] = True
-            keys = np.flatnonzero(present)
-            tiles = [(ti0 + int(k) // nj, tj0 + int(k) % nj) for k in keys]
-            lut = np.zeros(ni * nj, dtype=np.int64)
-            lut[keys] = self._ensure(tiles)
-            out: IntArray = lut[rel]
+    def _interpolate(self, x_m: ArrayLike, y_m: ArrayLike, slopes: bool) -> FloatArray:
+        """Bilinear height (and its slopes if ``slopes``) at the query points, (k, ...) with
+        ``k`` 1 or 3 over ``(h, dh/dx, dh/dy)`` and the broadcast shape after it.
+
+        One compiled pass finds the tiles the points fall in, the missing ones are built,
+        and a second pass interpolates: the numpy form made some twenty passes over the
+        points, and the rim checks of ``sim.rover.settle`` query hundreds of thousands.
+        """
+        x, y = np.broadcast_arrays(np.asarray(x_m, np.float64), np.asarray(y_m, np.float64))
+        shape = x.shape
+        out = np.empty((3 if slopes else 1, *shape))
+        if x.size == 0:
+            out[...] = 0.0
             return out
-        pairs, inverse = np.unique(np.stack([ti, tj], axis=1), axis=0, return_inverse=True)
-        slots = np.asarray(self._ensure([(int(a), int(b)) for a, b in pairs]), dtype=np.int64)
-        out = slots[inverse.reshape(-1)]
+        xf, yf = np.ascontiguousarray(x).reshape(-1), np.ascontiguousarray(y).reshape(-1)
+        box = np.empty(4, dtype=np.int64)
+        bad = _tile_box(xf, yf, self.resolution_m, self.tile_cells, MAX_COORD_M, box)
+        if bad:
+            name = "x_m" if bad == 1 else "y_m"
+            raise InputError(name, f"coordinates must be finite and within {MAX_COORD_M:g} m")
+        ti0, ti1, tj0, tj1 = (int(b) for b in box)
+        ni, nj = ti1 - ti0 + 1, tj1 - tj0 + 1
+        flat = out.reshape(out.shape[0], -1)
+        with self._lock:
+            if ni * nj <= MAX_LUT_TILES:  # a lookup table over the bounding box of tiles
+                present = np.full(ni * nj, ni * nj == 1)  # a single tile needs no marking
+                if ni * nj > 1:
+                    _mark_tiles(xf, yf, self.resolution_m, self.tile_cells, ti0, tj0, nj, present)
+                keys = np.flatnonzero(present)
+                lut = np.zeros(ni * nj, dtype=np.int64)
+                lut[keys] = self._ensure([(ti0 + int(k) // nj, tj0 + int(k) % nj) for k in keys])
+                per_point = False
+            else:  # points spread over a huge area: a slot per point
+                gi = np.floor(xf / self.resolution_m).astype(np.int64) // self.tile_cells
+                gj = np.floor(yf / self.resolution_m).astype(np.int64) // self.tile_cells
+                pairs, inverse = np.unique(np.stack([gi, gj], 1), axis=0, return_inverse=True)
+                slots = self._ensure([(int(a), int(b)) for a, b in pairs])
+                lut = np.asarray(slots, dtype=np.int64)[inverse.reshape(-1)]
+                per_point = True
+            _bilinear(
+                xf,
+                yf,
+                self.resolution_m,
+                self.tile_cells,
+                self._pool.reshape(-1),
+                lut,
+                ti0,
+                tj0,
+                nj,
+                per_point,
+                flat,
+            )
+            self._shrink()
         return out
 
     def height_and_gradient(
         self, x_m: ArrayLike, y_m: ArrayLike
     ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """``(h, dh/dx, dh/dy)`` of the bilinear surface (m, m/m), shapes of the broadcast."""
-        x, y = as_coordinates(x_m, y_m)
-        if x.size == 0:
-            return np.zeros(x.shape), np.zeros(x.shape), np.zeros(x.shape)
-        h00, h10, h01, h11, u, v = self._corners(x.reshape(-1), y.reshape(-1))
-        dx = h10 - h00
-        dy = h01 - h00
-        twist = h11 - h10 - h01 + h00
-        h = h00 + u * dx + v * (dy + u * twist)  # bilinear interpolation
-        hx = (dx + v * twist) / self.resolution_m  # its exact partial derivatives
-        hy = (dy + u * twist) / self.resolution_m
-        return h.reshape(x.shape), hx.reshape(x.shape), hy.reshape(x.shape)
+        out = self._interpolate(x_m, y_m, slopes=True)
+        return out[0, ...], out[1, ...], out[2, ...]
 
     def height_m(self, x_m: ArrayLike, y_m: ArrayLike) -> FloatArray:
         """Elevation (m, up) at Site North ``x_m`` and East ``y_m`` (metres); broadcasts."""
-        x, y = as_coordinates(x_m, y_m)
-        if x.size == 0:
-            return np.zeros(x.shape)
-        h00, h10, h01, h11, u, v = self._corners(x.reshape(-1), y.reshape(-1))
-        h = h00 + u * (h10 - h00) + v * ((h01 - h00) + u * (h11 - h10 - h01 + h00))
-        return h.reshape(x.shape)
+        out: FloatArray = self._interpolate(x_m, y_m, slopes=False)[0, ...]  # 0-d stays an array
+        return out
 
     def gradient(self, x_m: ArrayLike, y_m: ArrayLike) -> tuple[FloatArray, FloatArray]:
         """``(dh/dx, dh/dy)`` (m/m) of the bilinear surface: North and East slopes."""
@@ -249,3 +249,99 @@ class HeightmapTerrain:
         """Reflectance in [0, 1] from the terrain's texture; broadcasts."""
         x, y = as_coordinates(x_m, y_m)
         return self._albedo(x, y)
+
+
+@kernel
+def _tile_of(coord_m: float, spacing_m: float, cells: int) -> int:
+    """Tile index of a coordinate, ``floor(coord / spacing) // cells``. The second floor
+    division is done in float64, exactly (the cell index is an integer below 2^53 and a
+    nonzero remainder keeps the quotient at least ``1 / cells`` from an integer), because
+    64-bit integer division is the slowest step of a height query."""
+    return int(np.floor(np.floor(coord_m / spacing_m) / cells))
+
+
+@kernel
+def _tile_box(
+    x: FloatArray, y: FloatArray, spacing_m: float, cells: int, bound_m: float, box: IntArray
+) -> int:
+    """Bounding box ``[ti0, ti1, tj0, tj1]`` of the points' tiles into ``box``; returns 1 (2)
+    if an ``x`` (``y``) is not finite or beyond ``bound_m``, else 0."""
+    for k in range(x.size):
+        if not abs(x[k]) <= bound_m:  # NaN compares False
+            return 1
+    for k in range(y.size):
+        if not abs(y[k]) <= bound_m:
+            return 2
+    ti0 = ti1 = _tile_of(x[0], spacing_m, cells)
+    tj0 = tj1 = _tile_of(y[0], spacing_m, cells)
+    for k in range(1, x.size):
+        ti = _tile_of(x[k], spacing_m, cells)
+        tj = _tile_of(y[k], spacing_m, cells)
+        ti0, ti1 = min(ti0, ti), max(ti1, ti)
+        tj0, tj1 = min(tj0, tj), max(tj1, tj)
+    box[0], box[1], box[2], box[3] = ti0, ti1, tj0, tj1
+    return 0
+
+
+@kernel
+def _mark_tiles(
+    x: FloatArray,
+    y: FloatArray,
+    spacing_m: float,
+    cells: int,
+    ti0: int,
+    tj0: int,
+    nj: int,
+    present: NDArray[np.bool_],
+) -> None:
+    """Mark the tiles the points fall in, ``present[(ti - ti0) nj + tj - tj0]``."""
+    for k in range(x.size):
+        ti = _tile_of(x[k], spacing_m, cells)
+        tj = _tile_of(y[k], spacing_m, cells)
+        present[(ti - ti0) * nj + (tj - tj0)] = True
+
+
+@kernel
+def _bilinear(
+    x: FloatArray,
+    y: FloatArray,
+    spacing_m: float,
+    cells: int,
+    pool: FloatArray,
+    lut: IntArray,
+    ti0: int,
+    tj0: int,
+    nj: int,
+    per_point: bool,
+    out: FloatArray,
+) -> None:
+    """The bilinear surface over the tile samples in ``pool`` (flattened slots of
+    ``(cells + 1)^2``): ``out[0]`` the height, ``out[1:3]`` (if present) its exact slopes.
+    A point's slot is ``lut[k]`` if ``per_point``, else its tile's entry in the lookup
+    table over the bounding box ``lut[(ti - ti0) nj + tj - tj0]``."""
+    m = cells + 1
+    slopes = out.shape[0] == 3
+    for k in range(x.size):
+        gx = x[k] / spacing_m
+        gy = y[k] / spacing_m
+        fx = np.floor(gx)
+        fy = np.floor(gy)
+        u = gx - fx
+        v = gy - fy
+        gi = int(fx)
+        gj = int(fy)
+        ti = int(np.floor(fx / cells))  # = gi // cells, see _tile_of
+        tj = int(np.floor(fy / cells))
+        slot = lut[k] if per_point else lut[(ti - ti0) * nj + (tj - tj0)]
+        idx = slot * (m * m) + (gi - ti * cells) * m + (gj - tj * cells)
+        h00 = pool[idx]
+        h10 = pool[idx + m]
+        h01 = pool[idx + 1]
+        h11 = pool[idx + m + 1]
+        dx = h10 - h00
+        dy = h01 - h00
+        twist = h11 - h10 - h01 + h00
+        out[0, k] = h00 + u * dx + v * (dy + u * twist)  # bilinear interpolation
+        if slopes:
+            out[1, k] = (dx + v * twist) / spacing_m  # its exact partial derivatives
+            out[2, k] = (dy + u * twist) / spacing_m

@@ -35,6 +35,7 @@ from __future__ import annotations
 import threading
 from collections import OrderedDict
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -112,13 +113,20 @@ class RockPopulation:
         )
         return out
 
-    def sample_diameters(self, rng: np.random.Generator, n: int) -> FloatArray:
-        """``n`` diameters (m) from the truncated size-frequency law, by inverse CDF."""
+    @cached_property
+    def _inverse_cdf(self) -> tuple[FloatArray, FloatArray]:
+        """``(P(diameter ≥ D), log D)`` tabulated in log D, increasing in P: the table of
+        ``sample_diameters``, built once (every heightmap tile samples rocks)."""
         log_d = np.linspace(np.log(self.d_min_m), np.log(self.d_max_m), 4097)
         cum = cumulative_number_per_m2(np.exp(log_d), self.k)
         p_ge = (cum - cum[-1]) / (cum[0] - cum[-1])  # P(diameter ≥ D), 1 -> 0
+        return p_ge[::-1], log_d[::-1]
+
+    def sample_diameters(self, rng: np.random.Generator, n: int) -> FloatArray:
+        """``n`` diameters (m) from the truncated size-frequency law, by inverse CDF."""
+        p_ge, log_d = self._inverse_cdf
         u = rng.random(n)
-        out: FloatArray = np.exp(np.interp(u, p_ge[::-1], log_d[::-1]))
+        out: FloatArray = np.exp(np.interp(u, p_ge, log_d))
         return out
 
 

@@ -157,12 +157,62 @@ def test_long_drives_in_every_direction_build_only_nearby_tiles() -> None:
     assert t.tiles_built <= 8 * 19
 
 
+def _bilinear_reference(
+    t: HeightmapTerrain, x: np.ndarray, y: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The heightmap's surface in numpy, point by point from its public tiles: the
+    arithmetic of the compiled query (``sim.world.heightmap._bilinear``) before it was
+    compiled, so the two must agree bit for bit."""
+    gx, gy = x / t.resolution_m, y / t.resolution_m
+    fx, fy = np.floor(gx), np.floor(gy)
+    u, v = gx - fx, gy - fy
+    gi, gj = fx.astype(np.int64), fy.astype(np.int64)
+    ti, tj = gi // t.tile_cells, gj // t.tile_cells
+    a, b = gi - ti * t.tile_cells, gj - tj * t.tile_cells
+    h00, h10, h01, h11 = (np.empty(x.shape) for _ in range(4))
+    for tile in {(int(p), int(q)) for p, q in zip(ti, tj, strict=True)}:
+        on = (ti == tile[0]) & (tj == tile[1])
+        samples = t.tile(*tile)
+        h00[on], h10[on] = samples[a[on], b[on]], samples[a[on] + 1, b[on]]
+        h01[on], h11[on] = samples[a[on], b[on] + 1], samples[a[on] + 1, b[on] + 1]
+    dx, dy = h10 - h00, h01 - h00
+    twist = h11 - h10 - h01 + h00
+    h = h00 + u * dx + v * (dy + u * twist)
+    return h, (dx + v * twist) / t.resolution_m, (dy + u * twist) / t.resolution_m
+
+
+@pytest.mark.parametrize(
+    ("far_m", "half_m"), [(0.0, 3.0), (0.0, 30.0), (6.0e5, 30.0)], ids=["one", "lut", "far"]
+)
+def test_compiled_queries_equal_the_numpy_reference(far_m: float, half_m: float) -> None:
+    # One tile (8 m, centred on 4 m), a lookup table over many, and a slot per point (two
+    # clusters 600 km apart: a bounding box of more than MAX_LUT_TILES tiles): all bit for
+    # bit the reference, nodes and cell edges included.
+    t = make_terrain("gusev", 3)
+    rng = np.random.default_rng(5)
+    x = 4.0 + rng.uniform(-half_m, half_m, 1000)
+    y = -4.0 + rng.uniform(-half_m, half_m, 1000)
+    x[:2], y[:2] = [5.0 * RESOLUTION_M, 2.0], [-3.0 * RESOLUTION_M, -6.0]  # a node, an edge
+    x[500:] += far_m
+    h, hx, hy = t.height_and_gradient(x.reshape(20, 50), y.reshape(20, 50))
+    ref = _bilinear_reference(t, x, y)
+    for got, want in zip((h, hx, hy), ref, strict=True):
+        np.testing.assert_array_equal(got.ravel(), want)
+    fresh = make_terrain("gusev", 3)
+    np.testing.assert_array_equal(fresh.height_m(x, y), ref[0])
+    tiles = {(int(a), int(b)) for a, b in np.floor(np.stack([x, y]) / fresh.tile_size_m).T}
+    assert fresh.tiles_built == len(tiles)  # only the tiles the points fall in
+
+
 @pytest.mark.parametrize("bad", [np.nan, np.inf, 2.0e6])
 def test_bad_coordinates_raise_input_error(bad: float) -> None:
     t = _rough_terrain()
     with pytest.raises(InputError) as err:
         t.height_m(np.array([0.0, bad]), 0.0)
     assert err.value.parameter == "x_m"
+    with pytest.raises(InputError) as err:
+        t.height_and_gradient(0.0, np.array([bad, 0.0]))
+    assert err.value.parameter == "y_m"
     with pytest.raises(InputError):
         t.albedo(0.0, bad)
 
