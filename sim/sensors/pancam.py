@@ -30,7 +30,9 @@ The sun is far away, so the mast head's offset from the body origin causes no pa
 
 from __future__ import annotations
 
+import functools
 import math
+import threading
 from dataclasses import dataclass
 
 import cv2
@@ -231,17 +233,12 @@ def render_sun_image(
     # Autoexposure: put the expected peak at peak_fraction of the full well.
     peak_rate = _on_detector_peak(stamp, camera) if stamp is not None else 0.0
     if peak_rate <= 0.0:
-        ref = render_sun_stamp(
-            np.array([0.0, 0.0, 1.0]), camera, det, rho, limb_darkening_u, disk_rate
-        )
-        if ref is None:  # cannot happen: a boresight sun lands on the detector
-            raise RuntimeError("reference sun stamp missed the detector")
-        peak_rate = float(ref.rate_e_s.max())
+        peak_rate = _boresight_peak_rate(camera, det, rho, limb_darkening_u, disk_rate)
     exposure_s = peak_fraction * det.full_well_e / peak_rate
 
     # Detector: dark offset and read noise everywhere, Poisson shot noise on the signal.
     h, w = camera.height_px, camera.width_px
-    dn = np.empty((h, w), dtype=np.float32)
+    dn = _scratch_frame(h, w)
     standard_normal_f32(rng, dn)  # rng.standard_normal's draws, bit for bit, in bulk
     dn *= np.float32(det.read_noise_e / det.gain_e_per_dn)
     dn += np.float32(det.dark_offset_dn)
@@ -266,6 +263,31 @@ def render_sun_image(
     uv = camera.project(sun_cam)
     truth_uv = None if sun_cam[2] <= 0.0 else np.array([float(uv[0]), float(uv[1])])
     return SunImage(image, truth_uv, sun_cam, exposure_s, peak_e)
+
+
+@functools.lru_cache(maxsize=8)
+def _boresight_peak_rate(
+    camera: PinholeCamera, det: PancamDetector, rho: float, u: float, disk_rate: float
+) -> float:
+    """The peak rate of a sun at the boresight: the exposure commanded with no sun in the
+    field. The same for every such frame, so rendered once."""
+    ref = render_sun_stamp(np.array([0.0, 0.0, 1.0]), camera, det, rho, u, disk_rate)
+    if ref is None:  # cannot happen: a boresight sun lands on the detector
+        raise RuntimeError("reference sun stamp missed the detector")
+    return float(ref.rate_e_s.max())
+
+
+_SCRATCH = threading.local()
+
+
+def _scratch_frame(h: int, w: int) -> NDArray[np.float32]:
+    """A float32 (h, w) work frame reused by the thread's renders: a fresh 4 MB array each
+    frame costs its page faults, as much as a third of the noise draws themselves."""
+    frame: NDArray[np.float32] | None = getattr(_SCRATCH, "frame", None)
+    if frame is None or frame.shape != (h, w):
+        frame = np.empty((h, w), dtype=np.float32)
+        _SCRATCH.frame = frame
+    return frame
 
 
 def _on_detector_peak(stamp: SunStamp, camera: PinholeCamera) -> float:
