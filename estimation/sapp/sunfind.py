@@ -117,9 +117,7 @@ def find_sun(
         img = img.astype(np.float32)  # the types OpenCV filters take directly
 
     # Step 1: dark-sky level and noise from a subsample (robust: median and MAD).
-    sub = img[::4, ::4].astype(np.float32)
-    background = float(np.median(sub))
-    mad = float(np.median(np.abs(sub - background)))
+    background, mad = _median_and_mad(img[::4, ::4])
     # The quantisation step bounds the noise estimate from below (MAD of integer data
     # can be 0 when the read noise is under a DN).
     noise = max(1.4826 * mad, 1.0 / math.sqrt(12.0))
@@ -134,7 +132,13 @@ def find_sun(
     # their outer borders (Suzuki-Abe border following): on a mask this sparse that is
     # ~40x faster than labelling the whole frame.
     threshold = background + p.threshold_fraction * (peak - background)
-    mask = (smooth > threshold).view(np.uint8)
+    if smooth.dtype.kind == "u":
+        # Integer pixels: s > t exactly when s > floor(t), compared in the image's own type
+        # (a float threshold would convert the whole frame to float64 first).
+        level = min(max(math.floor(threshold), -1), int(np.iinfo(smooth.dtype).max))
+        mask = (smooth > level).view(np.uint8) if level >= 0 else np.ones_like(smooth, np.uint8)
+    else:
+        mask = (smooth > threshold).view(np.uint8)
     contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
 
     # Step 4: plausible size, clear of the edges; keep the largest.
@@ -186,3 +190,37 @@ def find_sun(
         background_dn=background,
         noise_dn=noise,
     )
+
+
+def _median_and_mad(sub: NDArray[np.generic]) -> tuple[float, float]:
+    """The median of ``sub`` and the median of its absolute deviations from it: float32
+    ``np.median`` of ``sub`` and of ``|sub - median|``.
+
+    Integer pixels take a histogram instead of two partial sorts: the median of an even
+    count is the mean of the two middle values, exact here in float32 (integers and halves
+    below 2^17), so both figures are those of ``np.median`` to the bit.
+    """
+    if sub.dtype.kind != "u":
+        sub32 = sub.astype(np.float32)
+        background = float(np.median(sub32))
+        return background, float(np.median(np.abs(sub32 - background)))
+    counts = np.bincount(sub.ravel())
+    values = np.flatnonzero(counts)
+    counts = counts[values]
+    background = _weighted_median(values.astype(np.float64), counts)
+    deviation = np.abs(values - background)
+    order = np.argsort(deviation, kind="stable")
+    return background, _weighted_median(deviation[order], counts[order])
+
+
+def _weighted_median(sorted_values: FloatArray, counts: NDArray[np.intp]) -> float:
+    """Median of ``sorted_values`` (ascending) each repeated ``counts`` times: the middle
+    value, or the mean of the two middle values of an even count."""
+    cumulative = np.cumsum(counts)
+    n = int(cumulative[-1])
+    upper = float(sorted_values[np.searchsorted(cumulative, n // 2, side="right")])
+    if n % 2:
+        return upper
+    lower = float(sorted_values[np.searchsorted(cumulative, n // 2 - 1, side="right")])
+    return 0.5 * (lower + upper)
+
