@@ -143,11 +143,16 @@ def render_sun_stamp(
     angular_radius_rad: float,
     limb_darkening_u: float,
     disk_rate_e_s: float,
+    *,
+    restrict: bool = True,
 ) -> SunStamp | None:
     """Noise-free photoelectron rate of the sun's image around its centre.
 
     ``sun_cam`` (3,) is the unit sun vector in the camera frame. Returns None if the sun is
     behind the camera or its image (disk plus PSF wings) misses the detector entirely.
+    ``restrict`` traces rays and blurs only where the disk and its blur are (the rest of the
+    stamp is exactly zero either way); False does the whole stamp, the reference that the
+    test holds the restricted rendering to, bit for bit.
     """
     s = np.asarray(sun_cam, dtype=np.float64).reshape(3)
     s = s / np.linalg.norm(s)
@@ -164,12 +169,57 @@ def render_sun_stamp(
         return None
 
     ss = detector.supersample
-    offsets = (np.arange(n * ss) + 0.5) / ss - 0.5  # sub-pixel centres from a pixel centre
-    # Unit rays through the sub-pixel centres (camera.unproject, written out for speed).
-    x = ((col0 + offsets - camera.c_u_px) / camera.f_px)[None, :]
-    y = ((row0 + offsets - camera.c_v_px) / camera.f_px)[:, None]
-    inv_len = 1.0 / np.sqrt(x * x + y * y + 1.0)  # = cos(alpha), alpha off the boresight
-    cos_t = (x * s[0] + y * s[1] + s[2]) * inv_len  # cosine of the angle from the sun
+    m = n * ss
+    offsets = (np.arange(m) + 0.5) / ss - 0.5  # sub-pixel centres from a pixel centre
+    # Camera-plane coordinates of the sub-pixel centres (camera.unproject, written out).
+    x = (col0 + offsets - camera.c_u_px) / camera.f_px
+    y = (row0 + offsets - camera.c_v_px) / camera.f_px
+    flux = np.zeros((m, m))
+    rows = slice(0, m)
+    traced = False
+    if restrict:
+        # The disk's box: its centre plus its stretched radius and a pixel; kept only if no
+        # ray on the box's rim sees the sun (the disk's image is convex, so then it all lies
+        # inside), else the whole stamp is traced.
+        reach = math.ceil((1.1 * rho * camera.f_px + 1.0) * ss)
+        centre_r = round((v0 - row0 + 0.5) * ss - 0.5)  # sub-pixel index of the centre
+        centre_c = round((u0 - col0 + 0.5) * ss - 0.5)
+        rows = slice(max(centre_r - reach, 0), min(centre_r + reach + 1, m))
+        cols = slice(max(centre_c - reach, 0), min(centre_c + reach + 1, m))
+        box = _disk_flux(x[cols], y[rows], s, rho, limb_darkening_u, camera.f_px * ss)
+        rim = np.concatenate([box[0], box[-1], box[:, 0], box[:, -1]])
+        if not np.any(rim != 0.0):
+            flux[rows, cols] = box
+            traced = True
+    if not traced:
+        rows = slice(0, m)
+        flux = _disk_flux(x, y, s, rho, limb_darkening_u, camera.f_px * ss)
+    sigma_sub = detector.psf_sigma_px * ss
+    # Rows farther than the kernel's reach from the disk blur to exactly zero: the blur runs
+    # over the disk's rows and that reach only, over whole rows (OpenCV's arithmetic for
+    # a pixel then stays the same as over the whole stamp; cutting columns would not).
+    kernel_reach = math.ceil(4.0 * sigma_sub) + 2  # OpenCV's float kernels: 4 sigma
+    rows = slice(max(rows.start - kernel_reach, 0), min(rows.stop + kernel_reach, m))
+    blurred = np.zeros((m, m))
+    blurred[rows] = cv2.GaussianBlur(
+        flux[rows], (0, 0), sigmaX=sigma_sub, borderType=cv2.BORDER_CONSTANT
+    )
+    per_px = blurred.reshape(n, ss, n, ss).sum(axis=(1, 3))
+    # Normalise by the disk's analytic flux (radiance 1 at the centre, linear law).
+    disk_flux = math.pi * rho**2 * (1.0 - limb_darkening_u / 3.0)
+    return SunStamp(row0, col0, per_px * (disk_rate_e_s / disk_flux))
+
+
+def _disk_flux(
+    x: FloatArray, y: FloatArray, s: FloatArray, rho: float, u: float, f_sub: float
+) -> FloatArray:
+    """Flux of the rays through camera-plane points ``x`` (columns) by ``y`` (rows): the
+    limb-darkened radiance where the ray meets the disk, times the ray's solid angle
+    ``cos^3(alpha) / f_sub^2`` (``f_sub`` the focal length in sub-pixels); 0 off the disk."""
+    xx = x[None, :]
+    yy = y[:, None]
+    inv_len = 1.0 / np.sqrt(xx * xx + yy * yy + 1.0)  # = cos(alpha), alpha off the boresight
+    cos_t = (xx * s[0] + yy * s[1] + s[2]) * inv_len  # cosine of the angle from the sun
     # sin^2 of that angle as (1 - c)(1 + c): cos_t's ~1e-16 rounding is ~1e-11 of sin^2
     # at the limb, so no need for a cross product.
     sin2_t = (1.0 - cos_t) * (1.0 + cos_t)
@@ -177,17 +227,9 @@ def render_sun_stamp(
     r2 = sin2_t / math.sin(rho) ** 2
     inside = (r2 < 1.0) & (cos_t > 0.0)
     mu = np.sqrt(np.clip(1.0 - r2, 0.0, 1.0))
-    radiance = np.where(inside, 1.0 - limb_darkening_u * (1.0 - mu), 0.0)
-    # Each ray carries the solid angle of its sub-pixel: cos^3(alpha) / (f ss)^2.
-    flux = radiance * inv_len**3 / (camera.f_px * ss) ** 2
-    sigma_sub = detector.psf_sigma_px * ss
-    blurred = cv2.GaussianBlur(
-        flux.astype(np.float64), (0, 0), sigmaX=sigma_sub, borderType=cv2.BORDER_CONSTANT
-    )
-    per_px = blurred.reshape(n, ss, n, ss).sum(axis=(1, 3))
-    # Normalise by the disk's analytic flux (radiance 1 at the centre, linear law).
-    disk_flux = math.pi * rho**2 * (1.0 - limb_darkening_u / 3.0)
-    return SunStamp(row0, col0, per_px * (disk_rate_e_s / disk_flux))
+    radiance = np.where(inside, 1.0 - u * (1.0 - mu), 0.0)
+    flux: FloatArray = radiance * inv_len**3 / f_sub**2
+    return flux
 
 
 def render_sun_image(
