@@ -1,0 +1,102 @@
+"""The Pancam renderer's fast paths against the whole-frame reference, bit for bit: rays
+traced and blurred only around the disk, the read noise drawn in bulk. Suns across the
+field, on its edges, just off it (the PSF wings only), well off it and behind the camera."""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+import pytest
+
+import sim.sensors.pancam as pancam
+from estimation.camera_model import PANCAM, R_b_pancam
+from sim.sensors.pancam import PancamDetector, render_sun_image, render_sun_stamp
+
+MARS_PERIHELION_AU = 1.3814  # NASA Mars fact sheet
+MARS_APHELION_AU = 1.6660  # NASA Mars fact sheet
+
+# Pixels (column, row) of the sun's centre: centre, corners, on the edges, just past them
+# (only the blur's wings on the detector), far off the field.
+SUN_PIXELS = [
+    (511.5, 511.5),
+    (0.0, 0.0),
+    (1023.0, 1023.0),
+    (-0.5, 300.0),
+    (1023.5, 700.0),
+    (400.0, -6.0),
+    (800.0, 1030.0),
+    (-12.0, -12.0),
+    (1040.0, 512.0),
+    (3000.0, -2000.0),
+]
+
+
+def _sun_cam(u: float, v: float) -> np.ndarray:
+    ray: np.ndarray = PANCAM.unproject(u, v)
+    return ray
+
+
+def _random_suns(n: int, seed: int) -> list[np.ndarray]:
+    """Unit camera-frame suns over a field a little wider than the detector's."""
+    rng = np.random.default_rng(seed)
+    return [_sun_cam(*rng.uniform(-20.0, 1044.0, 2)) for _ in range(n)]
+
+
+@pytest.mark.parametrize("distance_au", [MARS_PERIHELION_AU, MARS_APHELION_AU])
+def test_the_restricted_stamp_is_the_whole_stamp(distance_au: float) -> None:
+    det = PancamDetector()
+    rho = pancam.sun_angular_radius_rad(distance_au)
+    suns = [_sun_cam(u, v) for u, v in SUN_PIXELS] + _random_suns(40, seed=1)
+    suns.append(np.array([0.0, 0.3, -1.0]))  # behind the camera
+    rendered = 0
+    for s in suns:
+        fast = render_sun_stamp(s, PANCAM, det, rho, 0.45, 2.0e7)
+        ref = render_sun_stamp(s, PANCAM, det, rho, 0.45, 2.0e7, restrict=False)
+        assert (fast is None) == (ref is None)
+        if fast is None or ref is None:
+            continue
+        rendered += 1
+        assert (fast.row0, fast.col0) == (ref.row0, ref.col0)
+        np.testing.assert_array_equal(fast.rate_e_s, ref.rate_e_s)
+        assert ref.rate_e_s.max() > 0.0
+    assert rendered >= 40
+
+
+def test_a_tiny_supersample_and_a_wide_blur_agree_too() -> None:
+    """Other detector settings: the box and the blur's reach follow them."""
+    for det in (PancamDetector(supersample=2, psf_sigma_px=2.5), PancamDetector(supersample=1)):
+        rho = pancam.sun_angular_radius_rad(1.52)
+        for s in _random_suns(10, seed=2):
+            fast = render_sun_stamp(s, PANCAM, det, rho, 0.45, 2.0e7)
+            ref = render_sun_stamp(s, PANCAM, det, rho, 0.45, 2.0e7, restrict=False)
+            assert (fast is None) == (ref is None)
+            if fast is not None and ref is not None:
+                np.testing.assert_array_equal(fast.rate_e_s, ref.rate_e_s)
+
+
+def _reference_noise(rng: np.random.Generator, out: np.ndarray) -> None:
+    rng.standard_normal(dtype=np.float32, out=out)
+
+
+def test_the_frame_is_the_reference_frame(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Whole frames, noise included, and the camera generator left in the same state."""
+    az, el = 0.4, 0.6
+    R = R_b_pancam(az, el)
+    suns_b = [R @ _sun_cam(u, v) for u, v in SUN_PIXELS] + [R @ s for s in _random_suns(6, 3)]
+    fast_rng, ref_rng = np.random.default_rng(42), np.random.default_rng(42)
+    fast_frames = [render_sun_image(sb, az, el, fast_rng) for sb in suns_b]
+    with monkeypatch.context() as m:
+        m.setattr(pancam, "standard_normal_f32", _reference_noise)
+        m.setattr(pancam, "render_sun_stamp", functools.partial(render_sun_stamp, restrict=False))
+        m.setattr(pancam, "_boresight_peak_rate", pancam._boresight_peak_rate.__wrapped__)
+        ref_frames = [render_sun_image(sb, az, el, ref_rng) for sb in suns_b]
+    for fast, ref in zip(fast_frames, ref_frames, strict=True):
+        np.testing.assert_array_equal(fast.image, ref.image)
+        assert fast.exposure_s == ref.exposure_s
+        assert fast.peak_e == ref.peak_e
+    assert fast_rng.bit_generator.state == ref_rng.bit_generator.state
+    lit = sum(1 for f in fast_frames if f.peak_e > 0.0)
+    assert 4 <= lit < len(fast_frames)  # suns on the detector and suns off it
+    assert math.isfinite(fast_frames[0].exposure_s)
