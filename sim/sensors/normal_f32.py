@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 import sys
+from collections.abc import Callable
 from typing import Any, cast
 
 import numba
@@ -73,96 +74,109 @@ _CHUNK_RAW = 1 << 16
 
 
 @numba.njit(cache=True, nogil=True)
+def _draw_slow(
+    words: Any, w: int, word: Any, wi: Any, fi: Any, r: Any, inv_r: Any, scale: Any
+) -> tuple[Any, int, int]:  # pragma: no cover - compiled; the test compares it with numpy
+    """The rare rest of a draw whose ``word`` fell outside its layer's rectangle: the tail
+    beyond r (layer 0) or the wedge test, from ``words[w:]``. Returns the value, the next
+    word's index and 1 if accepted, 0 if the draw starts over there, -1 if the words end."""
+    n_words = words.size
+    idx = word & 0xFF
+    j = (word >> 9) & 0x7FFFFF
+    x = np.float32(j) * wi[idx]
+    if (word >> 8) & 1:
+        x = -x
+    if idx == 0:
+        while w + 1 < n_words:
+            u1 = np.float32(words[w] >> 8) * scale
+            u2 = np.float32(words[w + 1] >> 8) * scale
+            w += 2
+            xx = -inv_r * np.float32(math.log1p(-u1))
+            yy = -np.float32(math.log1p(-u2))
+            if yy + yy > xx * xx:
+                return (-(r + xx) if (j >> 8) & 1 else r + xx), w, 1
+        return x, w, -1
+    if w >= n_words:
+        return x, w, -1
+    u = np.float32(words[w] >> 8) * scale
+    xd = np.float64(x)
+    accepted = (fi[idx - 1] - fi[idx]) * u + fi[idx] < math.exp(-0.5 * xd * xd)
+    return x, w + 1, 1 if accepted else 0
+
+
+@numba.njit(cache=True, nogil=True)
 def _fill(
-    words: Any,
-    out: Any,
-    start: int,
-    wi: Any,
-    ki: Any,
-    fi: Any,
-    r: Any,
-    inv_r: Any,
-    scale: Any,
+    words: Any, out: Any, start: int, wi: Any, ki: Any, fi: Any, r: Any, inv_r: Any, scale: Any
 ) -> tuple[int, int]:  # pragma: no cover - compiled; the test compares it with numpy
     """Fill ``out[start:]`` from the word stream ``words``; returns the next index of ``out``
     and the words used. Stops before a draw the words cannot finish."""
-    n = out.size
-    n_words = words.size
     i = start
-    w = 0
-    while i < n:
-        first = w  # where this draw began: rewound to if the words run out
-        while True:
-            if w >= n_words:
-                return i, first
-            word = words[w]
-            w += 1
-            idx = word & 0xFF
-            j = (word >> 9) & 0x7FFFFF
+    w = first = 0  # first: where the current draw began, rewound to if the words run out
+    while i < out.size and w < words.size:
+        word = words[w]
+        idx = word & 0xFF
+        j = (word >> 9) & 0x7FFFFF
+        if j < ki[idx]:  # ~99 % of draws: inside the layer's rectangle
             x = np.float32(j) * wi[idx]
-            if (word >> 8) & 1:
-                x = -x
-            if j < ki[idx]:
-                break
-            if idx == 0:  # the tail beyond r
-                found = False
-                while w + 1 < n_words:
-                    u1 = np.float32(words[w] >> 8) * scale
-                    u2 = np.float32(words[w + 1] >> 8) * scale
-                    w += 2
-                    xx = -inv_r * np.float32(math.log1p(-u1))
-                    yy = -np.float32(math.log1p(-u2))
-                    if yy + yy > xx * xx:
-                        x = -(r + xx) if (j >> 8) & 1 else r + xx
-                        found = True
-                        break
-                if found:
-                    break
-                return i, first
-            if w >= n_words:
-                return i, first
-            u = np.float32(words[w] >> 8) * scale
             w += 1
-            xd = np.float64(x)
-            if (fi[idx - 1] - fi[idx]) * u + fi[idx] < math.exp(-0.5 * xd * xd):
+            out[i] = -x if (word >> 8) & 1 else x
+        else:
+            x, w, status = _draw_slow(words, w + 1, word, wi, fi, r, inv_r, scale)
+            if status < 0:
                 break
-        out[i] = x
+            if status == 0:
+                continue
+            out[i] = x
         i += 1
-    return i, w
+        first = w
+    return i, first
 
 
 def standard_normal_f32(rng: np.random.Generator, out: NDArray[np.float32]) -> None:
     """``rng.standard_normal(dtype=np.float32, out=out)``, the same values and the same
     generator state afterwards; ``out`` C-contiguous float32."""
-    bits = rng.bit_generator
-    if not (
-        type(bits) is np.random.PCG64
-        and out.dtype == np.float32
-        and out.flags.c_contiguous
-        and sys.byteorder == "little"
-    ):
+    if not (_bulk(rng) and out.dtype == np.float32 and out.flags.c_contiguous):
         rng.standard_normal(dtype=np.float32, out=out)
         return
     flat = out.reshape(-1)
+    _stream(
+        rng,
+        flat.size,
+        lambda words, done: _fill(
+            words, flat, done, WI_F32, KI_U32, FI_F32, _R_F32, _INV_R_F32, _UNIFORM_SCALE_F32
+        ),
+    )
+
+
+def _bulk(rng: np.random.Generator) -> bool:
+    """Whether ``rng``'s words can be drawn in bulk here (PCG64, little-endian)."""
+    return type(rng.bit_generator) is np.random.PCG64 and sys.byteorder == "little"
+
+
+def _stream(
+    rng: np.random.Generator, n: int, consume: Callable[[Any, int], tuple[int, int]]
+) -> None:
+    """Feed ``consume(words, done)`` (which makes draws ``done`` onwards from ``words`` and
+    returns how many are done and how many words it used) the generator's 32-bit words
+    until ``n`` draws are done, leaving the generator as numpy's draws would."""
+    bits = rng.bit_generator
     state = cast(dict[str, Any], bits.state)
     # Words in hand: the half word the generator kept, then what a stalled draw left.
     head = np.array([state["uinteger"]] if state["has_uint32"] else [], dtype=np.uint32)
     high = int(state["uinteger"])  # the last high half drawn: numpy keeps it even when used
     done = 0
     least = 0  # words to add at the least: 1 once the words in hand could not finish a draw
-    while done < flat.size:
+    while done < n:
         # One word at least per draw: never more words than draws left (plus the odd half
         # word that the generator then keeps for its next call, as numpy's does).
-        short = max(flat.size - done - head.size, least)
+        short = max(n - done - head.size, least)
         least = 1
         words = head
         if short > 0:
             raw = bits.random_raw(min((short + 1) // 2, _CHUNK_RAW)).view(np.uint32)
             high = int(raw[-1])  # low, high halves: the last word is a high half
             words = np.concatenate([head, raw]) if head.size else raw
-        done, used = _fill(
-            words, flat, done, WI_F32, KI_U32, FI_F32, _R_F32, _INV_R_F32, _UNIFORM_SCALE_F32
-        )
+        done, used = consume(words, done)
         head = words[used:]
     state = cast(dict[str, Any], bits.state)
     state["has_uint32"] = int(head.size)
