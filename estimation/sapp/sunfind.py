@@ -31,6 +31,7 @@ Flight software: numpy and OpenCV only; bad arguments raise ``ValueError``.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -123,23 +124,15 @@ def find_sun(
     noise = max(1.4826 * mad, 1.0 / math.sqrt(12.0))
 
     # Step 2: smoothed peak (a 3x3 mean; integer images round it to the nearest DN).
-    smooth = cv2.blur(img, (3, 3))
-    _, peak, _, _ = cv2.minMaxLoc(smooth)
-    if peak - background < p.min_snr * noise:
-        return None
-
     # Step 3: threshold; the blobs are the 8-connected components of the mask, found by
     # their outer borders (Suzuki-Abe border following): on a mask this sparse that is
     # ~40x faster than labelling the whole frame.
-    threshold = background + p.threshold_fraction * (peak - background)
-    if smooth.dtype.kind == "u":
-        # Integer pixels: s > t exactly when s > floor(t), compared in the image's own type
-        # (a float threshold would convert the whole frame to float64 first).
-        level = min(max(math.floor(threshold), -1), int(np.iinfo(smooth.dtype).max))
-        mask = (smooth > level).view(np.uint8) if level >= 0 else np.ones_like(smooth, np.uint8)
-    else:
-        mask = (smooth > threshold).view(np.uint8)
-    contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    found = (_integer_blobs if img.dtype.kind == "u" else _float_blobs)(
+        img, background, p.min_snr * noise, p.threshold_fraction
+    )
+    if found is None:
+        return None
+    peak, contours = found
 
     # Step 4: plausible size, clear of the edges; keep the largest.
     area_min = p.area_min_factor * expected_area_px(camera, SUN_ANGULAR_RADIUS_MIN_RAD)
@@ -223,4 +216,73 @@ def _weighted_median(sorted_values: FloatArray, counts: NDArray[np.intp]) -> flo
         return upper
     lower = float(sorted_values[np.searchsorted(cumulative, n // 2 - 1, side="right")])
     return 0.5 * (lower + upper)
+
+
+Blobs = tuple[float, Sequence[NDArray[np.int32]]]
+
+
+def _float_blobs(
+    img: NDArray[np.generic], background: float, min_rise: float, fraction: float
+) -> Blobs | None:
+    """Steps 2 and 3 over the whole frame: the smoothed peak and the outer borders of the
+    mask at ``fraction`` of the way up to it; None if the peak is under ``min_rise``."""
+    smooth = cv2.blur(img, (3, 3))
+    _, peak, _, _ = cv2.minMaxLoc(smooth)
+    if peak - background < min_rise:
+        return None
+    threshold = background + fraction * (peak - background)
+    mask = (smooth > threshold).view(np.uint8)
+    contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    return peak, contours
+
+
+def _integer_blobs(
+    img: NDArray[np.generic], background: float, min_rise: float, fraction: float
+) -> Blobs | None:
+    """``_float_blobs`` for integer pixels, the same figures and contours, smoothing only
+    the rows that can matter.
+
+    The smoothed value is the mean of 9 integers rounded, so it never exceeds their
+    maximum and exceeds ``k`` only if one of them reaches ``k + 1``. Hence: no peak if the
+    brightest pixel is not high enough (most search images); the peak lies within a row of
+    the rows reaching the smoothed value at the brightest pixel (a value the peak reaches);
+    the mask ``smooth > floor(threshold)`` (the same as ``> threshold`` for integers, and
+    compared in the image's own type) within a row of the rows reaching its level + 1.
+    Those bands are smoothed whole-width, and the contours traced in a band with a clear
+    row around the mask, so they are those of the whole frame.
+    """
+    row_max = img.max(axis=1)
+    if float(row_max.max()) - background < min_rise:
+        return None
+    r = int(row_max.argmax())
+    floor_peak = int(_smooth_rows(img, r, r + 1)[0, int(img[r].argmax())])
+    rows = _rows_reaching(row_max, floor_peak, 1)
+    peak = float(_smooth_rows(img, rows.start, rows.stop).max())
+    if peak - background < min_rise:
+        return None
+    threshold = background + fraction * (peak - background)
+    level = math.floor(threshold)
+    if level < 0:  # every pixel is in the mask: the whole frame, as is
+        return _float_blobs(img, background, min_rise, fraction)
+    band = _rows_reaching(row_max, level + 1, 2)
+    mask = (_smooth_rows(img, band.start, band.stop) > level).view(np.uint8)
+    contours, _ = cv2.findContours(
+        mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE, offset=(0, band.start)
+    )
+    return peak, contours
+
+
+def _smooth_rows(img: NDArray[np.generic], r0: int, r1: int) -> NDArray[np.generic]:
+    """Rows ``r0:r1`` of ``cv2.blur(img, (3, 3))``, from those rows and one either side (the
+    frame's own edges keep their reflection)."""
+    b0, b1 = max(r0 - 1, 0), min(r1 + 1, img.shape[0])
+    out: NDArray[np.generic] = cv2.blur(img[b0:b1], (3, 3))[r0 - b0 : r1 - b0]
+    return out
+
+
+def _rows_reaching(row_max: NDArray[np.generic], value: int, margin: int) -> slice:
+    """The rows from ``margin`` before the first whose maximum reaches ``value`` to
+    ``margin`` after the last, within the frame."""
+    reaching = np.flatnonzero(row_max >= value)
+    return slice(max(int(reaching[0]) - margin, 0), min(int(reaching[-1]) + 1 + margin, row_max.size))
 
