@@ -13,6 +13,8 @@ What the image contains, in order of the light path:
 - Geometry: the disk is rendered ray by ray through the camera model on a supersampled
   grid (``supersample`` x ``supersample`` rays per pixel), each ray weighted by its solid
   angle ``cos^3(alpha) / f^2`` so the flux of the disk is right anywhere in the field.
+  Only the disk's box is traced and only its rows are blurred: the rest of the stamp is
+  exactly zero either way, and the test holds the stamp to the whole one, bit for bit.
 - Optics: a Gaussian PSF of ``psf_sigma_px``. Diffraction at f/20 and 880 nm has a
   Gaussian-equivalent sigma of ``0.42 lambda N`` = 7.4 um = 0.62 px on the 12 um pixels;
   0.7 px allows a little defocus.
@@ -23,7 +25,9 @@ What the image contains, in order of the light path:
   bound: conservative), 12-bit ADC; the gain (~full well over 12 bits) and the dark offset
   are approximate. Shot noise is Poisson on the signal; read noise Gaussian; the sky
   through ND 5 is black (the aureole is ~1e-6 of the disk's surface brightness), and dark
-  current during a ~0.1 s exposure is a few DN at most, folded into the offset.
+  current during a ~0.1 s exposure is a few DN at most, folded into the offset. The read
+  noise, a million draws a frame, is drawn in bulk (``sim.sensors.normal_f32``): numpy's
+  ``standard_normal`` to the bit, a few times faster.
 
 The sun is far away, so the mast head's offset from the body origin causes no parallax.
 """
