@@ -302,9 +302,11 @@ def render_sun_image(
             electrons = np.minimum(rng.poisson(mean_e), det.full_well_e)  # blooming ignored
             dn[r0:r1, c0:c1] += (electrons / det.gain_e_per_dn).astype(np.float32)
     full_scale = float(2**det.adc_bits - 1)
-    np.rint(dn, out=dn)
+    # Clipping to [0, full scale] (whole numbers) before rounding to the nearest gives what
+    # rounding then clipping gives; the rounding then writes the 12-bit frame directly.
     np.clip(dn, 0.0, full_scale, out=dn)
-    image = dn.astype(np.uint16)
+    image = np.empty((h, w), dtype=np.uint16)
+    np.rint(dn, out=image, casting="unsafe")
 
     uv = camera.project(sun_cam)
     truth_uv = None if sun_cam[2] <= 0.0 else np.array([float(uv[0]), float(uv[1])])
