@@ -45,7 +45,6 @@ from numpy.typing import ArrayLike, NDArray
 
 from estimation.camera_model import PANCAM, PinholeCamera, R_b_pancam
 from sim.errors import InputError
-from sim.sensors.normal_f32 import standard_normal_f32
 
 FloatArray = NDArray[np.float64]
 
@@ -283,6 +282,9 @@ def render_sun_image(
     exposure_s = peak_fraction * det.full_well_e / peak_rate
 
     # Detector: dark offset and read noise everywhere, Poisson shot noise on the signal.
+    # (numba, like the Navcam renderer's kernels, is imported with the first frame only.)
+    from sim.sensors.normal_f32 import standard_normal_f32
+
     h, w = camera.height_px, camera.width_px
     dn = _scratch_frame(h, w)
     standard_normal_f32(rng, dn)  # rng.standard_normal's draws, bit for bit, in bulk
