@@ -107,10 +107,22 @@ def _draw_slow(
 
 @numba.njit(cache=True, nogil=True)
 def _fill(
-    words: Any, out: Any, start: int, wi: Any, ki: Any, fi: Any, r: Any, inv_r: Any, scale: Any
+    words: Any,
+    out: Any,
+    start: int,
+    gain: Any,
+    offset: Any,
+    affine: bool,
+    wi: Any,
+    ki: Any,
+    fi: Any,
+    r: Any,
+    inv_r: Any,
+    scale: Any,
 ) -> tuple[int, int]:  # pragma: no cover - compiled; the test compares it with numpy
-    """Fill ``out[start:]`` from the word stream ``words``; returns the next index of ``out``
-    and the words used. Stops before a draw the words cannot finish."""
+    """Fill ``out[start:]`` from the word stream ``words`` (each draw ``z``, or ``z * gain +
+    offset`` in float32 if ``affine``); returns the next index of ``out`` and the words used.
+    Stops before a draw the words cannot finish."""
     i = start
     w = first = 0  # first: where the current draw began, rewound to if the words run out
     while i < out.size and w < words.size:
@@ -120,26 +132,40 @@ def _fill(
         if j < ki[idx]:  # ~99 % of draws: inside the layer's rectangle
             x = np.float32(j) * wi[idx]
             w += 1
-            out[i] = -x if (word >> 8) & 1 else x
+            if (word >> 8) & 1:
+                x = -x
         else:
             x, w, status = _draw_slow(words, w + 1, word, wi, fi, r, inv_r, scale)
             if status < 0:
                 break
             if status == 0:
                 continue
-            out[i] = x
+        # float32 products and sums, each rounded, as numpy's in-place *= and +=
+        out[i] = x * gain + offset if affine else x
         i += 1
         first = w
     return i, first
 
 
-def standard_normal_f32(rng: np.random.Generator, out: NDArray[np.float32]) -> None:
+def standard_normal_f32(
+    rng: np.random.Generator,
+    out: NDArray[np.float32],
+    gain: np.float32 | None = None,
+    offset: np.float32 | None = None,
+) -> None:
     """``rng.standard_normal(dtype=np.float32, out=out)``, the same values and the same
-    generator state afterwards; ``out`` C-contiguous float32."""
+    generator state afterwards; ``out`` C-contiguous float32. With ``gain`` and ``offset``,
+    then ``out *= gain; out += offset``, done in the same pass."""
+    affine = gain is not None and offset is not None
     if not (_bulk(rng) and out.dtype == np.float32 and out.flags.c_contiguous):
         rng.standard_normal(dtype=np.float32, out=out)
+        if gain is not None and offset is not None:
+            out *= gain
+            out += offset
         return
-    _stream(rng, out.reshape(-1))
+    g = np.float32(1.0) if gain is None else np.float32(gain)
+    o = np.float32(0.0) if offset is None else np.float32(offset)
+    _stream(rng, out.reshape(-1), g, o, affine)
 
 
 def _bulk(rng: np.random.Generator) -> bool:
@@ -147,9 +173,15 @@ def _bulk(rng: np.random.Generator) -> bool:
     return type(rng.bit_generator) is np.random.PCG64 and sys.byteorder == "little"
 
 
-def _stream(rng: np.random.Generator, flat: NDArray[np.float32]) -> None:
-    """Fill ``flat`` chunk by chunk of the generator's 32-bit words, leaving the generator
-    as numpy's draws would."""
+def _stream(
+    rng: np.random.Generator,
+    flat: NDArray[np.float32],
+    gain: np.float32,
+    offset: np.float32,
+    affine: bool,
+) -> None:
+    """Fill ``flat`` (``_fill``) chunk by chunk of the generator's 32-bit words, leaving the
+    generator as numpy's draws would."""
     n = flat.size
     bits = rng.bit_generator
     state = cast(dict[str, Any], bits.state)
@@ -169,8 +201,9 @@ def _stream(rng: np.random.Generator, flat: NDArray[np.float32]) -> None:
             high = int(raw[-1])  # low, high halves: the last word is a high half
             words = np.concatenate([head, raw]) if head.size else raw
         done, used = _fill(
-            words, flat, done, WI_F32, KI_U32, FI_F32, _R_F32, _INV_R_F32, _UNIFORM_SCALE_F32
-        )
+            words, flat, done, gain, offset, affine,
+            WI_F32, KI_U32, FI_F32, _R_F32, _INV_R_F32, _UNIFORM_SCALE_F32,
+        )  # fmt: skip
         head = words[used:]
     state = cast(dict[str, Any], bits.state)
     state["has_uint32"] = int(head.size)

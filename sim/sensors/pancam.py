@@ -287,9 +287,9 @@ def render_sun_image(
 
     h, w = camera.height_px, camera.width_px
     dn = _scratch_frame(h, w)
-    standard_normal_f32(rng, dn)  # rng.standard_normal's draws, bit for bit, in bulk
-    dn *= np.float32(det.read_noise_e / det.gain_e_per_dn)
-    dn += np.float32(det.dark_offset_dn)
+    # rng.standard_normal's draws, bit for bit, in bulk, times the read noise plus the offset
+    read_noise_dn = np.float32(det.read_noise_e / det.gain_e_per_dn)
+    standard_normal_f32(rng, dn, read_noise_dn, np.float32(det.dark_offset_dn))
     peak_e = 0.0
     if stamp is not None:
         r0, c0 = max(stamp.row0, 0), max(stamp.col0, 0)

@@ -65,3 +65,26 @@ def test_other_bit_generators_take_numpys_path() -> None:
     got = np.empty((4, 6), dtype=np.float32)
     standard_normal_f32(fast, got)
     np.testing.assert_array_equal(got, expected)
+
+
+@pytest.mark.parametrize("seed", [0, 5])
+def test_the_scaled_draws_are_numpys_scaled_in_place(seed: int) -> None:
+    """With a gain and an offset: numpy's draws, then ``*= gain`` and ``+= offset``."""
+    ref, fast = _pair(seed, skip=seed)
+    gain, offset = np.float32(1.25), np.float32(100.0)
+    for shape in [(1024, 1024), (3, 7)]:
+        expected = ref.standard_normal(shape, dtype=np.float32)
+        expected *= gain
+        expected += offset
+        got = np.empty(shape, dtype=np.float32)
+        standard_normal_f32(fast, got, gain, offset)
+        np.testing.assert_array_equal(got.view(np.uint32), expected.view(np.uint32))
+    assert fast.bit_generator.state == ref.bit_generator.state
+    mt_ref, mt_fast = (
+        np.random.Generator(np.random.MT19937(1)),
+        np.random.Generator(np.random.MT19937(1)),
+    )
+    expected = mt_ref.standard_normal(9, dtype=np.float32) * gain + offset
+    got = np.empty(9, dtype=np.float32)
+    standard_normal_f32(mt_fast, got, gain, offset)
+    np.testing.assert_array_equal(got, expected)
