@@ -348,6 +348,8 @@ class Sungaze:
         down_b: ArrayLike | None = None,
     ):
         self._q = unit_quaternion(q_b_ll)
+        # The estimate stays put while Sungaze runs: body to LL is built once, not per image.
+        self._R_ll_b = Rotation.from_quat(self._q).inv()
         self._start_t_s = float(t_s)
         self._down_b = None if down_b is None else np.array(down_b, dtype=np.float64)
         self._sun_ll = sun_ll
@@ -362,9 +364,10 @@ class Sungaze:
         if params.use_gravity:
             if down_b is None:
                 raise ValueError("down_b: the gravity variation needs an accelerometer average")
-            R_ll_b = Rotation.from_quat(self._q).inv()
             self._acc.add(
-                R_ll_b.apply(unit_vector(down_b, "down_b")), DOWN_LL, params.gravity_sigma_rad
+                self._R_ll_b.apply(unit_vector(down_b, "down_b")),
+                DOWN_LL,
+                params.gravity_sigma_rad,
             )
         self.request: PancamRequest | None = PancamRequest(mast[0], mast[1], t_s, "sungaze 0")
 
@@ -412,7 +415,7 @@ class Sungaze:
             self._t0 = t_s
         if fix is not None:
             self._n_sun += 1
-            b_ll = Rotation.from_quat(self._q).inv().apply(fix.sun_b)  # observed, in LL
+            b_ll = self._R_ll_b.apply(fix.sun_b)  # observed, in LL
             self._acc.add(b_ll, self._sun_ll(t_s), self._p.sun_sigma_rad)  # expected: IVP
             self._last = self._acc.solve()
         converged = self.three_sigma_rad <= self._p.converge_3sigma_rad
