@@ -123,6 +123,7 @@ class RoverSim:
         self.mast_bias_rad = np.radians(mast_bias_sigma_deg) * rng_cam.standard_normal(2)
         self._rng_cam = rng_cam
         self.totals = RunningTotals()
+        self._q_ll_b_of_pose: tuple[bytes, FloatArray] = (b"", np.zeros(4))  # see q_ll_b
         self._encoder_counts = self.encoders.read(self.drive_state.as_trajectory()).wheel_counts[0]
 
     # ---- checkpoint ---------------------------------------------------------------------
@@ -279,14 +280,17 @@ class RoverSim:
         return out
 
     def q_ll_b(self) -> FloatArray:
-        """Truth attitude of the body in the Local-Level frame at the rover, ``[x, y, z, w]``."""
-        out: FloatArray = q_ll_b_from_site(
-            self.drive_state.q_s_b[None, :],
-            self.drive_state.p_s[None, :],
-            self.lat_rad,
-            self.lon_east_rad,
-        )[0]
-        return out
+        """Truth attitude of the body in the Local-Level frame at the rover, ``[x, y, z, w]``.
+        It depends on the pose alone, so a rover at rest (the camera modes' many images)
+        computes it once per pose."""
+        state = self.drive_state
+        pose = state.q_s_b.tobytes() + state.p_s.tobytes()
+        if self._q_ll_b_of_pose[0] != pose:
+            q = q_ll_b_from_site(
+                state.q_s_b[None, :], state.p_s[None, :], self.lat_rad, self.lon_east_rad
+            )
+            self._q_ll_b_of_pose = (pose, q[0])
+        return self._q_ll_b_of_pose[1].copy()
 
     # ---- internals ------------------------------------------------------------------
 
