@@ -32,7 +32,7 @@ from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.linalg import cho_factor, cho_solve
+from scipy.linalg.lapack import dpotrf, dpotrs
 
 FloatArray = NDArray[np.float64]
 Dynamics = Callable[[FloatArray], FloatArray]
@@ -52,17 +52,35 @@ def expm_taylor(M: FloatArray, order: int = 12) -> FloatArray:
     >>> bool(abs(expm_taylor(np.array([[1.0]]))[0, 0] - np.e) < 1e-13)
     True
     """
-    norm = float(np.max(np.sum(np.abs(M), axis=1)))
+    norm = float(np.abs(M).sum(axis=1).max())
     squarings = max(0, int(np.ceil(np.log2(norm / 0.5)))) if norm > 0.5 else 0
     A = M / 2.0**squarings
     E = np.eye(M.shape[0])
-    term = np.eye(M.shape[0])
-    for k in range(1, order + 1):
-        term = term @ A / k
-        E = E + term
+    term = A.copy()
+    E += term
+    for k in range(2, order + 1):
+        term = term @ A
+        term /= k
+        E += term
     for _ in range(squarings):
         E = E @ E
     return E
+
+
+def discretise_diagonal(f: FloatArray, q: FloatArray, dt_s: float) -> tuple[FloatArray, FloatArray]:
+    """``discretise`` of uncoupled states: ``F = diag(f)``, ``Q = diag(q)``; returns the
+    diagonals ``(φ, q_d)``: ``φ = e^(f dt)`` and the scalar Van Loan integral
+    ``q_d = ∫ e^(2 f s) q ds = q (e^(2 f dt) - 1) / (2 f)`` (``q dt`` where ``f = 0``).
+
+    >>> phi, qd = discretise_diagonal(np.array([-1.0, 0.0]), np.array([2.0, 3.0]), 1.0)
+    >>> bool(abs(qd[0] - (1.0 - np.exp(-2.0))) < 1e-15), float(qd[1])
+    (True, 3.0)
+    """
+    two_f_dt = 2.0 * f * dt_s
+    moving = f != 0.0
+    safe = np.where(moving, two_f_dt, 1.0)
+    qd: FloatArray = q * dt_s * np.where(moving, np.expm1(safe) / safe, 1.0)
+    return np.exp(f * dt_s), qd
 
 
 def discretise(F: FloatArray, Q: FloatArray, dt_s: float) -> tuple[FloatArray, FloatArray]:
@@ -109,13 +127,47 @@ def rk4(f: Dynamics, x: FloatArray, dt_s: float, substeps: int = 1) -> FloatArra
 
 
 def propagate(
-    x: FloatArray, P: FloatArray, f: Dynamics, F: FloatArray, Q: FloatArray, dt_s: float
+    x: FloatArray,
+    P: FloatArray,
+    f: Dynamics,
+    F: FloatArray,
+    Q: FloatArray,
+    dt_s: float,
+    n_coupled: int | None = None,
 ) -> tuple[FloatArray, FloatArray]:
-    """Propagate mean and covariance over ``dt_s`` (``F`` the Jacobian of ``f`` at ``x``)."""
+    """Propagate mean and covariance over ``dt_s`` (``F`` the Jacobian of ``f`` at ``x``).
+
+    ``n_coupled``: when the states from that index on are uncoupled (``F`` and ``Q``
+    diagonal there and zero between them and the rest; the caller's model says so), their
+    part of the discretisation is ``discretise_diagonal``'s closed form and only the first
+    ``n_coupled`` states go through the matrix exponential: the same ``Φ`` and ``Q_d`` to
+    rounding, at a fraction of the cost.
+    """
     _check_square("P", P, x.shape[0])
-    Phi, Qd = discretise(F, Q, dt_s)
+    if n_coupled is None:
+        Phi, Qd = discretise(F, Q, dt_s)
+    else:
+        Phi, Qd = _discretise_split(F, Q, dt_s, n_coupled)
     P_next = Phi @ P @ Phi.T + Qd
     return rk4(f, x, dt_s), 0.5 * (P_next + P_next.T)
+
+
+def _discretise_split(
+    F: FloatArray, Q: FloatArray, dt_s: float, n_coupled: int
+) -> tuple[FloatArray, FloatArray]:
+    """``discretise`` of ``F = diag(F_c, diag(f))``, ``Q = diag(Q_c, diag(q))`` with the
+    coupled block ``F_c`` (``n_coupled`` square) by Van Loan and the rest in closed form."""
+    n, c = F.shape[0], n_coupled
+    Phi_c, Qd_c = discretise(F[:c, :c], Q[:c, :c], dt_s)
+    diagonal = np.arange(c, n)
+    phi, qd = discretise_diagonal(F[diagonal, diagonal], Q[diagonal, diagonal], dt_s)
+    Phi = np.zeros((n, n))
+    Qd = np.zeros((n, n))
+    Phi[:c, :c] = Phi_c
+    Qd[:c, :c] = Qd_c
+    Phi[diagonal, diagonal] = phi
+    Qd[diagonal, diagonal] = qd
+    return Phi, Qd
 
 
 def update(
@@ -132,10 +184,15 @@ def update(
     _check_square("R", R, m)
     if not np.all(np.isfinite(residual)):
         raise ValueError("the residual is not finite")
-    S = H @ P @ H.T + R
-    factor = cho_factor(0.5 * (S + S.T))
-    K = cho_solve(factor, H @ P).T  # K = P Hᵀ S⁻¹ (P and S symmetric)
-    nis = float(residual @ cho_solve(factor, residual))
+    HP = H @ P
+    S = HP @ H.T + R
+    # LAPACK's Cholesky directly: what scipy's cho_factor and cho_solve call, without their
+    # per-call argument checks (the arguments are checked above).
+    factor, info = dpotrf(0.5 * (S + S.T), lower=False, clean=False)
+    if info != 0:
+        raise np.linalg.LinAlgError(f"the innovation covariance is not positive definite ({info})")
+    K = dpotrs(factor, HP)[0].T  # K = P Hᵀ S⁻¹ (P and S symmetric)
+    nis = float(residual @ dpotrs(factor, residual)[0])
     return (*_joseph(x, P, K, residual, H, R), nis)
 
 
@@ -175,4 +232,6 @@ def _joseph(
     x_new: FloatArray = x + K @ innovation
     I_KH = np.eye(x.shape[0]) - K @ H
     P_new: FloatArray = I_KH @ P @ I_KH.T + K @ R @ K.T
-    return x_new, 0.5 * (P_new + P_new.T)
+    P_new += P_new.T
+    P_new *= 0.5
+    return x_new, P_new

@@ -34,7 +34,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial.transform import Rotation
 
 from estimation.checks import finite_array
 from estimation.fusion import ekf_core
@@ -53,13 +52,12 @@ from estimation.fusion.kinematic.process import (
 )
 from estimation.fusion.kinematic.rover_kinematics import suspension
 from estimation.fusion.kinematic.slip_constraint import (
-    ROWS_PER_WHEEL,
     JointRates,
     deterministic_slip,
     slip_constraint,
 )
-from estimation.geometry import FLIGHT_GEOMETRY, FlightGeometry
-from estimation.quaternion import quat_multiply
+from estimation.geometry import FLIGHT_GEOMETRY, N_WHEELS, FlightGeometry
+from estimation.quaternion import q_multiply, q_normalised
 
 FloatArray = NDArray[np.float64]
 
@@ -204,6 +202,9 @@ class KinematicEkf:
                 raise ValueError(f"P0 must be a symmetric ({L.n}, {L.n}) matrix")
         self._command = _Command()
         self._Q = noise_density(L, self.process)
+        n = self.noise  # eq. 17's n_i of each wheel, uncorrelated
+        per_wheel = [n.slip_rolling_m_s, n.slip_lateral_m_s, n.slip_normal_m_s, n.slip_spin_rad_s]
+        self._R_slip = np.diag(np.tile(np.square(per_wheel), N_WHEELS))
 
     # ---- checkpoints (estimation.state) ---------------------------------------------
 
@@ -233,10 +234,10 @@ class KinematicEkf:
 
     def _absorb(self) -> None:
         """Eq. 21: ``q ← q ⊗ [θ/2; 1]`` (normalised), ``θ ← 0``."""
-        theta = self.X[self.layout.THETA]
-        dq = np.concatenate([0.5 * theta, [1.0]])
-        q = quat_multiply(self.q_s_b, dq / np.linalg.norm(dq))
-        self.q_s_b = q / np.linalg.norm(q)
+        t0, t1, t2 = self.X[self.layout.THETA].tolist()
+        dq = q_normalised((0.5 * t0, 0.5 * t1, 0.5 * t2, 1.0))
+        x, y, z, w = self.q_s_b.tolist()
+        self.q_s_b = np.array(q_normalised(q_multiply((x, y, z, w), dq)))
         self.X[self.layout.THETA] = 0.0
 
     def _hold_contacts(self) -> None:
@@ -246,8 +247,17 @@ class KinematicEkf:
         self.X[xi] = np.clip(self.X[xi], -CONTACT_ANGLE_LIMIT_RAD, CONTACT_ANGLE_LIMIT_RAD)
 
     def _R0(self) -> FloatArray:
-        out: FloatArray = Rotation.from_quat(self.q_s_b).as_matrix()
-        return out
+        """``R(q_s_b)``, the rotation matrix of the (unit) reference quaternion."""
+        x, y, z, w = self.q_s_b.tolist()
+        xx, yy, zz, ww = x * x, y * y, z * z, w * w
+        xy, xz, xw, yz, yw, zw = x * y, x * z, x * w, y * z, y * w, z * w
+        return np.array(
+            [
+                [xx - yy - zz + ww, 2.0 * (xy - zw), 2.0 * (xz + yw)],
+                [2.0 * (xy + zw), -xx + yy - zz + ww, 2.0 * (yz - xw)],
+                [2.0 * (xz - yw), 2.0 * (yz + xw), -xx - yy + zz + ww],
+            ]
+        )
 
     def set_command(self, v_c_b: ArrayLike, omega_c_b: ArrayLike) -> None:
         """The prescribed body velocity (m/s) and rate (rad/s) of the controller (eqs. 1-2)."""
@@ -265,7 +275,9 @@ class KinematicEkf:
             return dynamics(X, R0, c.v_c_b, c.omega_c_b, p)
 
         F = jacobian(self.X, R0, c.v_c_b, c.omega_c_b, p)
-        self.X, self.P = ekf_core.propagate(self.X, self.P, f, F, self._Q, dt_s)
+        self.X, self.P = ekf_core.propagate(
+            self.X, self.P, f, F, self._Q, dt_s, n_coupled=Layout.UNCOUPLED_FROM
+        )
         self._absorb()
         self._hold_contacts()
 
@@ -309,9 +321,7 @@ class KinematicEkf:
         )
         H = np.zeros((J.slip.shape[0], L.n))
         H[:, L.V_P], H[:, L.OMEGA_P], H[:, L.XI] = J.d_v, J.d_omega, J.d_xi
-        per_wheel = [n.slip_rolling_m_s, n.slip_lateral_m_s, n.slip_normal_m_s, n.slip_spin_rad_s]
-        R = np.diag(np.tile(np.square(per_wheel), J.slip.shape[0] // ROWS_PER_WHEEL))
-        R += n.gamma_rate_rad_s**2 * J.d_gamma_rate @ J.d_gamma_rate.T  # shared encoders
+        R = self._R_slip + n.gamma_rate_rad_s**2 * J.d_gamma_rate @ J.d_gamma_rate.T  # shared
         R += n.psi_rate_rad_s**2 * J.d_psi_rate @ J.d_psi_rate.T
         return self._update(t_m - J.slip, H, R)
 
