@@ -39,7 +39,7 @@ Dynamics = Callable[[FloatArray], FloatArray]
 
 
 def _check_square(name: str, M: FloatArray, n: int) -> None:
-    if M.shape != (n, n) or not np.all(np.isfinite(M)):
+    if M.shape != (n, n) or not np.isfinite(M).all():
         raise ValueError(f"{name} must be a finite ({n}, {n}) matrix, got shape {M.shape}")
 
 
@@ -179,10 +179,10 @@ def update(
     (Balaram 2000 sec. 1.2: sensors enabled or disabled on their residuals).
     """
     m, n = residual.shape[0], x.shape[0]
-    if H.shape != (m, n) or not np.all(np.isfinite(H)):
+    if H.shape != (m, n) or not np.isfinite(H).all():
         raise ValueError(f"H must be a finite ({m}, {n}) matrix, got shape {H.shape}")
     _check_square("R", R, m)
-    if not np.all(np.isfinite(residual)):
+    if not np.isfinite(residual).all():
         raise ValueError("the residual is not finite")
     HP = H @ P
     S = HP @ H.T + R
@@ -213,7 +213,7 @@ def joseph_update(
     if R.shape != (m, m):
         raise ValueError(f"R: must be ({m}, {m}), got {R.shape}")
     for name, a in (("x", x), ("P", P), ("innovation", innovation), ("H", H), ("R", R)):
-        if not np.all(np.isfinite(a)):
+        if not np.isfinite(a).all():
             raise ValueError(f"{name}: must be finite")
     S = H @ P @ H.T + R
     K = cast(FloatArray, np.linalg.solve(S, H @ P).T)  # eq. 28 (S symmetric: S^-1 H P = K^T)

@@ -41,6 +41,13 @@ def skew(v: FloatArray) -> FloatArray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
+def cross3(a: FloatArray, b: FloatArray) -> FloatArray:
+    """``a × b`` of two 3-vectors, ``np.cross``'s formula without its cost on single vectors."""
+    a0, a1, a2 = a.tolist()
+    b0, b1, b2 = b.tolist()
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+
+
 @dataclass(frozen=True)
 class Layout:
     """Indices of the state blocks; ``n_bias`` is 0 (no bias state), 1 or 3."""

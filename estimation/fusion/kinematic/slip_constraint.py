@@ -64,7 +64,7 @@ class JointRates:
             ("psi_rate_rad_s", N_WHEELS),
         ):
             value = getattr(self, name)
-            if value.shape != (size,) or not np.all(np.isfinite(value)):
+            if value.shape != (size,) or not np.isfinite(value).all():
                 raise ValueError(f"{name} must be {size} finite numbers, got {value!r}")
 
 
