@@ -247,8 +247,11 @@ class KinematicEkf:
         self.X[xi] = np.clip(self.X[xi], -CONTACT_ANGLE_LIMIT_RAD, CONTACT_ANGLE_LIMIT_RAD)
 
     def _R0(self) -> FloatArray:
-        """``R(q_s_b)``, the rotation matrix of the (unit) reference quaternion."""
-        x, y, z, w = self.q_s_b.tolist()
+        """``R(q_s_b)``, the rotation matrix of the reference quaternion (normalised, as
+        ``scipy.spatial.transform.Rotation`` does: the constructor takes one of norm 1 to
+        1e-6), on plain floats."""
+        x0, y0, z0, w0 = self.q_s_b.tolist()
+        x, y, z, w = q_normalised((x0, y0, z0, w0))
         xx, yy, zz, ww = x * x, y * y, z * z, w * w
         xy, xz, xw, yz, yw, zw = x * y, x * z, x * w, y * z, y * w, z * w
         return np.array(

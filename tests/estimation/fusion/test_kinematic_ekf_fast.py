@@ -173,3 +173,36 @@ def test_the_split_discretisation_is_the_whole_van_loan_exponential() -> None:
             split = ekf_core.propagate(X, P, f, F, Q, dt, n_coupled=L.UNCOUPLED_FROM)
             np.testing.assert_allclose(split[0], whole[0], rtol=0.0, atol=0.0)
             np.testing.assert_allclose(split[1], whole[1], rtol=1e-12, atol=1e-18)
+
+
+def test_the_reference_rotation_on_floats_is_scipys() -> None:
+    from scipy.spatial.transform import Rotation
+
+    from estimation.fusion.kinematic.ekf import KinematicEkf
+
+    rng = np.random.default_rng(21)
+    for _ in range(50):
+        q = rng.normal(size=4)
+        q *= (1.0 + rng.uniform(-9e-7, 9e-7)) / np.linalg.norm(q)  # within the 1e-6 accepted
+        ekf = KinematicEkf(q, np.zeros(3))
+        np.testing.assert_allclose(ekf._R0(), Rotation.from_quat(q).as_matrix(), atol=1e-15)
+
+
+def test_the_update_solves_by_cholesky_as_scipy_does() -> None:
+    from scipy.linalg import cho_factor, cho_solve
+
+    rng = np.random.default_rng(22)
+    for m in (1, 3, 24):
+        A = rng.normal(size=(18, 18))
+        P = A @ A.T * 1e-3
+        H, R = rng.normal(size=(m, 18)), np.diag(rng.uniform(1e-6, 1e-4, m))
+        x, r = rng.normal(size=18), rng.normal(0.0, 1e-3, m)
+        S = H @ P @ H.T + R
+        factor = cho_factor(0.5 * (S + S.T))
+        K = cho_solve(factor, H @ P).T
+        I_KH = np.eye(18) - K @ H
+        P_ref = I_KH @ P @ I_KH.T + K @ R @ K.T
+        x_new, P_new, nis = ekf_core.update(x, P, r, H, R)
+        np.testing.assert_allclose(x_new, x + K @ r, rtol=1e-13, atol=1e-16)
+        np.testing.assert_allclose(P_new, 0.5 * (P_ref + P_ref.T), rtol=1e-12, atol=1e-18)
+        assert abs(nis - float(r @ cho_solve(factor, r))) <= 1e-12 * nis
