@@ -29,7 +29,6 @@ import functools
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -38,6 +37,8 @@ from estimation.geometry import FLIGHT_GEOMETRY, N_WHEELS, FlightGeometry
 
 FloatArray = NDArray[np.float64]
 ROWS_PER_WHEEL = 4  # eq. 20: three linear slips and the spin about the normal
+_ROWS = np.arange(N_WHEELS * ROWS_PER_WHEEL)
+_WHEEL_OF_ROW = _ROWS // ROWS_PER_WHEEL
 
 
 @dataclass(frozen=True)
@@ -91,50 +92,50 @@ def slip_constraint(
 ) -> SlipJacobians:
     """Eq. 17 for all six wheels, stacked wheel by wheel as ``[t·u, a·u, d·u, d·Ω_w]``."""
     s = suspension(joints.gamma_rad, geometry) if susp is None else susp
+    r = geometry.wheel_radius_m
+    rows = _wheels(
+        v_b.tolist(), omega_b.tolist(), xi_rad.tolist(), joints.sigma_rad.tolist(),
+        joints.gamma_rate_rad_s.tolist(), joints.sigma_rate_rad_s.tolist(),
+        joints.psi_rate_rad_s.tolist(), s, r, True,
+    )  # fmt: skip
     n = N_WHEELS * ROWS_PER_WHEEL
-    out = SlipJacobians(
-        np.zeros(n), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 6)),
-        np.zeros((n, 3)), np.zeros((n, 6)),
+    slip, d_v, d_omega, d_xi_of_wheel, d_gamma_rate = rows
+    d_xi = np.zeros((n, N_WHEELS))
+    d_xi[_ROWS, _WHEEL_OF_ROW] = d_xi_of_wheel
+    return SlipJacobians(
+        np.array(slip), np.array(d_v), np.array(d_omega), d_xi, np.array(d_gamma_rate),
+        _d_psi_rate(r),
     )  # fmt: skip
-    _wheels(
-        v_b, omega_b, xi_rad, joints.sigma_rad, joints.gamma_rate_rad_s,
-        joints.sigma_rate_rad_s, joints.psi_rate_rad_s, s.centre_b, s.dcentre_dgamma,
-        s.link_rad, s.dlink_dgamma, geometry.wheel_radius_m, True,
-        out.slip, out.d_v, out.d_omega, out.d_xi, out.d_gamma_rate, out.d_psi_rate,
-    )  # fmt: skip
-    return out
 
 
-@numba.njit(cache=True, nogil=True)
 def _wheels(
-    v: FloatArray,
-    w: FloatArray,
-    xi: FloatArray,
-    sigma: FloatArray,
-    gamma_rate: FloatArray,
-    sigma_rate: FloatArray,
-    psi_rate: FloatArray,
-    centre: FloatArray,
-    dcentre: FloatArray,
-    link: FloatArray,
-    dlink: FloatArray,
+    v: list[float],
+    w: list[float],
+    xi: list[float],
+    sigma: list[float],
+    gamma_rate: list[float],
+    sigma_rate: list[float],
+    psi_rate: list[float],
+    s: Suspension,
     r: float,
     jacobians: bool,
-    slip: FloatArray,
-    d_v: FloatArray,
-    d_omega: FloatArray,
-    d_xi: FloatArray,
-    d_gamma_rate: FloatArray,
-    d_psi_rate: FloatArray,
-) -> None:  # pragma: no cover - compiled (its tests call it through slip_constraint)
-    """``slip_constraint``'s wheels written out on scalars, compiled (numba): a filter step
-    would otherwise spend its time on array operations over 3-vectors. Fills ``slip`` and,
-    with ``jacobians``, the derivatives (the arrays of ``SlipJacobians``, zeros on entry)."""
-    for i in range(6):
+) -> tuple[list[float], list[list[float]], list[list[float]], list[float], list[list[float]]]:
+    """``slip_constraint``'s wheels written out on plain floats: a filter step would
+    otherwise spend its time on array operations over 3-vectors. Returns the slip (24,)
+    and, with ``jacobians``, the rows of ``d_v``, ``d_omega``, ``d_gamma_rate`` (24 of 3
+    each) and ``∂t/∂ξ`` of each row's own wheel (24,); empty lists without."""
+    g0, g1, g2 = gamma_rate
+    slip: list[float] = []
+    d_v: list[list[float]] = []
+    d_omega: list[list[float]] = []
+    d_xi: list[float] = []
+    d_gamma_rate: list[list[float]] = []
+    centre, dcentre, dlink = s.centre_b.tolist(), s.dcentre_dgamma.tolist(), s.dlink_dgamma.tolist()
+    for i, link in enumerate(s.link_rad.tolist()):
         # R_b_c = Ry(link) Rz(σ) Ry(ξ) (eq. 18's R, rover_kinematics.contact_rotation_b):
         # the columns of Ry(link) Rz(σ) are (wx, a, wz), wz the link's z axis; then Ry(ξ)
         # turns wx and wz about the axle a into the rolling direction t and the normal d.
-        cl, sl = math.cos(link[i]), math.sin(link[i])
+        cl, sl = math.cos(link), math.sin(link)
         cs, ss = math.cos(sigma[i]), math.sin(sigma[i])
         cx, sx = math.cos(xi[i]), math.sin(xi[i])
         wx0, wx1, wx2 = cl * cs, ss, -sl * cs
@@ -142,55 +143,55 @@ def _wheels(
         t0, t1, t2 = cx * wx0 - sx * sl, cx * wx1, cx * wx2 - sx * cl
         d0, d1, d2 = sx * wx0 + cx * sl, sx * wx1, sx * wx2 + cx * cl
         # Ω_w = ω + ω_link + σ̇ z_link - ψ̇ a
-        omega_link = dlink[i, 0] * gamma_rate[0] + dlink[i, 1] * gamma_rate[1]
-        omega_link += dlink[i, 2] * gamma_rate[2]
+        l0, l1, l2 = dlink[i]
+        omega_link = l0 * g0 + l1 * g1 + l2 * g2
         ow0 = w[0] + sigma_rate[i] * sl - psi_rate[i] * a0
         ow1 = w[1] + omega_link - psi_rate[i] * a1
         ow2 = w[2] + sigma_rate[i] * cl - psi_rate[i] * a2
         # u = v + ω × c + J_c γ̇ + Ω_w × (r d): the velocity at the contact point
-        c0, c1, c2 = centre[i, 0], centre[i, 1], centre[i, 2]
-        j0, j1, j2 = 0.0, 0.0, 0.0
-        for k in range(3):
-            j0 += dcentre[i, 0, k] * gamma_rate[k]
-            j1 += dcentre[i, 1, k] * gamma_rate[k]
-            j2 += dcentre[i, 2, k] * gamma_rate[k]
-        u0 = v[0] + (w[1] * c2 - w[2] * c1) + j0 + r * (ow1 * d2 - ow2 * d1)
-        u1 = v[1] + (w[2] * c0 - w[0] * c2) + j1 + r * (ow2 * d0 - ow0 * d2)
-        u2 = v[2] + (w[0] * c1 - w[1] * c0) + j2 + r * (ow0 * d1 - ow1 * d0)
-        row = 4 * i
+        c0, c1, c2 = centre[i]
+        (j00, j01, j02), (j10, j11, j12), (j20, j21, j22) = dcentre[i]
+        u0 = v[0] + (w[1] * c2 - w[2] * c1) + (j00 * g0 + j01 * g1 + j02 * g2)
+        u1 = v[1] + (w[2] * c0 - w[0] * c2) + (j10 * g0 + j11 * g1 + j12 * g2)
+        u2 = v[2] + (w[0] * c1 - w[1] * c0) + (j20 * g0 + j21 * g1 + j22 * g2)
+        u0 += r * (ow1 * d2 - ow2 * d1)
+        u1 += r * (ow2 * d0 - ow0 * d2)
+        u2 += r * (ow0 * d1 - ow1 * d0)
         t_u = t0 * u0 + t1 * u1 + t2 * u2
         d_u = d0 * u0 + d1 * u1 + d2 * u2
-        slip[row] = t_u  # eq. 20's B^T
-        slip[row + 1] = a0 * u0 + a1 * u1 + a2 * u2
-        slip[row + 2] = d_u
-        slip[row + 3] = d0 * ow0 + d1 * ow1 + d2 * ow2
+        slip += [t_u, a0 * u0 + a1 * u1 + a2 * u2, d_u, d0 * ow0 + d1 * ow1 + d2 * ow2]
         if not jacobians:
             continue
-        axes = ((t0, t1, t2), (a0, a1, a2), (d0, d1, d2))
         p0, p1, p2 = c0 + r * d0, c1 + r * d1, c2 + r * d2
-        for m in range(3):
-            n0, n1, n2 = axes[m]
-            d_v[row + m, 0], d_v[row + m, 1], d_v[row + m, 2] = n0, n1, n2
+        # ∂u/∂γ̇_j = ∂c/∂γ_j + ∂link/∂γ_j r ŷ × d, with ŷ × d = (d_z, 0, -d_x)
+        du = [
+            (j00 + l0 * r * d2, j10, j20 - l0 * r * d0),
+            (j01 + l1 * r * d2, j11, j21 - l1 * r * d0),
+            (j02 + l2 * r * d2, j12, j22 - l2 * r * d0),
+        ]
+        for n0, n1, n2 in ((t0, t1, t2), (a0, a1, a2), (d0, d1, d2)):
+            d_v.append([n0, n1, n2])
             # ∂(n·u)/∂ω = (p × n)ᵀ: u = ω × p + ...
-            d_omega[row + m, 0] = p1 * n2 - p2 * n1
-            d_omega[row + m, 1] = p2 * n0 - p0 * n2
-            d_omega[row + m, 2] = p0 * n1 - p1 * n0
-            for j in range(3):
-                # ∂u/∂γ̇_j = ∂c/∂γ_j + ∂link/∂γ_j r ŷ × d, with ŷ × d = (d_z, 0, -d_x)
-                arm = dlink[i, j] * r
-                du0 = dcentre[i, 0, j] + arm * d2
-                du1 = dcentre[i, 1, j]
-                du2 = dcentre[i, 2, j] - arm * d0
-                d_gamma_rate[row + m, j] = n0 * du0 + n1 * du1 + n2 * du2
-        d_omega[row + 3, 0], d_omega[row + 3, 1], d_omega[row + 3, 2] = d0, d1, d2
-        for j in range(3):
-            d_gamma_rate[row + 3, j] = dlink[i, j] * d1
+            d_omega.append([p1 * n2 - p2 * n1, p2 * n0 - p0 * n2, p0 * n1 - p1 * n0])
+            d_gamma_rate.append([n0 * e0 + n1 * e1 + n2 * e2 for e0, e1, e2 in du])
+        d_v.append([0.0, 0.0, 0.0])
+        d_omega.append([d0, d1, d2])
+        d_gamma_rate.append([l0 * d1, l1 * d1, l2 * d1])
         # ∂/∂ξ: dt/dξ = -d, dd/dξ = t, the axle fixed; ∂u/∂ξ = r Ω_w × t.
-        d_xi[row, i] = -d_u
-        d_xi[row + 1, i] = r * (ow0 * d0 + ow1 * d1 + ow2 * d2)
-        d_xi[row + 2, i] = t_u - r * (ow0 * a0 + ow1 * a1 + ow2 * a2)
-        d_xi[row + 3, i] = t0 * ow0 + t1 * ow1 + t2 * ow2
-        d_psi_rate[row, i] = -r  # -ψ̇ a × r d = -r ψ̇ t
+        d_xi += [
+            -d_u,
+            r * (ow0 * d0 + ow1 * d1 + ow2 * d2),
+            t_u - r * (ow0 * a0 + ow1 * a1 + ow2 * a2),
+            t0 * ow0 + t1 * ow1 + t2 * ow2,
+        ]
+    return slip, d_v, d_omega, d_xi, d_gamma_rate
+
+
+def _d_psi_rate(r: float) -> FloatArray:
+    """``∂t/∂ψ̇`` (24, 6): ``-ψ̇ a × r d = -r ψ̇ t`` in each wheel's rolling row."""
+    out = np.zeros((N_WHEELS * ROWS_PER_WHEEL, N_WHEELS))
+    out[_ROWS[::ROWS_PER_WHEEL], np.arange(N_WHEELS)] = -r
+    return out
 
 
 def deterministic_slip(
@@ -212,14 +213,13 @@ def deterministic_slip(
     """
     s = _level_suspension(geometry)
     r = geometry.wheel_radius_m
-    zero3, zero6, none = np.zeros(3), np.zeros(N_WHEELS), np.zeros((0, 0))
-    slip = np.zeros(N_WHEELS * ROWS_PER_WHEEL)
-    args = (s.centre_b, s.dcentre_dgamma, s.link_rad, s.dlink_dgamma, r, False, slip)
-    _wheels(v_c_b, omega_c_b, zero6, sigma_rad, zero3, sigma_rate_rad_s, zero6, *args,
-            none, none, none, none, none)  # fmt: skip
-    rolling = slip[0::ROWS_PER_WHEEL] / r  # the no-slip drive rates
-    _wheels(v_c_b, omega_c_b, zero6, sigma_rad, zero3, sigma_rate_rad_s, rolling, *args,
-            none, none, none, none, none)  # fmt: skip
+    v, w = v_c_b.tolist(), omega_c_b.tolist()
+    sigma, sigma_rate = sigma_rad.tolist(), sigma_rate_rad_s.tolist()
+    zero3, zero6 = [0.0] * 3, [0.0] * N_WHEELS
+    slip = np.array(_wheels(v, w, zero6, sigma, zero3, sigma_rate, zero6, s, r, False)[0])
+    # Rolling at ψ̇ = t·u / r takes the rolling slip to zero; ψ̇ moves u along t only
+    # (``-ψ̇ a × r d = -r ψ̇ t``) and Ω_w along the axle, so the other rows keep their values.
+    slip[0::ROWS_PER_WHEEL] = 0.0
     return slip
 
 
