@@ -27,6 +27,8 @@ On a linear model these are exactly the linear Kalman filter's equations (the te
 
 from __future__ import annotations
 
+import functools
+import math
 from collections.abc import Callable
 from typing import cast
 
@@ -49,22 +51,41 @@ def expm_taylor(M: FloatArray, order: int = 12) -> FloatArray:
     squarings; on the 36 x 36 Van Loan matrix it is ~50 times faster than
     ``scipy.linalg.expm`` here.
 
+    The polynomial is evaluated by Paterson and Stockmeyer's scheme (1973, "On the number
+    of nonscalar multiplications necessary to evaluate polynomials"; Higham, *Functions of
+    Matrices*, 2008, sec. 4.2): the powers ``I, A, ..., A^(p-1)`` with ``p = ⌈√order⌉``,
+    each block of ``p`` coefficients applied to them at once, and Horner's rule in ``A^p``:
+    6 products for order 12 instead of 11, and a handful of array operations in all.
+
     >>> bool(abs(expm_taylor(np.array([[1.0]]))[0, 0] - np.e) < 1e-13)
     True
     """
+    n = M.shape[0]
     norm = float(np.abs(M).sum(axis=1).max())
     squarings = max(0, int(np.ceil(np.log2(norm / 0.5)))) if norm > 0.5 else 0
     A = M / 2.0**squarings
-    E = np.eye(M.shape[0])
-    term = A.copy()
-    E += term
-    for k in range(2, order + 1):
-        term = term @ A
-        term /= k
-        E += term
+    p = max(1, math.isqrt(order - 1) + 1) if order > 1 else 1
+    powers = [np.eye(n), A]
+    while len(powers) <= p:
+        powers.append(powers[-1] @ A)
+    blocks = _taylor_blocks(order, p) @ np.stack(powers[:p]).reshape(p, n * n)
+    E = blocks[-1].reshape(n, n)
+    for block in blocks[-2::-1]:
+        E = block.reshape(n, n) + powers[p] @ E
     for _ in range(squarings):
         E = E @ E
     return E
+
+
+@functools.lru_cache(maxsize=8)
+def _taylor_blocks(order: int, p: int) -> FloatArray:
+    """The Taylor coefficients ``1/k!``, ``k = 0..order``, in rows of ``p`` (Paterson and
+    Stockmeyer's blocks, ``expm_taylor``)."""
+    out = np.zeros((order // p + 1, p))
+    for k in range(order + 1):
+        out[k // p, k % p] = 1.0 / math.factorial(k)
+    out.setflags(write=False)
+    return out
 
 
 def discretise_diagonal(f: FloatArray, q: FloatArray, dt_s: float) -> tuple[FloatArray, FloatArray]:
@@ -160,7 +181,9 @@ def _discretise_split(
     n, c = F.shape[0], n_coupled
     Phi_c, Qd_c = discretise(F[:c, :c], Q[:c, :c], dt_s)
     diagonal = np.arange(c, n)
-    phi, qd = discretise_diagonal(F[diagonal, diagonal], Q[diagonal, diagonal], dt_s)
+    f, q = F[diagonal, diagonal], Q[diagonal, diagonal]
+    # a filter's uncoupled states keep their F, Q and step: computed once for them
+    phi, qd = _discretise_diagonal_once(f.tobytes(), q.tobytes(), dt_s)
     Phi = np.zeros((n, n))
     Qd = np.zeros((n, n))
     Phi[:c, :c] = Phi_c
@@ -168,6 +191,15 @@ def _discretise_split(
     Phi[diagonal, diagonal] = phi
     Qd[diagonal, diagonal] = qd
     return Phi, Qd
+
+
+@functools.lru_cache(maxsize=16)
+def _discretise_diagonal_once(f: bytes, q: bytes, dt_s: float) -> tuple[FloatArray, FloatArray]:
+    """``discretise_diagonal`` of the diagonals as bytes, remembered (``_discretise_split``)."""
+    phi, qd = discretise_diagonal(np.frombuffer(f), np.frombuffer(q), dt_s)
+    phi.setflags(write=False)
+    qd.setflags(write=False)
+    return phi, qd
 
 
 def update(
