@@ -51,11 +51,10 @@ def expm_taylor(M: FloatArray, order: int = 12) -> FloatArray:
     squarings; on the 36 x 36 Van Loan matrix it is ~50 times faster than
     ``scipy.linalg.expm`` here.
 
-    The polynomial is evaluated by Paterson and Stockmeyer's scheme (1973, "On the number
-    of nonscalar multiplications necessary to evaluate polynomials"; Higham, *Functions of
-    Matrices*, 2008, sec. 4.2): the powers ``I, A, ..., A^(p-1)`` with ``p = ⌈√order⌉``,
-    each block of ``p`` coefficients applied to them at once, and Horner's rule in ``A^p``:
-    6 products for order 12 instead of 11, and a handful of array operations in all.
+    The polynomial is evaluated as Paterson and Stockmeyer 1973 do: the powers
+    ``I, A, ..., A^(p-1)`` with ``p = ⌈√order⌉``, each block of ``p`` coefficients applied
+    to them at once, and Horner's rule in ``A^p``: 6 matrix products for order 12 instead
+    of 11, and a handful of array operations in all.
 
     >>> bool(abs(expm_taylor(np.array([[1.0]]))[0, 0] - np.e) < 1e-13)
     True

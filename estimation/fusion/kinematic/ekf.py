@@ -55,6 +55,7 @@ from estimation.fusion.kinematic.slip_constraint import (
     JointRates,
     deterministic_slip,
     slip_constraint,
+    slip_constraint_d_psi_rate,
 )
 from estimation.geometry import FLIGHT_GEOMETRY, N_WHEELS, FlightGeometry
 from estimation.quaternion import q_multiply, q_normalised
@@ -205,6 +206,11 @@ class KinematicEkf:
         n = self.noise  # eq. 17's n_i of each wheel, uncorrelated
         per_wheel = [n.slip_rolling_m_s, n.slip_lateral_m_s, n.slip_normal_m_s, n.slip_spin_rad_s]
         self._R_slip = np.diag(np.tile(np.square(per_wheel), N_WHEELS))
+        # the drive rates' noise through ∂t/∂ψ̇, which depends on the wheel radius alone
+        d_psi = slip_constraint_d_psi_rate(geometry.wheel_radius_m)
+        self._R_slip += n.psi_rate_rad_s**2 * d_psi @ d_psi.T
+        self._R_gyro = self.noise.gyro_rad_s**2 * np.eye(self.B_g.shape[0])
+        self._R_sun = self.noise.sun_sm**2 * np.eye(2)
 
     # ---- checkpoints (estimation.state) ---------------------------------------------
 
@@ -300,7 +306,7 @@ class KinematicEkf:
         y = finite_array(np.atleast_1d(np.asarray(omega_m, dtype=float)), "omega_m", (m,))
         frame = finite_array(omega_frame_s, "omega_frame_s", (3,))
         h, H = gyro_measurement(self.X, self._R0(), self._command.omega_c_b, self.B_g, frame)
-        return self._update(y - h, H, self.noise.gyro_rad_s**2 * np.eye(m))
+        return self._update(y - h, H, self._R_gyro)
 
     def update_sun(self, s_m: ArrayLike, sun_s: ArrayLike) -> float:
         """A WASS reading ``s_m`` (2,) of the Sun along the unit ``sun_s`` (Site frame)."""
@@ -309,7 +315,7 @@ class KinematicEkf:
         if abs(float(np.linalg.norm(sun)) - 1.0) > 1e-6:
             raise ValueError("sun_s must be a unit vector")
         h, H = sun_measurement(self.X, self._R0(), sun)
-        return self._update(y - h, H, self.noise.sun_sm**2 * np.eye(2))
+        return self._update(y - h, H, self._R_sun)
 
     def update_slip(self, joints: JointRates) -> float:
         """The 24 slip constraints (eqs. 17-20) with the encoders' ``joints``; the measured
@@ -325,7 +331,6 @@ class KinematicEkf:
         H = np.zeros((J.slip.shape[0], L.n))
         H[:, L.V_P], H[:, L.OMEGA_P], H[:, L.XI] = J.d_v, J.d_omega, J.d_xi
         R = self._R_slip + n.gamma_rate_rad_s**2 * J.d_gamma_rate @ J.d_gamma_rate.T  # shared
-        R += n.psi_rate_rad_s**2 * J.d_psi_rate @ J.d_psi_rate.T
         return self._update(t_m - J.slip, H, R)
 
     # ---- output --------------------------------------------------------------------

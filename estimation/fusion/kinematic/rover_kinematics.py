@@ -105,12 +105,17 @@ def suspension(gamma_rad: ArrayLike, geometry: FlightGeometry = FLIGHT_GEOMETRY)
 
 
 def steer_per_wheel(steer_rad: ArrayLike) -> FloatArray:
-    """The four corner steering angles (LF, LR, RF, RR) spread over the six wheels (6,)."""
+    """The four corner steering angles (LF, LR, RF, RR) spread over the six wheels: (4,) to
+    (6,), or a series (N, 4) to (N, 6).
+
+    >>> steer_per_wheel([0.1, 0.2, 0.3, 0.4]).tolist()
+    [0.1, 0.0, 0.2, 0.3, 0.0, 0.4]
+    """
     steer = np.asarray(steer_rad, dtype=float)
-    if steer.shape != (4,) or not np.isfinite(steer).all():
-        raise ValueError(f"steer_rad must be 4 finite angles, got {steer_rad!r}")
-    out = np.zeros(N_WHEELS)
-    out[list(STEERED_INDEX)] = steer
+    if steer.ndim not in (1, 2) or steer.shape[-1] != 4 or not np.isfinite(steer).all():
+        raise ValueError(f"steer_rad must be 4 finite angles (or N rows of 4), got {steer_rad!r}")
+    out = np.zeros((*steer.shape[:-1], N_WHEELS))
+    out[..., list(STEERED_INDEX)] = steer
     return out
 
 

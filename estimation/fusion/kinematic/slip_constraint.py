@@ -104,7 +104,7 @@ def slip_constraint(
     d_xi[_ROWS, _WHEEL_OF_ROW] = d_xi_of_wheel
     return SlipJacobians(
         np.array(slip), np.array(d_v), np.array(d_omega), d_xi, np.array(d_gamma_rate),
-        _d_psi_rate(r),
+        slip_constraint_d_psi_rate(r),
     )  # fmt: skip
 
 
@@ -187,10 +187,13 @@ def _wheels(
     return slip, d_v, d_omega, d_xi, d_gamma_rate
 
 
-def _d_psi_rate(r: float) -> FloatArray:
-    """``∂t/∂ψ̇`` (24, 6): ``-ψ̇ a × r d = -r ψ̇ t`` in each wheel's rolling row."""
+@functools.lru_cache(maxsize=4)
+def slip_constraint_d_psi_rate(r: float) -> FloatArray:
+    """``∂t/∂ψ̇`` (24, 6) of wheels of radius ``r``: ``-ψ̇ a × r d = -r ψ̇ t`` in each wheel's
+    rolling row, whatever the wheel's pose (read-only; ``SlipJacobians.d_psi_rate``)."""
     out = np.zeros((N_WHEELS * ROWS_PER_WHEEL, N_WHEELS))
     out[_ROWS[::ROWS_PER_WHEEL], np.arange(N_WHEELS)] = -r
+    out.setflags(write=False)
     return out
 
 
