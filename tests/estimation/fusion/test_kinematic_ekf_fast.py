@@ -206,3 +206,19 @@ def test_the_update_solves_by_cholesky_as_scipy_does() -> None:
         np.testing.assert_allclose(x_new, x + K @ r, rtol=1e-13, atol=1e-16)
         np.testing.assert_allclose(P_new, 0.5 * (P_ref + P_ref.T), rtol=1e-12, atol=1e-18)
         assert abs(nis - float(r @ cho_solve(factor, r))) <= 1e-12 * nis
+
+
+def test_the_interval_rates_of_all_windows_at_once_are_the_window_by_window_slopes() -> None:
+    from estimation.fusion.kinematic.encoder_rates import interval_rates
+
+    rng = np.random.default_rng(23)
+    for n in (2, 3, 4, 5, 60):
+        for shape in ((), (3,), (2, 3)):
+            t = np.cumsum(rng.uniform(0.1, 0.2, n))
+            a = rng.normal(size=(n, *shape))
+            expected = np.diff(a, axis=0) / np.diff(t).reshape((-1,) + (1,) * len(shape))
+            for k in range(1, n - 2):  # the least-squares slope through four samples
+                tt = t[k - 1 : k + 3] - 0.5 * (t[k] + t[k + 1])
+                w = (tt - tt.mean()) / np.sum((tt - tt.mean()) ** 2)
+                expected[k] = np.tensordot(w, a[k - 1 : k + 3], axes=1)
+            np.testing.assert_allclose(interval_rates(a, t), expected, rtol=0.0, atol=1e-14)
