@@ -62,7 +62,7 @@ def expm_taylor(M: FloatArray, order: int = 12) -> FloatArray:
     n = M.shape[0]
     norm = float(np.abs(M).sum(axis=1).max())
     squarings = max(0, int(np.ceil(np.log2(norm / 0.5)))) if norm > 0.5 else 0
-    A = M / 2.0**squarings
+    A = M / 2.0**squarings if squarings else M
     p = max(1, math.isqrt(order - 1) + 1) if order > 1 else 1
     powers = [np.eye(n), A]
     while len(powers) <= p:

@@ -28,6 +28,7 @@ standard deviation of its first-order Gauss-Markov process: ``q = 2 σ² / τ``.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -139,20 +140,47 @@ def jacobian(
     X: FloatArray, R0: FloatArray, v_c_b: FloatArray, omega_c_b: FloatArray, p: ProcessParams
 ) -> FloatArray:
     """``F = ∂f/∂X`` at ``X`` (n, n). The contact angles and the bias are uncoupled from
-    the rest and from each other: ``F`` is diagonal over ``UNCOUPLED_FROM`` on."""
-    L = Layout(X.shape[0] - 18)
-    theta, omega_p, v_p = X[L.THETA], X[L.OMEGA_P], X[L.V_P]
-    omega = omega_c_b + omega_p
-    v = v_c_b + v_p
-    I3 = np.eye(3)
-    F = np.zeros((L.n, L.n))
-    F[L.THETA, L.THETA] = -0.5 * skew(omega)  # eq. 7
-    F[L.THETA, L.OMEGA_P] = I3 + 0.5 * skew(theta)  # eq. 7: -½ ω×θ = ½ θ×ω
-    F[L.OMEGA_P, L.OMEGA_P] = -I3 / p.tau_omega_s  # eq. 2
-    F[L.X, L.THETA] = -R0 @ skew(v)  # eq. 1: θ×v = -v×θ
-    F[L.X, L.V_P] = R0 @ (I3 + skew(theta))  # eq. 1
-    F[L.V_P, L.V_P] = -I3 / p.tau_v_s  # eq. 1
+    the rest and from each other: ``F`` is diagonal over ``UNCOUPLED_FROM`` on.
+
+    The blocks that depend on ``X`` are written out on plain floats into a copy of the
+    constant ones (``_constant_jacobian``).
+    """
+    F = _constant_jacobian(X.shape[0], p).copy()
+    t0, t1, t2, wp0, wp1, wp2, _, _, _, vp0, vp1, vp2 = X[:12].tolist()
+    c0, c1, c2 = omega_c_b.tolist()
+    h0, h1, h2 = 0.5 * (c0 + wp0), 0.5 * (c1 + wp1), 0.5 * (c2 + wp2)
+    vc0, vc1, vc2 = v_c_b.tolist()
+    v0, v1, v2 = vc0 + vp0, vc1 + vp1, vc2 + vp2
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = R0.tolist()
+    F[0:3, 0:3] = [[0.0, h2, -h1], [-h2, 0.0, h0], [h1, -h0, 0.0]]  # eq. 7: -½ ω×
+    # eq. 7: I + ½ θ× (-½ ω×θ = ½ θ×ω)
+    F[0:3, 3:6] = [
+        [1.0, -0.5 * t2, 0.5 * t1],
+        [0.5 * t2, 1.0, -0.5 * t0],
+        [-0.5 * t1, 0.5 * t0, 1.0],
+    ]
+    F[6:9, 0:3] = [  # eq. 1: -R0 v× (θ×v = -v×θ)
+        [r01 * -v2 + r02 * v1, r00 * v2 + r02 * -v0, r00 * -v1 + r01 * v0],
+        [r11 * -v2 + r12 * v1, r10 * v2 + r12 * -v0, r10 * -v1 + r11 * v0],
+        [r21 * -v2 + r22 * v1, r20 * v2 + r22 * -v0, r20 * -v1 + r21 * v0],
+    ]
+    F[6:9, 9:12] = [  # eq. 1: R0 (I + θ×)
+        [r00 + (r01 * t2 - r02 * t1), r01 + (r02 * t0 - r00 * t2), r02 + (r00 * t1 - r01 * t0)],
+        [r10 + (r11 * t2 - r12 * t1), r11 + (r12 * t0 - r10 * t2), r12 + (r10 * t1 - r11 * t0)],
+        [r20 + (r21 * t2 - r22 * t1), r21 + (r22 * t0 - r20 * t2), r22 + (r20 * t1 - r21 * t0)],
+    ]
+    return F
+
+
+@functools.lru_cache(maxsize=8)
+def _constant_jacobian(n: int, p: ProcessParams) -> FloatArray:
+    """The blocks of ``F`` that do not depend on ``X`` (read-only; ``jacobian``)."""
+    L = Layout(n - 18)
+    F = np.zeros((n, n))
+    F[L.OMEGA_P, L.OMEGA_P] = -np.eye(3) / p.tau_omega_s  # eq. 2
+    F[L.V_P, L.V_P] = -np.eye(3) / p.tau_v_s  # eq. 1
     F[L.XI, L.XI] = -np.eye(6) / p.tau_xi_s  # eq. 8
+    F.setflags(write=False)
     return F
 
 

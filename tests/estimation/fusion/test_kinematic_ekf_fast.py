@@ -222,3 +222,23 @@ def test_the_interval_rates_of_all_windows_at_once_are_the_window_by_window_slop
                 w = (tt - tt.mean()) / np.sum((tt - tt.mean()) ** 2)
                 expected[k] = np.tensordot(w, a[k - 1 : k + 3], axes=1)
             np.testing.assert_allclose(interval_rates(a, t), expected, rtol=0.0, atol=1e-14)
+
+
+def test_the_jacobian_on_floats_is_the_block_arithmetic() -> None:
+    rng = np.random.default_rng(24)
+    p = ProcessParams(tau_omega_s=0.7, tau_v_s=1.3, tau_xi_s=3.0)
+    for n_bias in (0, 1, 3):
+        L = Layout(n_bias)
+        X = rng.normal(0.0, 0.1, L.n)
+        R0 = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+        v_c, w_c = rng.normal(0.0, 0.05, 3), rng.normal(0.0, 0.05, 3)
+        omega, v, I3 = w_c + X[L.OMEGA_P], v_c + X[L.V_P], np.eye(3)
+        expected = np.zeros((L.n, L.n))
+        expected[L.THETA, L.THETA] = -0.5 * skew(omega)
+        expected[L.THETA, L.OMEGA_P] = I3 + 0.5 * skew(X[L.THETA])
+        expected[L.OMEGA_P, L.OMEGA_P] = -I3 / p.tau_omega_s
+        expected[L.X, L.THETA] = -R0 @ skew(v)
+        expected[L.X, L.V_P] = R0 @ (I3 + skew(X[L.THETA]))
+        expected[L.V_P, L.V_P] = -I3 / p.tau_v_s
+        expected[L.XI, L.XI] = -np.eye(6) / p.tau_xi_s
+        np.testing.assert_allclose(jacobian(X, R0, v_c, w_c, p), expected, rtol=0.0, atol=1e-16)
