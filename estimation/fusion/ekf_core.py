@@ -68,7 +68,7 @@ def expm_taylor(M: FloatArray, order: int = 12) -> FloatArray:
     while len(powers) <= p:
         powers.append(powers[-1] @ A)
     blocks = _taylor_blocks(order, p) @ np.stack(powers[:p]).reshape(p, n * n)
-    E = blocks[-1].reshape(n, n)
+    E: FloatArray = blocks[-1].reshape(n, n)
     for block in blocks[-2::-1]:
         E = block.reshape(n, n) + powers[p] @ E
     for _ in range(squarings):

@@ -61,7 +61,9 @@ def reference_suspension(gamma: np.ndarray) -> Suspension:
     return Suspension(centre, dcentre, link, dlink)
 
 
-def reference_slip(v, w, xi, joints: JointRates) -> list[np.ndarray]:
+def reference_slip(
+    v: np.ndarray, w: np.ndarray, xi: np.ndarray, joints: JointRates
+) -> list[np.ndarray]:
     """Eq. 17 wheel by wheel: the slip (24,) and its Jacobians, as the module states them."""
     s = reference_suspension(joints.gamma_rad)
     r = G.wheel_radius_m
@@ -166,7 +168,8 @@ def test_the_split_discretisation_is_the_whole_van_loan_exponential() -> None:
         P = A @ A.T * 1e-4
 
         def f(x: np.ndarray, F: np.ndarray = F) -> np.ndarray:
-            return F @ x
+            out: np.ndarray = F @ x
+            return out
 
         for dt in (0.0625, 0.5, 3.0):
             whole = ekf_core.propagate(X, P, f, F, Q, dt)

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from estimation.fusion.kinematic.ekf import KinematicEkf
 from sim.loop.side import kinematic
 from sim.sensors.sun_sensor import SunSensorSamples
 
@@ -43,7 +44,7 @@ def _arguments(ref: Any, i: int) -> tuple[Any, ...]:
     )  # fmt: skip
 
 
-def _replay(ekf: kinematic.KinematicEkf, args: tuple[Any, ...]) -> dict[str, Any]:
+def _replay(ekf: KinematicEkf, args: tuple[Any, ...]) -> dict[str, Any]:
     X, q = [], []
     for _ in kinematic.kinematic_ekf_intervals(ekf, *args):
         X.append(ekf.X.copy())
@@ -74,7 +75,7 @@ def _write() -> None:
     recorded: list[dict[str, Any]] = []
     original = kinematic.kinematic_ekf_intervals
 
-    def recording(ekf: kinematic.KinematicEkf, *args: Any) -> Any:
+    def recording(ekf: KinematicEkf, *args: Any) -> Any:
         state = copy.deepcopy(ekf.state())
         before = copy.deepcopy(args)
         yield from original(ekf, *args)
