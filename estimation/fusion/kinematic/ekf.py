@@ -28,6 +28,7 @@ velocity and a drive's last interval is not lost.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -249,8 +250,8 @@ class KinematicEkf:
     def _hold_contacts(self) -> None:
         """Project ``ξ`` onto the wheels' lower halves (``CONTACT_ANGLE_LIMIT_RAD``), away
         from the slip constraint's mirror solution; ``P`` is left as it is."""
-        xi = self.layout.XI
-        self.X[xi] = np.clip(self.X[xi], -CONTACT_ANGLE_LIMIT_RAD, CONTACT_ANGLE_LIMIT_RAD)
+        xi = self.X[self.layout.XI]
+        np.clip(xi, -CONTACT_ANGLE_LIMIT_RAD, CONTACT_ANGLE_LIMIT_RAD, out=xi)
 
     def _R0(self) -> FloatArray:
         """``R(q_s_b)``, the rotation matrix of the reference quaternion (normalised, as
@@ -312,7 +313,7 @@ class KinematicEkf:
         """A WASS reading ``s_m`` (2,) of the Sun along the unit ``sun_s`` (Site frame)."""
         y = finite_array(s_m, "s_m", (2,))
         sun = finite_array(sun_s, "sun_s", (3,))
-        if abs(float(np.linalg.norm(sun)) - 1.0) > 1e-6:
+        if abs(math.hypot(*sun.tolist()) - 1.0) > 1e-6:
             raise ValueError("sun_s must be a unit vector")
         h, H = sun_measurement(self.X, self._R0(), sun)
         return self._update(y - h, H, self._R_sun)
