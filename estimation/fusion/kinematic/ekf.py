@@ -47,7 +47,7 @@ from estimation.fusion.kinematic.attitude_sensors import (
 from estimation.fusion.kinematic.process import (
     Layout,
     ProcessParams,
-    dynamics,
+    dynamics_at,
     jacobian,
     noise_density,
 )
@@ -280,10 +280,7 @@ class KinematicEkf:
         if not (np.isfinite(dt_s) and dt_s > 0.0):
             raise ValueError(f"dt_s must be positive and finite, got {dt_s}")
         R0, c, p = self._R0(), self._command, self.process
-
-        def f(X: FloatArray) -> FloatArray:
-            return dynamics(X, R0, c.v_c_b, c.omega_c_b, p)
-
+        f = dynamics_at(R0, c.v_c_b, c.omega_c_b, p)
         F = jacobian(self.X, R0, c.v_c_b, c.omega_c_b, p)
         self.X, self.P = ekf_core.propagate(
             self.X, self.P, f, F, self._Q, dt_s, n_coupled=Layout.UNCOUPLED_FROM

@@ -29,6 +29,7 @@ standard deviation of its first-order Gauss-Markov process: ``q = 2 σ² / τ``.
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -101,39 +102,48 @@ class ProcessParams:
 def dynamics(
     X: FloatArray, R0: FloatArray, v_c_b: FloatArray, omega_c_b: FloatArray, p: ProcessParams
 ) -> FloatArray:
-    """``Ẋ = f(X)`` of the module docstring; ``R0 = R_s_b`` of the reference quaternion.
+    """``Ẋ = f(X)`` of the module docstring; ``R0 = R_s_b`` of the reference quaternion."""
+    return dynamics_at(R0, v_c_b, omega_c_b, p)(X)
 
-    Written out on plain floats: RK4 calls it four times a step on 3-vectors, where
-    array operations would cost more than the arithmetic.
-    """
-    t0, t1, t2, wp0, wp1, wp2, _, _, _, vp0, vp1, vp2, *rest = X.tolist()
+
+def dynamics_at(
+    R0: FloatArray, v_c_b: FloatArray, omega_c_b: FloatArray, p: ProcessParams
+) -> Callable[[FloatArray], FloatArray]:
+    """``f`` of ``dynamics`` with its inputs fixed, as RK4's four calls over a step share
+    them. Written out on plain floats: array operations on 3-vectors would cost more than
+    the arithmetic."""
     c0, c1, c2 = omega_c_b.tolist()
-    w0, w1, w2 = c0 + wp0, c1 + wp1, c2 + wp2
     vc0, vc1, vc2 = v_c_b.tolist()
-    v0, v1, v2 = vc0 + vp0, vc1 + vp1, vc2 + vp2
-    # eq. 1: (I + θ×) v, then R0
-    u0 = v0 + (t1 * v2 - t2 * v1)
-    u1 = v1 + (t2 * v0 - t0 * v2)
-    u2 = v2 + (t0 * v1 - t1 * v0)
     (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = R0.tolist()
     tau_w, tau_v, tau_xi = p.tau_omega_s, p.tau_v_s, p.tau_xi_s
-    out = [
-        w0 - 0.5 * (w1 * t2 - w2 * t1),  # eq. 7: ω - ½ ω×θ
-        w1 - 0.5 * (w2 * t0 - w0 * t2),
-        w2 - 0.5 * (w0 * t1 - w1 * t0),
-        -wp0 / tau_w,  # eq. 2
-        -wp1 / tau_w,
-        -wp2 / tau_w,
-        r00 * u0 + r01 * u1 + r02 * u2,  # eq. 1
-        r10 * u0 + r11 * u1 + r12 * u2,
-        r20 * u0 + r21 * u1 + r22 * u2,
-        -vp0 / tau_v,  # eq. 1
-        -vp1 / tau_v,
-        -vp2 / tau_v,
-    ]
-    out.extend(-xi / tau_xi for xi in rest[:6])  # eq. 8
-    out.extend(0.0 for _ in rest[6:])  # the bias: eq. 9
-    return np.array(out)
+
+    def f(X: FloatArray) -> FloatArray:
+        t0, t1, t2, wp0, wp1, wp2, _, _, _, vp0, vp1, vp2, *rest = X.tolist()
+        w0, w1, w2 = c0 + wp0, c1 + wp1, c2 + wp2
+        v0, v1, v2 = vc0 + vp0, vc1 + vp1, vc2 + vp2
+        # eq. 1: (I + θ×) v, then R0
+        u0 = v0 + (t1 * v2 - t2 * v1)
+        u1 = v1 + (t2 * v0 - t0 * v2)
+        u2 = v2 + (t0 * v1 - t1 * v0)
+        out = [
+            w0 - 0.5 * (w1 * t2 - w2 * t1),  # eq. 7: ω - ½ ω×θ
+            w1 - 0.5 * (w2 * t0 - w0 * t2),
+            w2 - 0.5 * (w0 * t1 - w1 * t0),
+            -wp0 / tau_w,  # eq. 2
+            -wp1 / tau_w,
+            -wp2 / tau_w,
+            r00 * u0 + r01 * u1 + r02 * u2,  # eq. 1
+            r10 * u0 + r11 * u1 + r12 * u2,
+            r20 * u0 + r21 * u1 + r22 * u2,
+            -vp0 / tau_v,  # eq. 1
+            -vp1 / tau_v,
+            -vp2 / tau_v,
+        ]
+        out += [-xi / tau_xi for xi in rest[:6]]  # eq. 8
+        out += [0.0] * len(rest[6:])  # the bias: eq. 9
+        return np.array(out)
+
+    return f
 
 
 def jacobian(
