@@ -164,19 +164,25 @@ def _wheels(
             continue
         p0, p1, p2 = c0 + r * d0, c1 + r * d1, c2 + r * d2
         # ∂u/∂γ̇_j = ∂c/∂γ_j + ∂link/∂γ_j r ŷ × d, with ŷ × d = (d_z, 0, -d_x)
-        du = [
-            (j00 + l0 * r * d2, j10, j20 - l0 * r * d0),
-            (j01 + l1 * r * d2, j11, j21 - l1 * r * d0),
-            (j02 + l2 * r * d2, j12, j22 - l2 * r * d0),
+        e00, e01, e02 = j00 + l0 * r * d2, j10, j20 - l0 * r * d0
+        e10, e11, e12 = j01 + l1 * r * d2, j11, j21 - l1 * r * d0
+        e20, e21, e22 = j02 + l2 * r * d2, j12, j22 - l2 * r * d0
+        d_v += [[t0, t1, t2], [a0, a1, a2], [d0, d1, d2], [0.0, 0.0, 0.0]]
+        d_omega += [  # ∂(n·u)/∂ω = (p × n)ᵀ for n = t, a, d: u = ω × p + ...
+            [p1 * t2 - p2 * t1, p2 * t0 - p0 * t2, p0 * t1 - p1 * t0],
+            [p1 * a2 - p2 * a1, p2 * a0 - p0 * a2, p0 * a1 - p1 * a0],
+            [p1 * d2 - p2 * d1, p2 * d0 - p0 * d2, p0 * d1 - p1 * d0],
+            [d0, d1, d2],
         ]
-        for n0, n1, n2 in ((t0, t1, t2), (a0, a1, a2), (d0, d1, d2)):
-            d_v.append([n0, n1, n2])
-            # ∂(n·u)/∂ω = (p × n)ᵀ: u = ω × p + ...
-            d_omega.append([p1 * n2 - p2 * n1, p2 * n0 - p0 * n2, p0 * n1 - p1 * n0])
-            d_gamma_rate.append([n0 * e0 + n1 * e1 + n2 * e2 for e0, e1, e2 in du])
-        d_v.append([0.0, 0.0, 0.0])
-        d_omega.append([d0, d1, d2])
-        d_gamma_rate.append([l0 * d1, l1 * d1, l2 * d1])
+        d_gamma_rate += [
+            [t0 * e00 + t1 * e01 + t2 * e02, t0 * e10 + t1 * e11 + t2 * e12,
+             t0 * e20 + t1 * e21 + t2 * e22],
+            [a0 * e00 + a1 * e01 + a2 * e02, a0 * e10 + a1 * e11 + a2 * e12,
+             a0 * e20 + a1 * e21 + a2 * e22],
+            [d0 * e00 + d1 * e01 + d2 * e02, d0 * e10 + d1 * e11 + d2 * e12,
+             d0 * e20 + d1 * e21 + d2 * e22],
+            [l0 * d1, l1 * d1, l2 * d1],
+        ]  # fmt: skip
         # ∂/∂ξ: dt/dξ = -d, dd/dξ = t, the axle fixed; ∂u/∂ξ = r Ω_w × t.
         d_xi += [
             -d_u,
