@@ -1,5 +1,5 @@
 """The kinematic EKF's fast paths (issue 16) against the straightforward forms they replace,
-on random inputs: the slip constraint's compiled kernel against eq. 17 wheel by wheel with
+on random inputs: the slip constraint on plain floats against eq. 17 wheel by wheel with
 the contact frame's rotation matrices, the suspension on floats against rotation matrices,
 the dynamics on floats against array arithmetic, and the split discretisation against the
 whole Van Loan exponential."""
@@ -112,7 +112,7 @@ def test_the_suspension_on_floats_is_the_rotation_matrices() -> None:
             np.testing.assert_allclose(getattr(fast, name), getattr(ref, name), atol=1e-15)
 
 
-def test_the_compiled_slip_constraint_is_eq_17_wheel_by_wheel() -> None:
+def test_the_slip_constraint_on_floats_is_eq_17_wheel_by_wheel() -> None:
     rng = np.random.default_rng(17)
     for _ in range(50):
         v, w, xi = rng.normal(0.0, 0.05, 3), rng.normal(0.0, 0.05, 3), rng.uniform(-1.2, 1.2, 6)
