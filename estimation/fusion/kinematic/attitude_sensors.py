@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from estimation.fusion.kinematic.process import Layout, skew
+from estimation.fusion.kinematic.process import Layout, cross3, skew
 
 FloatArray = NDArray[np.float64]
 
@@ -46,7 +46,7 @@ def gyro_measurement(
     if L.n_bias not in (0, m):
         raise ValueError(f"a {m}-axis gyro needs 0 or {m} bias states, the state has {L.n_bias}")
     frame_b0 = R0.T @ omega_frame_s
-    frame_b = frame_b0 + np.cross(frame_b0, X[L.THETA])
+    frame_b = frame_b0 + cross3(frame_b0, X[L.THETA])
     h = B_g @ (omega_c_b + X[L.OMEGA_P] + frame_b)  # eq. 12
     H = np.zeros((m, L.n))
     H[:, L.THETA] = B_g @ skew(frame_b0)
@@ -88,7 +88,7 @@ def sun_measurement(
     """``(h(X), H)`` of eqs. 15-16 for the Sun along the unit ``sun_s`` (Site frame)."""
     L = Layout(X.shape[0] - 18)
     sun_b0 = R0.T @ sun_s
-    sun_b = sun_b0 + np.cross(sun_b0, X[L.THETA])  # eq. 16: R(q)ᵀ s_v
+    sun_b = sun_b0 + cross3(sun_b0, X[L.THETA])  # eq. 16: R(q)ᵀ s_v
     s = R_WASS_B @ sun_b
     rho = float(np.hypot(s[0], s[1]))
     g, dg_over_rho = _fisheye_gain(rho)

@@ -28,13 +28,13 @@ velocity and a drive's last interval is not lost.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial.transform import Rotation
 
 from estimation.checks import finite_array
 from estimation.fusion import ekf_core
@@ -47,19 +47,19 @@ from estimation.fusion.kinematic.attitude_sensors import (
 from estimation.fusion.kinematic.process import (
     Layout,
     ProcessParams,
-    dynamics,
+    dynamics_at,
     jacobian,
     noise_density,
 )
 from estimation.fusion.kinematic.rover_kinematics import suspension
 from estimation.fusion.kinematic.slip_constraint import (
-    ROWS_PER_WHEEL,
     JointRates,
     deterministic_slip,
     slip_constraint,
+    slip_constraint_d_psi_rate,
 )
-from estimation.geometry import FLIGHT_GEOMETRY, FlightGeometry
-from estimation.quaternion import quat_multiply
+from estimation.geometry import FLIGHT_GEOMETRY, N_WHEELS, FlightGeometry
+from estimation.quaternion import q_multiply, q_normalised
 
 FloatArray = NDArray[np.float64]
 
@@ -204,6 +204,14 @@ class KinematicEkf:
                 raise ValueError(f"P0 must be a symmetric ({L.n}, {L.n}) matrix")
         self._command = _Command()
         self._Q = noise_density(L, self.process)
+        n = self.noise  # eq. 17's n_i of each wheel, uncorrelated
+        per_wheel = [n.slip_rolling_m_s, n.slip_lateral_m_s, n.slip_normal_m_s, n.slip_spin_rad_s]
+        self._R_slip = np.diag(np.tile(np.square(per_wheel), N_WHEELS))
+        # the drive rates' noise through ∂t/∂ψ̇, which depends on the wheel radius alone
+        d_psi = slip_constraint_d_psi_rate(geometry.wheel_radius_m)
+        self._R_slip += n.psi_rate_rad_s**2 * d_psi @ d_psi.T
+        self._R_gyro = self.noise.gyro_rad_s**2 * np.eye(self.B_g.shape[0])
+        self._R_sun = self.noise.sun_sm**2 * np.eye(2)
 
     # ---- checkpoints (estimation.state) ---------------------------------------------
 
@@ -233,21 +241,33 @@ class KinematicEkf:
 
     def _absorb(self) -> None:
         """Eq. 21: ``q ← q ⊗ [θ/2; 1]`` (normalised), ``θ ← 0``."""
-        theta = self.X[self.layout.THETA]
-        dq = np.concatenate([0.5 * theta, [1.0]])
-        q = quat_multiply(self.q_s_b, dq / np.linalg.norm(dq))
-        self.q_s_b = q / np.linalg.norm(q)
+        t0, t1, t2 = self.X[self.layout.THETA].tolist()
+        dq = q_normalised((0.5 * t0, 0.5 * t1, 0.5 * t2, 1.0))
+        x, y, z, w = self.q_s_b.tolist()
+        self.q_s_b = np.array(q_normalised(q_multiply((x, y, z, w), dq)))
         self.X[self.layout.THETA] = 0.0
 
     def _hold_contacts(self) -> None:
         """Project ``ξ`` onto the wheels' lower halves (``CONTACT_ANGLE_LIMIT_RAD``), away
         from the slip constraint's mirror solution; ``P`` is left as it is."""
-        xi = self.layout.XI
-        self.X[xi] = np.clip(self.X[xi], -CONTACT_ANGLE_LIMIT_RAD, CONTACT_ANGLE_LIMIT_RAD)
+        xi = self.X[self.layout.XI]
+        np.clip(xi, -CONTACT_ANGLE_LIMIT_RAD, CONTACT_ANGLE_LIMIT_RAD, out=xi)
 
     def _R0(self) -> FloatArray:
-        out: FloatArray = Rotation.from_quat(self.q_s_b).as_matrix()
-        return out
+        """``R(q_s_b)``, the rotation matrix of the reference quaternion (normalised, as
+        ``scipy.spatial.transform.Rotation`` does: the constructor takes one of norm 1 to
+        1e-6), on plain floats."""
+        x0, y0, z0, w0 = self.q_s_b.tolist()
+        x, y, z, w = q_normalised((x0, y0, z0, w0))
+        xx, yy, zz, ww = x * x, y * y, z * z, w * w
+        xy, xz, xw, yz, yw, zw = x * y, x * z, x * w, y * z, y * w, z * w
+        return np.array(
+            [
+                [xx - yy - zz + ww, 2.0 * (xy - zw), 2.0 * (xz + yw)],
+                [2.0 * (xy + zw), -xx + yy - zz + ww, 2.0 * (yz - xw)],
+                [2.0 * (xz - yw), 2.0 * (yz + xw), -xx - yy + zz + ww],
+            ]
+        )
 
     def set_command(self, v_c_b: ArrayLike, omega_c_b: ArrayLike) -> None:
         """The prescribed body velocity (m/s) and rate (rad/s) of the controller (eqs. 1-2)."""
@@ -260,12 +280,11 @@ class KinematicEkf:
         if not (np.isfinite(dt_s) and dt_s > 0.0):
             raise ValueError(f"dt_s must be positive and finite, got {dt_s}")
         R0, c, p = self._R0(), self._command, self.process
-
-        def f(X: FloatArray) -> FloatArray:
-            return dynamics(X, R0, c.v_c_b, c.omega_c_b, p)
-
+        f = dynamics_at(R0, c.v_c_b, c.omega_c_b, p)
         F = jacobian(self.X, R0, c.v_c_b, c.omega_c_b, p)
-        self.X, self.P = ekf_core.propagate(self.X, self.P, f, F, self._Q, dt_s)
+        self.X, self.P = ekf_core.propagate(
+            self.X, self.P, f, F, self._Q, dt_s, n_coupled=Layout.UNCOUPLED_FROM
+        )
         self._absorb()
         self._hold_contacts()
 
@@ -285,16 +304,16 @@ class KinematicEkf:
         y = finite_array(np.atleast_1d(np.asarray(omega_m, dtype=float)), "omega_m", (m,))
         frame = finite_array(omega_frame_s, "omega_frame_s", (3,))
         h, H = gyro_measurement(self.X, self._R0(), self._command.omega_c_b, self.B_g, frame)
-        return self._update(y - h, H, self.noise.gyro_rad_s**2 * np.eye(m))
+        return self._update(y - h, H, self._R_gyro)
 
     def update_sun(self, s_m: ArrayLike, sun_s: ArrayLike) -> float:
         """A WASS reading ``s_m`` (2,) of the Sun along the unit ``sun_s`` (Site frame)."""
         y = finite_array(s_m, "s_m", (2,))
         sun = finite_array(sun_s, "sun_s", (3,))
-        if abs(float(np.linalg.norm(sun)) - 1.0) > 1e-6:
+        if abs(math.hypot(*sun.tolist()) - 1.0) > 1e-6:
             raise ValueError("sun_s must be a unit vector")
         h, H = sun_measurement(self.X, self._R0(), sun)
-        return self._update(y - h, H, self.noise.sun_sm**2 * np.eye(2))
+        return self._update(y - h, H, self._R_sun)
 
     def update_slip(self, joints: JointRates) -> float:
         """The 24 slip constraints (eqs. 17-20) with the encoders' ``joints``; the measured
@@ -309,10 +328,7 @@ class KinematicEkf:
         )
         H = np.zeros((J.slip.shape[0], L.n))
         H[:, L.V_P], H[:, L.OMEGA_P], H[:, L.XI] = J.d_v, J.d_omega, J.d_xi
-        per_wheel = [n.slip_rolling_m_s, n.slip_lateral_m_s, n.slip_normal_m_s, n.slip_spin_rad_s]
-        R = np.diag(np.tile(np.square(per_wheel), J.slip.shape[0] // ROWS_PER_WHEEL))
-        R += n.gamma_rate_rad_s**2 * J.d_gamma_rate @ J.d_gamma_rate.T  # shared encoders
-        R += n.psi_rate_rad_s**2 * J.d_psi_rate @ J.d_psi_rate.T
+        R = self._R_slip + n.gamma_rate_rad_s**2 * J.d_gamma_rate @ J.d_gamma_rate.T  # shared
         return self._update(t_m - J.slip, H, R)
 
     # ---- output --------------------------------------------------------------------

@@ -32,8 +32,11 @@ def interval_rates(angles: ArrayLike, t_s: ArrayLike) -> FloatArray:
         raise ValueError("angles must be finite and t_s strictly increasing")
     dt = np.diff(t).reshape((-1,) + (1,) * (a.ndim - 1))
     out: FloatArray = np.diff(a, axis=0) / dt
-    for k in range(1, t.size - 2):
-        tt = t[k - 1 : k + 3] - 0.5 * (t[k] + t[k + 1])
-        w = (tt - tt.mean()) / np.sum((tt - tt.mean()) ** 2)
-        out[k] = np.tensordot(w, a[k - 1 : k + 3], axes=1)  # least-squares slope
+    if t.size >= 4:  # the least-squares slope over each window of four, all windows at once
+        windows = np.lib.stride_tricks.sliding_window_view(t, 4)
+        tt = windows - 0.5 * (windows[:, 1:2] + windows[:, 2:3])
+        centred = tt - tt.mean(axis=1, keepdims=True)
+        w = centred / np.sum(centred**2, axis=1, keepdims=True)
+        a_windows = np.lib.stride_tricks.sliding_window_view(a, 4, axis=0)  # (N-3, ..., 4)
+        out[1 : t.size - 2] = np.einsum("kj,k...j->k...", w, a_windows)
     return out

@@ -28,6 +28,8 @@ standard deviation of its first-order Gauss-Markov process: ``q = 2 σ² / τ``.
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -41,6 +43,13 @@ def skew(v: FloatArray) -> FloatArray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
+def cross3(a: FloatArray, b: FloatArray) -> FloatArray:
+    """``a × b`` of two 3-vectors, ``np.cross``'s formula without its cost on single vectors."""
+    a0, a1, a2 = a.tolist()
+    b0, b1, b2 = b.tolist()
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+
+
 @dataclass(frozen=True)
 class Layout:
     """Indices of the state blocks; ``n_bias`` is 0 (no bias state), 1 or 3."""
@@ -52,6 +61,7 @@ class Layout:
     X = slice(6, 9)
     V_P = slice(9, 12)
     XI = slice(12, 18)
+    UNCOUPLED_FROM = 12  # ξ and b: diagonal F and Q, uncoupled from the rest (eqs. 8-9)
 
     def __post_init__(self) -> None:
         if self.n_bias not in (0, 1, 3):
@@ -93,35 +103,94 @@ def dynamics(
     X: FloatArray, R0: FloatArray, v_c_b: FloatArray, omega_c_b: FloatArray, p: ProcessParams
 ) -> FloatArray:
     """``Ẋ = f(X)`` of the module docstring; ``R0 = R_s_b`` of the reference quaternion."""
-    L = Layout(X.shape[0] - 18)
-    theta, omega_p, v_p, xi = X[L.THETA], X[L.OMEGA_P], X[L.V_P], X[L.XI]
-    omega = omega_c_b + omega_p
-    out = np.zeros_like(X)
-    out[L.THETA] = omega - 0.5 * np.cross(omega, theta)  # eq. 7
-    out[L.OMEGA_P] = -omega_p / p.tau_omega_s  # eq. 2
-    out[L.X] = R0 @ ((v_c_b + v_p) + np.cross(theta, v_c_b + v_p))  # eq. 1
-    out[L.V_P] = -v_p / p.tau_v_s  # eq. 1
-    out[L.XI] = -xi / p.tau_xi_s  # eq. 8
-    return out  # the bias block stays zero: eq. 9
+    return dynamics_at(R0, v_c_b, omega_c_b, p)(X)
+
+
+def dynamics_at(
+    R0: FloatArray, v_c_b: FloatArray, omega_c_b: FloatArray, p: ProcessParams
+) -> Callable[[FloatArray], FloatArray]:
+    """``f`` of ``dynamics`` with its inputs fixed, as RK4's four calls over a step share
+    them. Written out on plain floats: array operations on 3-vectors would cost more than
+    the arithmetic."""
+    c0, c1, c2 = omega_c_b.tolist()
+    vc0, vc1, vc2 = v_c_b.tolist()
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = R0.tolist()
+    tau_w, tau_v, tau_xi = p.tau_omega_s, p.tau_v_s, p.tau_xi_s
+
+    def f(X: FloatArray) -> FloatArray:
+        t0, t1, t2, wp0, wp1, wp2, _, _, _, vp0, vp1, vp2, *rest = X.tolist()
+        w0, w1, w2 = c0 + wp0, c1 + wp1, c2 + wp2
+        v0, v1, v2 = vc0 + vp0, vc1 + vp1, vc2 + vp2
+        # eq. 1: (I + θ×) v, then R0
+        u0 = v0 + (t1 * v2 - t2 * v1)
+        u1 = v1 + (t2 * v0 - t0 * v2)
+        u2 = v2 + (t0 * v1 - t1 * v0)
+        out = [
+            w0 - 0.5 * (w1 * t2 - w2 * t1),  # eq. 7: ω - ½ ω×θ
+            w1 - 0.5 * (w2 * t0 - w0 * t2),
+            w2 - 0.5 * (w0 * t1 - w1 * t0),
+            -wp0 / tau_w,  # eq. 2
+            -wp1 / tau_w,
+            -wp2 / tau_w,
+            r00 * u0 + r01 * u1 + r02 * u2,  # eq. 1
+            r10 * u0 + r11 * u1 + r12 * u2,
+            r20 * u0 + r21 * u1 + r22 * u2,
+            -vp0 / tau_v,  # eq. 1
+            -vp1 / tau_v,
+            -vp2 / tau_v,
+        ]
+        out += [-xi / tau_xi for xi in rest[:6]]  # eq. 8
+        out += [0.0] * len(rest[6:])  # the bias: eq. 9
+        return np.array(out)
+
+    return f
 
 
 def jacobian(
     X: FloatArray, R0: FloatArray, v_c_b: FloatArray, omega_c_b: FloatArray, p: ProcessParams
 ) -> FloatArray:
-    """``F = ∂f/∂X`` at ``X`` (n, n)."""
-    L = Layout(X.shape[0] - 18)
-    theta, omega_p, v_p = X[L.THETA], X[L.OMEGA_P], X[L.V_P]
-    omega = omega_c_b + omega_p
-    v = v_c_b + v_p
-    I3 = np.eye(3)
-    F = np.zeros((L.n, L.n))
-    F[L.THETA, L.THETA] = -0.5 * skew(omega)  # eq. 7
-    F[L.THETA, L.OMEGA_P] = I3 + 0.5 * skew(theta)  # eq. 7: -½ ω×θ = ½ θ×ω
-    F[L.OMEGA_P, L.OMEGA_P] = -I3 / p.tau_omega_s  # eq. 2
-    F[L.X, L.THETA] = -R0 @ skew(v)  # eq. 1: θ×v = -v×θ
-    F[L.X, L.V_P] = R0 @ (I3 + skew(theta))  # eq. 1
-    F[L.V_P, L.V_P] = -I3 / p.tau_v_s  # eq. 1
+    """``F = ∂f/∂X`` at ``X`` (n, n). The contact angles and the bias are uncoupled from
+    the rest and from each other: ``F`` is diagonal over ``UNCOUPLED_FROM`` on.
+
+    The blocks that depend on ``X`` are written out on plain floats into a copy of the
+    constant ones (``_constant_jacobian``).
+    """
+    F = _constant_jacobian(X.shape[0], p).copy()
+    t0, t1, t2, wp0, wp1, wp2, _, _, _, vp0, vp1, vp2 = X[:12].tolist()
+    c0, c1, c2 = omega_c_b.tolist()
+    h0, h1, h2 = 0.5 * (c0 + wp0), 0.5 * (c1 + wp1), 0.5 * (c2 + wp2)
+    vc0, vc1, vc2 = v_c_b.tolist()
+    v0, v1, v2 = vc0 + vp0, vc1 + vp1, vc2 + vp2
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = R0.tolist()
+    F[0:3, 0:3] = [[0.0, h2, -h1], [-h2, 0.0, h0], [h1, -h0, 0.0]]  # eq. 7: -½ ω×
+    # eq. 7: I + ½ θ× (-½ ω×θ = ½ θ×ω)
+    F[0:3, 3:6] = [
+        [1.0, -0.5 * t2, 0.5 * t1],
+        [0.5 * t2, 1.0, -0.5 * t0],
+        [-0.5 * t1, 0.5 * t0, 1.0],
+    ]
+    F[6:9, 0:3] = [  # eq. 1: -R0 v× (θ×v = -v×θ)
+        [r01 * -v2 + r02 * v1, r00 * v2 + r02 * -v0, r00 * -v1 + r01 * v0],
+        [r11 * -v2 + r12 * v1, r10 * v2 + r12 * -v0, r10 * -v1 + r11 * v0],
+        [r21 * -v2 + r22 * v1, r20 * v2 + r22 * -v0, r20 * -v1 + r21 * v0],
+    ]
+    F[6:9, 9:12] = [  # eq. 1: R0 (I + θ×)
+        [r00 + (r01 * t2 - r02 * t1), r01 + (r02 * t0 - r00 * t2), r02 + (r00 * t1 - r01 * t0)],
+        [r10 + (r11 * t2 - r12 * t1), r11 + (r12 * t0 - r10 * t2), r12 + (r10 * t1 - r11 * t0)],
+        [r20 + (r21 * t2 - r22 * t1), r21 + (r22 * t0 - r20 * t2), r22 + (r20 * t1 - r21 * t0)],
+    ]
+    return F
+
+
+@functools.lru_cache(maxsize=8)
+def _constant_jacobian(n: int, p: ProcessParams) -> FloatArray:
+    """The blocks of ``F`` that do not depend on ``X`` (read-only; ``jacobian``)."""
+    L = Layout(n - 18)
+    F = np.zeros((n, n))
+    F[L.OMEGA_P, L.OMEGA_P] = -np.eye(3) / p.tau_omega_s  # eq. 2
+    F[L.V_P, L.V_P] = -np.eye(3) / p.tau_v_s  # eq. 1
     F[L.XI, L.XI] = -np.eye(6) / p.tau_xi_s  # eq. 8
+    F.setflags(write=False)
     return F
 
 

@@ -21,6 +21,7 @@ rockers. Wheel order LF, LM, LR, RF, RM, RR; steered wheels LF, LR, RF, RR.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -41,11 +42,6 @@ def _ry(angle: float) -> FloatArray:
 def _rz(angle: float) -> FloatArray:
     c, s = np.cos(angle), np.sin(angle)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def _d_ry_y(v: FloatArray) -> FloatArray:
-    """d/dα of Ry(α) v at the rotated vector: ŷ × v = (z, 0, -x)."""
-    return np.array([v[2], 0.0, -v[0]])
 
 
 @dataclass(frozen=True)
@@ -70,49 +66,56 @@ def suspension(gamma_rad: ArrayLike, geometry: FlightGeometry = FLIGHT_GEOMETRY)
     ([0.7, -0.6, 0.17], [-0.7, 0.6, 0.17])
     """
     gamma = np.asarray(gamma_rad, dtype=float)
-    if gamma.shape != (3,) or not np.all(np.isfinite(gamma)):
+    if gamma.shape != (3,) or not np.isfinite(gamma).all():
         raise ValueError(f"gamma_rad must be 3 finite angles, got {gamma_rad!r}")
     g = geometry
-    pivot = np.array([g.rocker_pivot_x_m, 0.0, g.rocker_pivot_z_m])
-    bogie = np.array([g.bogie_pivot_x_m, 0.0, g.bogie_pivot_z_m])
+    px, pz = g.rocker_pivot_x_m, g.rocker_pivot_z_m
     zc = g.wheel_centre_z_m
-    front = np.array([g.x_front_m, 0.0, zc])
-    middle = np.array([g.x_middle_m, 0.0, zc])
-    rear = np.array([g.x_rear_m, 0.0, zc])
     centre = np.zeros((N_WHEELS, 3))
     dcentre = np.zeros((N_WHEELS, 3, 3))
     link = np.zeros(N_WHEELS)
     dlink = np.zeros((N_WHEELS, 3))
+    # On plain floats (a filter step calls this once): Ry(α) turns (x, 0, z) in the x-z
+    # plane into (c x + s z, 0, -s x + c z); its derivative at the turned vector is ŷ × v.
     for side, (sign, (i_f, i_m, i_r)) in enumerate(_SIDES):
-        rho = sign * gamma[0]
-        beta = gamma[1 + side]
-        R_rocker, R_bogie = _ry(rho), _ry(rho + beta)
-        bogie_pivot = pivot + R_rocker @ (bogie - pivot)
+        rho = sign * float(gamma[0])
+        beta = float(gamma[1 + side])
+        cr, sr = math.cos(rho), math.sin(rho)
+        cb, sb = math.cos(rho + beta), math.sin(rho + beta)
+        bx, bz = g.bogie_pivot_x_m - px, g.bogie_pivot_z_m - pz
+        bogie = (px + (cr * bx + sr * bz), pz + (-sr * bx + cr * bz))
+        fx, fz = g.x_front_m - px, zc - pz
+        wheels = [(i_f, px + (cr * fx + sr * fz), pz + (-sr * fx + cr * fz))]
+        for i, x in ((i_m, g.x_middle_m), (i_r, g.x_rear_m)):
+            wx, wz = x - g.bogie_pivot_x_m, zc - g.bogie_pivot_z_m
+            wheels.append((i, bogie[0] + (cb * wx + sb * wz), bogie[1] + (-sb * wx + cb * wz)))
         y = (-0.5 if side == 0 else 0.5) * g.track_m
-        centre[i_f] = pivot + R_rocker @ (front - pivot)
-        centre[i_m] = bogie_pivot + R_bogie @ (middle - bogie)
-        centre[i_r] = bogie_pivot + R_bogie @ (rear - bogie)
-        for i in (i_f, i_m, i_r):
+        for i, x, z in wheels:
+            centre[i] = (x, y, z)
             # The whole side turns about the rocker pivot with the rocker (times the
             # differential's sign); the bogie wheels also turn about the bogie pivot.
-            dcentre[i, :, 0] = sign * _d_ry_y(centre[i] - pivot)
+            dcentre[i, :, 0] = (sign * (z - pz), 0.0, sign * -(x - px))
             link[i] = rho
             dlink[i, 0] = sign
-        for i in (i_m, i_r):
-            dcentre[i, :, 1 + side] = _d_ry_y(centre[i] - bogie_pivot)
-            link[i] = rho + beta
-            dlink[i, 1 + side] = 1.0
-        centre[(i_f, i_m, i_r), 1] = y
+            if i != i_f:
+                dcentre[i, :, 1 + side] = (z - bogie[1], 0.0, -(x - bogie[0]))
+                link[i] = rho + beta
+                dlink[i, 1 + side] = 1.0
     return Suspension(centre, dcentre, link, dlink)
 
 
 def steer_per_wheel(steer_rad: ArrayLike) -> FloatArray:
-    """The four corner steering angles (LF, LR, RF, RR) spread over the six wheels (6,)."""
+    """The four corner steering angles (LF, LR, RF, RR) spread over the six wheels: (4,) to
+    (6,), or a series (N, 4) to (N, 6).
+
+    >>> steer_per_wheel([0.1, 0.2, 0.3, 0.4]).tolist()
+    [0.1, 0.0, 0.2, 0.3, 0.0, 0.4]
+    """
     steer = np.asarray(steer_rad, dtype=float)
-    if steer.shape != (4,) or not np.all(np.isfinite(steer)):
-        raise ValueError(f"steer_rad must be 4 finite angles, got {steer_rad!r}")
-    out = np.zeros(N_WHEELS)
-    out[list(STEERED_INDEX)] = steer
+    if steer.ndim not in (1, 2) or steer.shape[-1] != 4 or not np.isfinite(steer).all():
+        raise ValueError(f"steer_rad must be 4 finite angles (or N rows of 4), got {steer_rad!r}")
+    out = np.zeros((*steer.shape[:-1], N_WHEELS))
+    out[..., list(STEERED_INDEX)] = steer
     return out
 
 

@@ -25,29 +25,20 @@ and rates come from the encoders and enter as known inputs (sec. 3).
 
 from __future__ import annotations
 
+import functools
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
-from estimation.fusion.kinematic.process import skew
-from estimation.fusion.kinematic.rover_kinematics import (
-    Suspension,
-    contact_rotation_b,
-    suspension,
-)
+from estimation.fusion.kinematic.rover_kinematics import Suspension, suspension
 from estimation.geometry import FLIGHT_GEOMETRY, N_WHEELS, FlightGeometry
 
 FloatArray = NDArray[np.float64]
 ROWS_PER_WHEEL = 4  # eq. 20: three linear slips and the spin about the normal
-_Y = np.array([0.0, 1.0, 0.0])
-
-
-def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
-    """``a × b`` of two 3-vectors (``np.cross`` costs ten times more on single vectors)."""
-    return np.array(
-        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-    )
+_ROWS = np.arange(N_WHEELS * ROWS_PER_WHEEL)
+_WHEEL_OF_ROW = _ROWS // ROWS_PER_WHEEL
 
 
 @dataclass(frozen=True)
@@ -74,7 +65,7 @@ class JointRates:
             ("psi_rate_rad_s", N_WHEELS),
         ):
             value = getattr(self, name)
-            if value.shape != (size,) or not np.all(np.isfinite(value)):
+            if value.shape != (size,) or not np.isfinite(value).all():
                 raise ValueError(f"{name} must be {size} finite numbers, got {value!r}")
 
 
@@ -102,32 +93,113 @@ def slip_constraint(
     """Eq. 17 for all six wheels, stacked wheel by wheel as ``[t·u, a·u, d·u, d·Ω_w]``."""
     s = suspension(joints.gamma_rad, geometry) if susp is None else susp
     r = geometry.wheel_radius_m
-    n = N_WHEELS * ROWS_PER_WHEEL
-    out = SlipJacobians(
-        np.zeros(n), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 6)),
-        np.zeros((n, 3)), np.zeros((n, 6)),
+    rows = _wheels(
+        v_b.tolist(), omega_b.tolist(), xi_rad.tolist(), joints.sigma_rad.tolist(),
+        joints.gamma_rate_rad_s.tolist(), joints.sigma_rate_rad_s.tolist(),
+        joints.psi_rate_rad_s.tolist(), s, r, True,
     )  # fmt: skip
-    for i in range(N_WHEELS):
-        rows = slice(ROWS_PER_WHEEL * i, ROWS_PER_WHEEL * (i + 1))
-        C = contact_rotation_b(s.link_rad[i], joints.sigma_rad[i], xi_rad[i])  # eq. 18's R
-        t, a, d = C[:, 0], C[:, 1], C[:, 2]
-        c = s.centre_b[i]
-        link_z = np.array([np.sin(s.link_rad[i]), 0.0, np.cos(s.link_rad[i])])
-        omega_link = (s.dlink_dgamma[i] @ joints.gamma_rate_rad_s) * _Y
-        omega_w = omega_b + omega_link + joints.sigma_rate_rad_s[i] * link_z
-        omega_w = omega_w - joints.psi_rate_rad_s[i] * a
-        u = v_b + _cross(omega_b, c) + s.dcentre_dgamma[i] @ joints.gamma_rate_rad_s
-        u = u + r * _cross(omega_w, d)  # eqs. 17-19: velocity at the contact point
-        out.slip[rows] = [t @ u, a @ u, d @ u, d @ omega_w]  # eq. 20's B^T
-        out.d_v[rows, :] = np.stack([t, a, d, np.zeros(3)])
-        p_cross = skew(c + r * d)  # ∂(n·u)/∂ω = (p × n)ᵀ: u = ω × p + ...
-        out.d_omega[rows, :] = np.stack([p_cross @ t, p_cross @ a, p_cross @ d, d])
+    n = N_WHEELS * ROWS_PER_WHEEL
+    slip, d_v, d_omega, d_xi_of_wheel, d_gamma_rate = rows
+    d_xi = np.zeros((n, N_WHEELS))
+    d_xi[_ROWS, _WHEEL_OF_ROW] = d_xi_of_wheel
+    return SlipJacobians(
+        np.array(slip), np.array(d_v), np.array(d_omega), d_xi, np.array(d_gamma_rate),
+        slip_constraint_d_psi_rate(r),
+    )  # fmt: skip
+
+
+def _wheels(
+    v: list[float],
+    w: list[float],
+    xi: list[float],
+    sigma: list[float],
+    gamma_rate: list[float],
+    sigma_rate: list[float],
+    psi_rate: list[float],
+    s: Suspension,
+    r: float,
+    jacobians: bool,
+) -> tuple[list[float], list[list[float]], list[list[float]], list[float], list[list[float]]]:
+    """``slip_constraint``'s wheels written out on plain floats: a filter step would
+    otherwise spend its time on array operations over 3-vectors. Returns the slip (24,)
+    and, with ``jacobians``, the rows of ``d_v``, ``d_omega``, ``d_gamma_rate`` (24 of 3
+    each) and ``∂t/∂ξ`` of each row's own wheel (24,); empty lists without."""
+    g0, g1, g2 = gamma_rate
+    slip: list[float] = []
+    d_v: list[list[float]] = []
+    d_omega: list[list[float]] = []
+    d_xi: list[float] = []
+    d_gamma_rate: list[list[float]] = []
+    centre, dcentre, dlink = s.centre_b.tolist(), s.dcentre_dgamma.tolist(), s.dlink_dgamma.tolist()
+    for i, link in enumerate(s.link_rad.tolist()):
+        # R_b_c = Ry(link) Rz(σ) Ry(ξ) (eq. 18's R, rover_kinematics.contact_rotation_b):
+        # the columns of Ry(link) Rz(σ) are (wx, a, wz), wz the link's z axis; then Ry(ξ)
+        # turns wx and wz about the axle a into the rolling direction t and the normal d.
+        cl, sl = math.cos(link), math.sin(link)
+        cs, ss = math.cos(sigma[i]), math.sin(sigma[i])
+        cx, sx = math.cos(xi[i]), math.sin(xi[i])
+        wx0, wx1, wx2 = cl * cs, ss, -sl * cs
+        a0, a1, a2 = -cl * ss, cs, sl * ss
+        t0, t1, t2 = cx * wx0 - sx * sl, cx * wx1, cx * wx2 - sx * cl
+        d0, d1, d2 = sx * wx0 + cx * sl, sx * wx1, sx * wx2 + cx * cl
+        # Ω_w = ω + ω_link + σ̇ z_link - ψ̇ a
+        l0, l1, l2 = dlink[i]
+        omega_link = l0 * g0 + l1 * g1 + l2 * g2
+        ow0 = w[0] + sigma_rate[i] * sl - psi_rate[i] * a0
+        ow1 = w[1] + omega_link - psi_rate[i] * a1
+        ow2 = w[2] + sigma_rate[i] * cl - psi_rate[i] * a2
+        # u = v + ω × c + J_c γ̇ + Ω_w × (r d): the velocity at the contact point
+        c0, c1, c2 = centre[i]
+        (j00, j01, j02), (j10, j11, j12), (j20, j21, j22) = dcentre[i]
+        u0 = v[0] + (w[1] * c2 - w[2] * c1) + (j00 * g0 + j01 * g1 + j02 * g2)
+        u1 = v[1] + (w[2] * c0 - w[0] * c2) + (j10 * g0 + j11 * g1 + j12 * g2)
+        u2 = v[2] + (w[0] * c1 - w[1] * c0) + (j20 * g0 + j21 * g1 + j22 * g2)
+        u0 += r * (ow1 * d2 - ow2 * d1)
+        u1 += r * (ow2 * d0 - ow0 * d2)
+        u2 += r * (ow0 * d1 - ow1 * d0)
+        t_u = t0 * u0 + t1 * u1 + t2 * u2
+        d_u = d0 * u0 + d1 * u1 + d2 * u2
+        slip += [t_u, a0 * u0 + a1 * u1 + a2 * u2, d_u, d0 * ow0 + d1 * ow1 + d2 * ow2]
+        if not jacobians:
+            continue
+        p0, p1, p2 = c0 + r * d0, c1 + r * d1, c2 + r * d2
+        # ∂u/∂γ̇_j = ∂c/∂γ_j + ∂link/∂γ_j r ŷ × d, with ŷ × d = (d_z, 0, -d_x)
+        e00, e01, e02 = j00 + l0 * r * d2, j10, j20 - l0 * r * d0
+        e10, e11, e12 = j01 + l1 * r * d2, j11, j21 - l1 * r * d0
+        e20, e21, e22 = j02 + l2 * r * d2, j12, j22 - l2 * r * d0
+        d_v += [[t0, t1, t2], [a0, a1, a2], [d0, d1, d2], [0.0, 0.0, 0.0]]
+        d_omega += [  # ∂(n·u)/∂ω = (p × n)ᵀ for n = t, a, d: u = ω × p + ...
+            [p1 * t2 - p2 * t1, p2 * t0 - p0 * t2, p0 * t1 - p1 * t0],
+            [p1 * a2 - p2 * a1, p2 * a0 - p0 * a2, p0 * a1 - p1 * a0],
+            [p1 * d2 - p2 * d1, p2 * d0 - p0 * d2, p0 * d1 - p1 * d0],
+            [d0, d1, d2],
+        ]
+        d_gamma_rate += [
+            [t0 * e00 + t1 * e01 + t2 * e02, t0 * e10 + t1 * e11 + t2 * e12,
+             t0 * e20 + t1 * e21 + t2 * e22],
+            [a0 * e00 + a1 * e01 + a2 * e02, a0 * e10 + a1 * e11 + a2 * e12,
+             a0 * e20 + a1 * e21 + a2 * e22],
+            [d0 * e00 + d1 * e01 + d2 * e02, d0 * e10 + d1 * e11 + d2 * e12,
+             d0 * e20 + d1 * e21 + d2 * e22],
+            [l0 * d1, l1 * d1, l2 * d1],
+        ]  # fmt: skip
         # ∂/∂ξ: dt/dξ = -d, dd/dξ = t, the axle fixed; ∂u/∂ξ = r Ω_w × t.
-        out.d_xi[rows, i] = [-(d @ u), r * (omega_w @ d), t @ u - r * (omega_w @ a), t @ omega_w]
-        for j in range(3):
-            du = s.dcentre_dgamma[i][:, j] + s.dlink_dgamma[i, j] * r * _cross(_Y, d)
-            out.d_gamma_rate[rows, j] = [t @ du, a @ du, d @ du, s.dlink_dgamma[i, j] * d[1]]
-        out.d_psi_rate[ROWS_PER_WHEEL * i, i] = -r  # -ψ̇ a × r d = -r ψ̇ t
+        d_xi += [
+            -d_u,
+            r * (ow0 * d0 + ow1 * d1 + ow2 * d2),
+            t_u - r * (ow0 * a0 + ow1 * a1 + ow2 * a2),
+            t0 * ow0 + t1 * ow1 + t2 * ow2,
+        ]
+    return slip, d_v, d_omega, d_xi, d_gamma_rate
+
+
+@functools.lru_cache(maxsize=4)
+def slip_constraint_d_psi_rate(r: float) -> FloatArray:
+    """``∂t/∂ψ̇`` (24, 6) of wheels of radius ``r``: ``-ψ̇ a × r d = -r ψ̇ t`` in each wheel's
+    rolling row, whatever the wheel's pose (read-only; ``SlipJacobians.d_psi_rate``)."""
+    out = np.zeros((N_WHEELS * ROWS_PER_WHEEL, N_WHEELS))
+    out[_ROWS[::ROWS_PER_WHEEL], np.arange(N_WHEELS)] = -r
+    out.setflags(write=False)
     return out
 
 
@@ -148,9 +220,19 @@ def deterministic_slip(
     >>> np.round(t[3::4], 12).tolist()  # every wheel spins about the vertical at the yaw rate
     [0.04, 0.04, 0.04, 0.04, 0.04, 0.04]
     """
-    zero3, zero6 = np.zeros(3), np.zeros(N_WHEELS)
-    joints = JointRates(zero3, zero3, sigma_rad, sigma_rate_rad_s, zero6)
-    still = slip_constraint(v_c_b, omega_c_b, zero6, joints, geometry).slip
-    rolling = still[0::ROWS_PER_WHEEL] / geometry.wheel_radius_m  # the no-slip drive rates
-    joints = JointRates(zero3, zero3, sigma_rad, sigma_rate_rad_s, rolling)
-    return slip_constraint(v_c_b, omega_c_b, zero6, joints, geometry).slip
+    s = _level_suspension(geometry)
+    r = geometry.wheel_radius_m
+    v, w = v_c_b.tolist(), omega_c_b.tolist()
+    sigma, sigma_rate = sigma_rad.tolist(), sigma_rate_rad_s.tolist()
+    zero3, zero6 = [0.0] * 3, [0.0] * N_WHEELS
+    slip = np.array(_wheels(v, w, zero6, sigma, zero3, sigma_rate, zero6, s, r, False)[0])
+    # Rolling at ψ̇ = t·u / r takes the rolling slip to zero; ψ̇ moves u along t only
+    # (``-ψ̇ a × r d = -r ψ̇ t``) and Ω_w along the axle, so the other rows keep their values.
+    slip[0::ROWS_PER_WHEEL] = 0.0
+    return slip
+
+
+@functools.lru_cache(maxsize=4)
+def _level_suspension(geometry: FlightGeometry) -> Suspension:
+    """The suspension at ``γ = 0`` (``deterministic_slip``'s flat ground), computed once."""
+    return suspension(np.zeros(3), geometry)

@@ -166,20 +166,20 @@ def kinematic_ekf_intervals(
     ``sun``, ``sun_ref_s`` (N, 3); per interval (N-1,): the commands (N-1, 3) and the IMU's
     ``delta_angle_b`` (N-1, 3); ``frame_rate_s`` the Site frame's rate (Mars rotation)."""
     dt = np.diff(t_s)
+    # each interval's inputs for the whole drive at once (the same arithmetic per element)
     gamma_rate = interval_rates(gamma_rad, t_s)
-    sigma = np.array([steer_per_wheel(s) for s in steer_rad])
+    gamma_mid = 0.5 * (gamma_rad[:-1] + gamma_rad[1:])
+    sigma = steer_per_wheel(steer_rad)
+    sigma_mid = 0.5 * (sigma[:-1] + sigma[1:])
+    sigma_rate = np.diff(sigma, axis=0) / dt[:, None]
+    psi_rate = np.diff(wheel_rad, axis=0) / dt[:, None]
+    omega_m = np.asarray(delta_angle_b) @ ekf.B_g.T / dt[:, None]
     for k in range(dt.size):
         ekf.set_command(v_c_b[k], omega_c_b[k])
         ekf.propagate(0.5 * dt[k])
-        ekf.update_gyro(ekf.B_g @ delta_angle_b[k] / dt[k], frame_rate_s)
+        ekf.update_gyro(omega_m[k], frame_rate_s)
         ekf.update_slip(
-            JointRates(
-                gamma_rad=0.5 * (gamma_rad[k] + gamma_rad[k + 1]),
-                gamma_rate_rad_s=gamma_rate[k],
-                sigma_rad=0.5 * (sigma[k] + sigma[k + 1]),
-                sigma_rate_rad_s=(sigma[k + 1] - sigma[k]) / dt[k],
-                psi_rate_rad_s=(wheel_rad[k + 1] - wheel_rad[k]) / dt[k],
-            )
+            JointRates(gamma_mid[k], gamma_rate[k], sigma_mid[k], sigma_rate[k], psi_rate[k])
         )
         ekf.propagate(0.5 * dt[k])
         if sun.valid[k + 1]:
