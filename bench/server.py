@@ -17,7 +17,8 @@ an interpreter lock and the figures include the network stack.
   the server makes Spirit's (its site, seed, start and ``frame_every_s``): the simulation
   alone, measured just before the server starts; ``sol_server_overhead_s`` is
   ``sol_sim_wall_s`` minus it, what the server adds (play-out, frames as dicts, storage,
-  alarms, the 3D view, checkpoints, HTTP and polling).
+  alarms, the 3D view, checkpoints, HTTP and polling). The sol's figures are medians of
+  ``sol_repeats`` pairs (a new server for each), the rest is measured on the last server.
 - ``ws_clients``, ``ws_p99_latency_ms``, ``ws_msgs_per_client_per_s``: Spirit articulating
   (NATE at 8 Hz, one frame kept per simulated second) at speed 8, so it should publish 8
   frames per wall second (``ws_rover_speed_seen_x``: the speed its frames show). The WAIT
@@ -153,6 +154,19 @@ def measure_sol_in_process(drive_m: float = 100.0, hga_min: float = 15.0) -> dic
     for step in result.sequence.steps:
         session.execute(step.command, label=step.command.describe())
     return {"sol_in_process_wall_s": time.perf_counter() - start}
+
+
+def _paired(reference: dict[str, Any], sol: dict[str, Any]) -> dict[str, Any]:
+    """A sol through the server with its in-process reference, and the difference."""
+    overhead = sol["sol_sim_wall_s"] - reference["sol_in_process_wall_s"]
+    return {**reference, **sol, "sol_server_overhead_s": overhead}
+
+
+def _median(values: list[Any]) -> Any:
+    """The median; of counts, one of them (not the mean of the middle two)."""
+    if all(isinstance(v, int) for v in values):
+        return statistics.median_low(values)
+    return statistics.median(values)
 
 
 # ---- live telemetry ------------------------------------------------------------------------
@@ -425,18 +439,30 @@ def bench_server(
     hga_min: float = 15.0,
     blank_lines: int = BLANK_LINES,
     upload_bytes: int = UPLOAD_BYTES,
+    sol_repeats: int = 3,
 ) -> dict[str, Any]:
     """The server bench (module docstring); the defaults are the issue's figures, smaller
-    ones make a quick run (the targets stay the issue's)."""
-    metrics: dict[str, Any] = measure_sol_in_process(drive_m, hga_min)
+    ones make a quick run (the targets stay the issue's). The sol is measured
+    ``sol_repeats`` times, each on a new server after its in-process reference, and its
+    figures are medians (the overhead: the median of the pairs' differences)."""
+    if sol_repeats < 1:
+        raise ValueError(f"sol_repeats: must be at least 1, got {sol_repeats}")
+    sols: list[dict[str, Any]] = []
+    metrics: dict[str, Any] = {}
     with tempfile.TemporaryDirectory(prefix="roverops-bench-") as tmp:
+        for k in range(sol_repeats - 1):  # the sol alone, each on a new server
+            reference = measure_sol_in_process(drive_m, hga_min)
+            data_dir = Path(tmp) / f"sol{k}"
+            data_dir.mkdir()
+            with running_server(data_dir) as server:
+                sols.append(_paired(reference, measure_sol(server, drive_m, hga_min)))
+        reference = measure_sol_in_process(drive_m, hga_min)
         started = time.perf_counter()
-        with running_server(Path(tmp)) as server:
+        with running_server(Path(tmp)) as server:  # the last sol, then everything else
             metrics["server_start_s"] = time.perf_counter() - started
-            metrics.update(measure_sol(server, drive_m, hga_min))
-            metrics["sol_server_overhead_s"] = (
-                metrics["sol_sim_wall_s"] - metrics["sol_in_process_wall_s"]
-            )
+            sols.append(_paired(reference, measure_sol(server, drive_m, hga_min)))
+            metrics.update({key: _median([s[key] for s in sols]) for key in sols[0]})
+            metrics["sol_repeats"] = sol_repeats
             metrics.update(measure_ws(server, ws_clients, ws_window_s))
             metrics.update(measure_blank_lines(server, blank_lines))
             metrics.update(measure_stall(server, upload_bytes))

@@ -89,7 +89,7 @@ __all__ = ["Cancelled", "CheckpointFormatError", "NotQueuedError", "QueueEntry",
 log = logging.getLogger(__name__)
 
 MAX_SPEED = 10_000.0  # largest finite speed factor
-TICK_S = 0.05  # wall seconds between clock ticks
+TICK_S = 0.05  # wall seconds between clock ticks (none at max speed while work is due)
 MAX_TICK_S = 0.25  # wall seconds one tick may account for
 # Idle time skipped at max speed goes a sol at a time, so every sol has a frame to show.
 IDLE_CHUNK_S = SOL_S
