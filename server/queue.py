@@ -48,6 +48,15 @@ class QueuedSequence:
         """A step of it has run or is running (so its place in the queue is fixed)."""
         return self.started or self.next_step > 0 or self.wait_left_s is not None
 
+    def summary(self) -> dict[str, Any]:
+        """The entry as a rover's ``/state`` lists it."""
+        return {
+            "sequence_id": self.sequence_id,
+            "name": self.sequence.name,
+            "next_step": self.next_step,
+            "steps": len(self.sequence.steps),
+        }
+
     def state(self) -> dict[str, Any]:
         """The entry as plain data (the sequence as its text)."""
         return {

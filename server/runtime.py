@@ -14,6 +14,9 @@ its queue of accepted sequences, and a thread that runs the clock:
 - A command executes as a whole in the session (a drive takes a few seconds of wall time)
   and its frames are then *played out*: published (WebSocket subscribers, storage) as the
   clock reaches their time. So what is stored and shown never runs ahead of the clock.
+  At ``inf`` a command, its play-out (whole, before a checkpoint that then need not carry
+  it) and the next step follow without a pause; a new sequence or clock change wakes the
+  clock thread from its ``TICK_S`` sleep.
 - Immediate commands (``POST .../commands``) run before the next queued step, in the order sent.
 - Operators reorder the queue (``move``) and cancel from it (``cancel``) within the rules of
   ``server.queue``. A step starts only if its sequence is still at the head when the clock
@@ -86,7 +89,7 @@ __all__ = ["Cancelled", "CheckpointFormatError", "NotQueuedError", "QueueEntry",
 log = logging.getLogger(__name__)
 
 MAX_SPEED = 10_000.0  # largest finite speed factor
-TICK_S = 0.05  # wall seconds between clock ticks
+TICK_S = 0.05  # wall seconds between clock ticks (none at max speed while work is due)
 MAX_TICK_S = 0.25  # wall seconds one tick may account for
 # Idle time skipped at max speed goes a sol at a time, so every sol has a frame to show.
 IDLE_CHUNK_S = SOL_S
@@ -163,6 +166,7 @@ class RoverRuntime:
         self._clock_t_s = self.session.sim.t_s  # the published clock (<= the session's)
         self._last_done_t_s = self._clock_t_s
         self._stop = threading.Event()
+        self._wake = threading.Event()  # work arrived: the clock thread need not sleep on
         self._thread: threading.Thread | None = None
         self._last_checkpoint_wall = 0.0
         self._last_state: dict[str, Any] | None = None  # the last checkpoint taken (or restored)
@@ -188,6 +192,7 @@ class RoverRuntime:
         """Stop the clock thread (at the next tick) and checkpoint the state it stopped in:
         a graceful stop loses nothing, not even the last second."""
         self._stop.set()
+        self._wake.set()
         if self._thread is not None:
             self._thread.join(timeout=30.0)
             if self._thread.is_alive():  # a command still computing: its state is not whole
@@ -211,6 +216,7 @@ class RoverRuntime:
             if (self.clock.running, self.clock.speed) == before:
                 return
             self._clock_changed = True
+            self._wake.set()
             if self._last_state is None or self.on_checkpoint is None:
                 return
             self._save({**self._last_state, "clock": self._clock_state()})
@@ -225,6 +231,7 @@ class RoverRuntime:
             insert(items, QueuedSequence(sequence_id, sequence, immediate=immediate))
             self.queue = deque(items)
             self._checkpoint_queue()
+        self._wake.set()  # its first step may be due now
         self._queue_changed()
 
     def cancel(self, sequence_id: int) -> Cancelled | None:
@@ -317,15 +324,7 @@ class RoverRuntime:
                 # what the clock runs at now (at max with nothing queued: real time)
                 "effective_speed": _speed_json(self._effective_speed()),
                 "executing": self.executing,
-                "queue": [
-                    {
-                        "sequence_id": q.sequence_id,
-                        "name": q.sequence.name,
-                        "next_step": q.next_step,
-                        "steps": len(q.sequence.steps),
-                    }
-                    for q in self.queue
-                ],
+                "queue": [q.summary() for q in self.queue],
                 "frame": self.last_frame,
             }
 
@@ -344,29 +343,42 @@ class RoverRuntime:
             now = time.monotonic()
             dt_wall, wall = now - wall, now
             try:
-                self._tick(dt_wall)
+                busy = self._tick(dt_wall)
             except Exception:  # keep the server alive; the rover stops its queue
                 log.exception("rover %s: clock tick failed", self.spec.name)
                 with self.lock:
                     self.clock.running = False
-            time.sleep(TICK_S)
+                busy = False
+            if not busy:
+                self._wake.wait(TICK_S)
+            self._wake.clear()
 
-    def _tick(self, dt_wall: float) -> None:
+    def _tick(self, dt_wall: float) -> bool:
+        """One step of the clock; True when the next is due at once (at max speed, after a
+        command, its play-out or a skip of idle time: a sleep would only add wall time)."""
         with self.lock:
             running, speed, changed = self.clock.running, self.clock.speed, self._clock_changed
+        at_max = running and math.isinf(speed)
+        # At max speed a command's frames go out whole in one tick: before the checkpoint,
+        # which would otherwise carry all of them (a drive's thousands) in its play-out.
+        played = at_max and bool(self._playout)
+        if played:
+            self._advance_playout(math.inf)
         if changed or (
             running and time.monotonic() - self._last_checkpoint_wall >= CHECKPOINT_EVERY_S
         ):
             self.checkpoint()  # a paused clock is checkpointed once, where it stopped
         if not running:
-            return
+            return False
+        if played:
+            return True
         # A tick that came late (a command took seconds to compute) does not burst: the
         # clock catches up at most MAX_TICK_S of wall time.
         budget = math.inf if math.isinf(speed) else speed * min(dt_wall, MAX_TICK_S)
         # 1. play out frames of the last command
         if self._playout:
             self._advance_playout(budget)
-            return
+            return False
         # 2. the next step, when its time comes
         step = self._next_step()
         sim_t = self.session.sim.t_s
@@ -374,11 +386,11 @@ class RoverRuntime:
         if target <= sim_t + 1e-6:
             assert step is not None
             self._execute(step[0])
-            return
+            return at_max
         if math.isinf(speed):
             if step is not None:  # idle time is skipped: straight to the next step
                 self._idle(min(target - sim_t, IDLE_CHUNK_S))
-                return
+                return True
             # nothing to skip to: the clock runs on in real time (IDLE_SPEED_AT_MAX)
             budget = IDLE_SPEED_AT_MAX * min(dt_wall, MAX_TICK_S)
         # a finite speed: the clock moves on; the rover is simulated in IDLE_STEP_S steps
@@ -386,6 +398,7 @@ class RoverRuntime:
         lag = self._clock_t_s - sim_t
         if lag >= IDLE_STEP_S or self._clock_t_s >= target - 1e-6:
             self._idle(lag)
+        return False
 
     def _next_step(self) -> tuple[QueuedSequence, TimeTag] | None:
         with self.lock:
@@ -470,19 +483,12 @@ class RoverRuntime:
                 item.next_step = len(item.sequence.steps)
                 item.halted = True
         if self.on_command is not None:
-            self.on_command(
-                self.spec.name,
-                {
-                    "sequence_id": item.sequence_id,
-                    "step_index": index,
-                    "command": step.command.describe(),
-                    "status": report.status,
-                    "reason": report.reason,
-                    "start_t_s": report.start_t_s,
-                    "end_t_s": report.end_t_s,
-                    "events": [e.text for e in report.events],
-                },
-            )
+            self.on_command(self.spec.name, {
+                "sequence_id": item.sequence_id, "step_index": index,
+                "command": step.command.describe(), "status": report.status,
+                "reason": report.reason, "start_t_s": report.start_t_s,
+                "end_t_s": report.end_t_s, "events": [e.text for e in report.events],
+            })  # fmt: skip
         self._queue_changed()
         if report.status != "completed":
             log.info("rover %s: %s: %s", self.spec.name, report.status, report.reason)

@@ -310,6 +310,10 @@ class RoverScene:
             self._take(frame)
         if self._latest is not None:
             self._draw(self._latest)
+        else:  # no frame yet: the ground is cut now, not by the first live frame's draw
+            session = self.runtime.session
+            p_w = np.asarray(session.sim.drive_state.p_s, dtype=float) - self.origin_world
+            self._recut_terrain(p_w)
         self.runtime.sinks.append(self)
         self._thread = threading.Thread(target=self._run, name=f"scene-{self.rover}", daemon=True)
         self._thread.start()

@@ -142,6 +142,20 @@ def scene(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[RoverScene
         store.close()
 
 
+def test_a_rover_without_frames_has_its_ground_drawn_at_start(
+    scene: tuple[RoverScene, RoverRuntime],
+) -> None:
+    """The terrain is cut when the view starts, around where the rover stands, so the
+    first live frame's draw (during a command's play-out) does not cut it."""
+    rover_scene, runtime = scene
+    assert rover_scene.frames_drawn == 0 and rover_scene._latest is None
+    start_w = runtime.session.sim.drive_state.p_s - runtime.session.mission_origin_world
+    assert rover_scene._terrain_centre is not None
+    np.testing.assert_allclose(rover_scene._terrain_centre, start_w[:2], atol=TERRAIN_STEP_M)
+    assert rover_scene.server is not None
+    assert "/terrain/band_0" in rover_scene.server.scene._handle_from_node_name
+
+
 def test_the_scene_follows_the_frames(
     scene: tuple[RoverScene, RoverRuntime],
 ) -> None:
