@@ -10,7 +10,7 @@ frame, built once per control cycle, pays no validation on construction.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import dataclass, field, fields
 from typing import Annotated, Any
 
 from pydantic import Field, TypeAdapter
@@ -102,13 +102,35 @@ class TelemetryFrame:
     ] = math.nan
 
     def as_dict(self) -> dict[str, Any]:
-        """The frame as a JSON-ready dict; a figure that does not exist (NaN, e.g. the
-        accelerometer tilt of a cycle without a sample) is ``None``: JSON has no NaN."""
-        out = asdict(self)
-        for key, value in out.items():
-            if isinstance(value, float) and not math.isfinite(value):
-                out[key] = None
+        """The frame as a JSON-ready dict (what ``dataclasses.asdict`` gives, built without
+        its deep copy: the server turns every stored frame into one); a figure that does
+        not exist (NaN, e.g. the accelerometer tilt of a cycle without a sample) is
+        ``None``: JSON has no NaN."""
+        out: dict[str, Any] = {}
+        for name in _FIELD_NAMES:
+            value = getattr(self, name)
+            if type(value) is float:
+                out[name] = value if math.isfinite(value) else None
+            else:
+                out[name] = _plain(value)
         return out
+
+
+def _plain(value: Any) -> Any:
+    """``value`` as ``dataclasses.asdict`` copies it: lists, tuples and dicts anew, an
+    ``Event`` as its dict, numbers and strings as they are."""
+    kind = type(value)
+    if kind is list or kind is tuple:
+        return kind(v if type(v) in _ATOMS else _plain(v) for v in value)
+    if kind is dict:
+        return {k: v if type(v) in _ATOMS else _plain(v) for k, v in value.items()}
+    if kind is Event:
+        return {"text": value.text, "kind": value.kind, "severity": value.severity}
+    return value
+
+
+_ATOMS = (float, int, str, bool, type(None))
+_FIELD_NAMES = tuple(f.name for f in fields(TelemetryFrame))
 
 
 def telemetry_fields() -> list[str]:
