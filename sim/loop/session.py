@@ -71,11 +71,12 @@ class RoverSession:
     """A rover at a site with SAPP in the loop. Arguments as ``RoverSim`` (the site, seed and
     start, and as keywords the rover's placement, IMU and slip: ``Placement``) plus NATE's
     parameters, and ``frame_every_s``: keep one telemetry frame per that many seconds of
-    8 Hz data (0: every cycle; frames with events or a mode change are always kept); ``vo_options``: the step limits and imaging of
-    ``vo=on`` drives (``sim.loop.vo_drive.VoDriveOptions``; MER's by default);
-    ``visual_odometry``: makes the VO of those drives from the simulator (a benchmark's
-    wrapper that records each step; it must image through ``VO_RIG``); ``estimators``:
-    the estimators that run, SAPP and those beside it (``sim.loop.side``)."""
+    8 Hz data (0: every cycle; frames with events or a mode change are always kept);
+    ``vo_options``: the step limits and imaging of ``vo=on`` drives
+    (``sim.loop.vo_drive.VoDriveOptions``; MER's by default); ``visual_odometry``: makes
+    the VO of those drives from the simulator (a benchmark's wrapper that records each
+    step; it must image through ``VO_RIG``); ``estimators``: the estimators that run, SAPP
+    and those beside it (``sim.loop.side``)."""
 
     def __init__(
         self,
