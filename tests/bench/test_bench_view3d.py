@@ -19,8 +19,9 @@ from sim.errors import InputError
 
 UNIT = re.compile(r"_(ms|s|m|ratio)(_|$)")  # a float metric names its unit
 # Draws the server's own scene made by the time a sol completed: in a 1 s sol the scene
-# thread may still be cutting its first terrain patch.
-MAY_BE_ZERO = {"view_sol_frames_drawn"}
+# thread may still be cutting its first terrain patch. Draws that re-cut the terrain: the
+# first patch is cut when the view starts, so a drive shorter than TERRAIN_RECUT_M needs none.
+MAY_BE_ZERO = {"view_sol_frames_drawn", "view_draw_recuts"}
 
 
 @pytest.fixture(scope="module")
@@ -51,7 +52,8 @@ def test_the_draw_figures_are_consistent(quick: dict[str, Any]) -> None:
     assert low <= high <= m["view_draw_ms_max_1_client"]
     # delivery includes the draw itself
     assert m["view_draw_to_client_ms_median_1_client"] >= low
-    assert m["view_draw_recuts"] >= 1  # the first frame cuts the first patch
+    # the view cut the first patch at its start: 2 m from it, no draw re-cuts (8 m)
+    assert m["view_draw_recuts"] == 0
 
 
 def test_the_viewer_received_the_scene_draws_and_terrain(quick: dict[str, Any]) -> None:
