@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import threading
 from collections.abc import Iterable, Mapping
 from datetime import UTC, datetime
 from typing import Any
@@ -122,6 +123,24 @@ def record_command(conn: Connection, row: dict[str, Any]) -> int:
     return int(key[0])
 
 
+class OneThreadAtATimePool(StaticPool):
+    """The one connection of an in-memory SQLite database, which every thread shares, held
+    by one thread at a time: two threads' transactions on it would interleave (a read's
+    rollback on return undid the writer's uncommitted frames)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._holder = threading.RLock()
+
+    def _do_get(self) -> Any:
+        self._holder.acquire()
+        return super()._do_get()
+
+    def _do_return_conn(self, record: Any) -> None:
+        super()._do_return_conn(record)
+        self._holder.release()
+
+
 class Store:
     """The server's database: one engine, the tables created on first use.
 
@@ -140,7 +159,7 @@ class Store:
             # The writer thread and the request threads share the engine.
             kwargs["connect_args"] = {"check_same_thread": False, "timeout": 30.0}
             if parsed.database in (None, "", ":memory:"):
-                kwargs["poolclass"] = StaticPool  # else each connection is a new empty db
+                kwargs["poolclass"] = OneThreadAtATimePool  # else each connection a new empty db
         else:
             kwargs["pool_pre_ping"] = True  # a restarted database server is not an error
         self.engine: Engine = create_engine(url, **kwargs)

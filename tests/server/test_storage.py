@@ -14,6 +14,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Iterator
 from datetime import UTC, datetime, timedelta
@@ -568,3 +569,28 @@ def test_sigkill_keeps_everything_flushed(
     assert len(got) >= flushed  # every flushed frame is there ...
     expected = [template["t_s"] + k * DT_S for k in range(len(got))]
     assert got == expected  # ... with no gap or duplicate (whole batches only)
+
+
+def test_an_in_memory_store_loses_no_frame_to_a_reader_on_another_thread() -> None:
+    """An in-memory SQLite database is one connection that every thread shares: a reader's
+    rollback on return undid the writer's uncommitted frames (CI lost a whole sol's)."""
+    store = Store("sqlite://")
+    sequence_id = store.add_sequence("spirit", "x", "", "text", "queued", [], [], [])
+    writer = BatchWriter(store)
+    stop = threading.Event()
+
+    def poll() -> None:
+        while not stop.is_set():
+            store.get_sequence(sequence_id)
+
+    reader = threading.Thread(target=poll)
+    reader.start()
+    try:
+        for batch in range(200):
+            frames = [{"t_s": float(batch * 20 + i), "sol": 1, "events": []} for i in range(20)]
+            writer.frames("spirit", frames)
+            writer.flush()
+    finally:
+        stop.set()
+        reader.join()
+    assert len(store.frames("spirit", -math.inf, math.inf)) == 4000
