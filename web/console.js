@@ -5,7 +5,7 @@
 "use strict";
 
 const $ = (id) => document.getElementById(id);
-const state = { rover: null, ws: null, validateTimer: null, dictionary: [], me: null };
+const state = { rover: null, ws: null, validateTimer: null, diagnosticsTurn: 0, dictionary: [], me: null };
 const ROLES = ["viewer", "operator", "conductor", "admin"]; // each may do all before it
 const IMU_WARN_S = 10000; // Ali et al. 2005 sec. 4: MER reacquired attitude at about this IMU time
 
@@ -203,13 +203,21 @@ function showDiagnostics(result) {
   }));
 }
 
+// The list shows the latest answer: an editor check that returns after an upload (or a
+// newer check) was asked for is not shown over it.
 async function validateEditor() {
+  const turn = ++state.diagnosticsTurn;
   const text = $("editor").value;
   if (!text.trim()) { $("validation").replaceChildren(); return; }
   const r = await api(`/api/sequences/validate?rover=${state.rover}`, {
     method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify({ text }),
   });
-  if (r.body) showDiagnostics(r.body);
+  if (r.body && turn === state.diagnosticsTurn) showDiagnostics(r.body);
+}
+
+function uploadStarts() {
+  clearTimeout(state.validateTimer);
+  state.diagnosticsTurn++;
 }
 
 // The upload's answer replaces what the list showed: its diagnostics, or none when the
@@ -231,6 +239,7 @@ function uploaded(r) {
 }
 
 async function uploadText() {
+  uploadStarts();
   const r = await api(`/api/rovers/${state.rover}/sequences`, {
     method: "POST", headers: { ...authHeaders(), "Content-Type": "application/json" },
     body: JSON.stringify({ text: $("editor").value }),
@@ -241,6 +250,7 @@ async function uploadText() {
 async function uploadFile() {
   const file = $("file").files[0];
   if (!file) return;
+  uploadStarts();
   const form = new FormData();
   form.append("file", file);
   uploaded(await api(`/api/rovers/${state.rover}/sequences`, { method: "POST", headers: authHeaders(), body: form }));
