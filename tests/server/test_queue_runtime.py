@@ -129,6 +129,14 @@ def test_moves_and_cancels_from_another_thread_never_break_a_sequence() -> None:
     a cancelled one runs no step after the one running when it was cancelled, and every
     other one runs whole."""
     runtime, reports = _runtime()
+
+    def stored(_rover: str, report: dict[str, Any]) -> None:
+        # as the server's storage takes a moment: at max speed the clock thread no longer
+        # sleeps between steps, and could drain the queue before this thread ran at all
+        reports.append(report)
+        time.sleep(0.002)
+
+    runtime.on_command = stored
     short = _seq("SEQUENCE short\nWAIT duration_s=5\nWAIT duration_s=5\nWAIT duration_s=5\n")
     ids = list(range(1, 41))
     for i in ids:
