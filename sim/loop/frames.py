@@ -1,15 +1,13 @@
-"""Building and scoring the telemetry frames of a session (``sim.loop.telemetry``).
+"""Building the telemetry frames of a session: the rover's downlink and, beside it, the truth.
 
-A frame puts NATE's output beside the truth with the derived figures. The HGA figures are
-those of an HGA pointed at that moment from the onboard estimate and IVP's Earth
-(``estimation.sapp.hga_pointing``), scored against the truth (``sim.rover.hga``): during an
-HGA pass that is the antenna's real error, and at other times the error it would have.
-Earth's direction is computed every ``EARTH_NODE_S`` of simulated time and interpolated
-linearly in between (normalised): over a minute its path bends by far less than a
-microradian from the chord. Position errors are in the mission frame (the first Site's),
-whose true origin is where the rover started; the true Site origins are kept as the
-operators plant Sites. Frames are thinned to one per ``frame_every_s`` of 8 Hz data, but a
-frame with events or a mode change is always kept.
+Each kept control cycle makes two records at the same ``t_s``: the ``Downlink``
+(``sim.loop.downlink``: NATE's output, the encoders' readings, the HGA pointing the rover
+would command now from its estimate and IVP's Earth, the margin it predicts, the side
+estimators' poses) and the ``Truth`` (``sim.scoring.truth``), which the scorer
+(``sim.scoring.scorer``) makes from the world's truth at those cycles and the downlink.
+IVP's Earth is interpolated between nodes a minute apart (``sim.loop.sky``). Frames are
+thinned to one per ``frame_every_s`` of 8 Hz data, but a frame with events or a mode change is
+always kept.
 """
 
 from __future__ import annotations
@@ -23,49 +21,44 @@ from numpy.typing import NDArray
 
 from estimation.events import Event
 from estimation.ivp import earth_ll
-from estimation.quaternion import quat_angle_between, quat_conjugate, quat_rotate
-from estimation.sapp.hga_pointing import (
-    HGA_POINTING_REQUIREMENT_DEG,
-    PointingKnowledge,
-    point_hga_many,
-)
+from estimation.sapp.hga_pointing import PointingKnowledge, point_hga_many
 from estimation.sapp.nate import Nate, NateOutput, NateSeries
 from estimation.sapp.sun_modes import SunResult
+from sim.loop.downlink import Downlink
 from sim.loop.rover_sim import RoverSim, Segment
 from sim.loop.side.estimators import SideEstimators
 from sim.loop.side.kinematic import SideEstimate
-from sim.loop.telemetry import TelemetryFrame
-from sim.rover.hga import hga_errors_deg
+from sim.loop.sky import SkyNodes
+from sim.scoring.scorer import DownlinkFigures, Scorer, SidePose, WorldTruth
+from sim.scoring.truth import Truth
 from sim.world.local_level import q_ll_b_from_site
-from sim.world.mars_frames import earth_ll_truth, elevation_rad, sun_ll_truth
 from sim.world.marsclock import lmst_h_from_t_s, sol_number_t_s
 
 FloatArray = NDArray[np.float64]
 
-EARTH_NODE_S = 60.0  # see the module docstring
-
 
 class FrameRecorder:
-    """The frames of a session as it runs (``frames``), with the events waiting for the next
-    frame (``events``), the label of the command running (``command``) and the flight
-    software's VO status (``vo_failures_in_row``, set by ``sim.loop.drives``)."""
+    """The frames of a session as it runs: the rover's ``downlinks`` and, record for record,
+    the scorer's ``truths``; the events waiting for the next frame (``events``), the label
+    of the command running (``command``) and the flight software's VO status
+    (``vo_failures_in_row``, set by ``sim.loop.drives``)."""
 
     def __init__(
         self, sim: RoverSim, nate: Nate, side: SideEstimators, frame_every_s: float
     ) -> None:
         self.sim, self.nate, self.side = sim, nate, side
         self.frame_every_s = frame_every_s
-        self.frames: list[TelemetryFrame] = []
+        self.downlinks: list[Downlink] = []
+        self.truths: list[Truth] = []
         self.events: list[Event] = []
         self.command = ""
         self.vo_failures_in_row = 0
         self.knowledge = PointingKnowledge()
-        self.site_origins_true: list[FloatArray] = [sim.drive_state.p_s.copy()]
+        self.scorer = Scorer(sim.lat_rad, sim.lon_east_rad, sim.drive_state.p_s)
         self._lon_west_deg = (360.0 - sim.site.lon_east_deg) % 360.0
         self._last_frame_t = -math.inf
         self._last_mode = ""
-        self._sky_t0 = math.nan  # interpolation node: Earth (IVP, truth), sun at t0, t0 + node
-        self._sky_nodes = np.zeros((3, 2, 3))
+        self._earth_ivp = SkyNodes([lambda t: earth_ll(t, sim.lat_rad, sim.lon_east_rad)])
 
     # ---- when a frame is made ---------------------------------------------------------
 
@@ -93,18 +86,14 @@ class FrameRecorder:
         if not kept:
             return
         state, n = self.sim.drive_state, len(kept)
-        self._append(
-            series,
-            kept,
-            np.tile(self.sim.q_ll_b(), (n, 1)),
-            np.tile(state.p_s, (n, 1)),
-            (
-                np.full(n, state.rocker_rad),
-                np.tile(state.bogie_rad, (n, 1)),
-                np.tile(state.steer_rad, (n, 1)),
-            ),
-            None,
+        world = WorldTruth(
+            q_ll_b=np.tile(self.sim.q_ll_b(), (n, 1)),
+            p_world=np.tile(state.p_s, (n, 1)),
+            rocker_rad=np.full(n, state.rocker_rad),
+            bogie_rad=np.tile(state.bogie_rad, (n, 1)),
+            steer_rad=np.tile(state.steer_rad, (n, 1)),
         )
+        self._append(series, kept, world, np.tile(self.sim.steer_reading_rad, (n, 1)), None)
 
     def now(self, force: bool = False) -> None:
         """A frame of the current state without a NATE cycle (after a command)."""
@@ -133,8 +122,15 @@ class FrameRecorder:
             q_ll_b = q_ll_b_from_site(
                 traj.q_s_b[rows], traj.p_s[rows], sim.lat_rad, sim.lon_east_rad
             )
-            joints = (traj.rocker_rad[rows], traj.bogie_rad[rows], traj.steer_rad[rows])
-            self._append(series, kept, q_ll_b, traj.p_s[rows], joints, (side, rows.tolist()))
+            world = WorldTruth(
+                q_ll_b=q_ll_b,
+                p_world=traj.p_s[rows],
+                rocker_rad=traj.rocker_rad[rows],
+                bogie_rad=traj.bogie_rad[rows],
+                steer_rad=traj.steer_rad[rows],
+            )
+            steer_read = seg.encoders.steer_rad[rows]
+            self._append(series, kept, world, steer_read, (side, rows.tolist()))
         self.side.at_sample(None)
 
     def _kept(self, series: NateSeries, force_completed: bool) -> list[int]:
@@ -157,104 +153,55 @@ class FrameRecorder:
 
     def last_event(self) -> str:
         """The text of the latest event in a frame (``""``: none)."""
-        for frame in reversed(self.frames):
+        for frame in reversed(self.downlinks):
             if frame.events:
                 return frame.events[-1].text
         return ""
 
-    # ---- building and scoring ---------------------------------------------------------
-
-    def _sky(self, t_s: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Earth in LL at each of ``t_s`` (increasing) from IVP and from the truth, and the
-        true sun in LL, (K, 3) each (module docstring: interpolated between nodes
-        ``EARTH_NODE_S`` apart, a new node pair where a time leaves the last one)."""
-        sim = self.sim
-        u = np.empty(len(t_s))
-        nodes = np.empty((len(t_s), 3, 2, 3))
-        for k, t in enumerate(t_s.tolist()):
-            u_k = (t - self._sky_t0) / EARTH_NODE_S
-            if not 0.0 <= u_k <= 1.0:
-                self._sky_t0, u_k = t, 0.0
-                at = np.array([t, t + EARTH_NODE_S])
-                self._sky_nodes = np.stack(
-                    [
-                        earth_ll(at, sim.lat_rad, sim.lon_east_rad),
-                        earth_ll_truth(at, sim.lat_rad, sim.lon_east_rad),
-                        sun_ll_truth(at, sim.lat_rad, sim.lon_east_rad),
-                    ]
-                )
-            u[k], nodes[k] = u_k, self._sky_nodes
-        u3 = u[:, None, None]
-        v = (1.0 - u3) * nodes[:, :, 0] + u3 * nodes[:, :, 1]
-        v /= np.linalg.norm(v, axis=2, keepdims=True)
-        return v[:, 0], v[:, 1], v[:, 2]
+    # ---- building ----------------------------------------------------------------------
 
     def _append(
         self,
         series: NateSeries,
         kept: list[int],
-        q_ll_b_true: FloatArray,
-        p_world: FloatArray,
-        joints: tuple[FloatArray, FloatArray, FloatArray],
+        world: WorldTruth,
+        steer_read_rad: FloatArray,
         side: tuple[Mapping[str, SideEstimate], list[int]] | None,
     ) -> None:
-        """Append the frames of the cycles ``kept`` of ``series``, with the truth of each
-        (K rows): ``q_ll_b_true``, ``p_world`` the position in the simulator's frame, whose
-        offset from the first Site's origin (the start) is the true mission position, and
-        ``joints`` the (rocker (K,), bogie (K, 2), steering (K, 4)) angles, rad; ``side``
-        the side estimators' segment estimates and the segment sample of each frame. The
-        derived figures are computed for all K frames at once."""
-        sim, nate, origins = self.sim, self.nate, self.site_origins_true
+        """Append the downlink and truth records of the cycles ``kept`` of ``series`` (K
+        rows): ``world`` the truth at those cycles, ``steer_read_rad`` (K, 4) the steering
+        sensors' readings, ``side`` the side estimators' segment estimates and the segment
+        sample of each frame. The figures are computed for all K frames at once."""
+        sim, nate = self.sim, self.nate
         t = series.t_s[kept]
         q_est = series.q_b_ll[kept]
         site_index = [series.site_index[k] for k in kept]
-        q_ll_b = q_ll_b_true / np.linalg.norm(q_ll_b_true, axis=1, keepdims=True)
-        q_b_ll_true = quat_conjugate(q_ll_b)
-        earth_ivp, earth_true, sun_true = self._sky(t)
+        (earth_ivp,) = self._earth_ivp.at(t)
         hga_az, hga_el, boresight_b = point_hga_many(q_est, earth_ivp)
-        hga_error = hga_errors_deg(hga_az, hga_el, q_b_ll_true, earth_true)
-        boresight_ll = quat_rotate(q_ll_b, boresight_b)  # R_ll_b: the true body to LL
-        att_err_deg = np.degrees(quat_angle_between(q_est, q_b_ll_true))
-        p_mission_true = p_world - origins[0]
         p_s_est = series.p_s[kept]
         p_mission_est = np.array(
             [nate.sites.to_mission(p, i) for p, i in zip(p_s_est, site_index, strict=True)]
         )
-        last = len(origins) - 1
-        p_s_true = p_world - np.array([origins[min(i, last)] for i in site_index])
-        position_error = np.linalg.norm(p_mission_est - p_mission_true, axis=1)
         sol = sol_number_t_s(sim.site.mission, t)
         lmst_h = lmst_h_from_t_s(t, self._lon_west_deg)
-        earth_up = elevation_rad(earth_true) > 0.0
-        rocker_deg, bogie_deg, steer_deg = (np.degrees(a) for a in joints)
+        rocker_read, bogie_read = sim.joint_encoders.read_angles(world.rocker_rad, world.bogie_rad)
         columns = (
             t.tolist(),
             sol.tolist(),
             lmst_h.tolist(),
             q_est.tolist(),
-            q_b_ll_true.tolist(),
             p_s_est.tolist(),
-            p_s_true.tolist(),
             p_mission_est.tolist(),
-            p_mission_true.tolist(),
-            hga_error.tolist(),
-            earth_up.tolist(),
-            att_err_deg.tolist(),
-            position_error.tolist(),
-            rocker_deg.tolist(),
-            bogie_deg.tolist(),
-            steer_deg.tolist(),
-            sun_true.tolist(),
-            earth_true.tolist(),
-            boresight_ll.tolist(),
+            np.degrees(rocker_read).tolist(),
+            np.degrees(bogie_read).tolist(),
+            np.degrees(steer_read_rad).tolist(),
+            np.degrees(hga_az).tolist(),
+            np.degrees(hga_el).tolist(),
         )
+        side_poses: list[dict[str, SidePose]] = []
         for j, row in enumerate(zip(*columns, strict=True)):
-            (t_j, sol_j, lmst_j, q_est_j, q_true_j, p_est_j, p_true_j, pm_est_j, pm_true_j) = row[
-                :9
-            ]
-            (hga_j, up_j, att_j, pos_j, rocker_j, bogie_j, steer_j, sun_j, earth_j, bore_j) = row[
-                9:
-            ]
+            t_j, sol_j, lmst_j, q_est_j, p_est_j, pm_est_j, rocker_j, bogie_j = row[:8]
+            steer_j, az_j, el_j = row[8:]
             k = kept[j]
             events = list(series.events[k]) + self.events
             self.events = []
@@ -268,44 +215,54 @@ class FrameRecorder:
             predicted = self.knowledge.update(aqf, float(series.imu_integration_s[k]), sungaze)
             if side is not None:
                 self.side.at_sample(side[0], side[1][j])
-            self.frames.append(
-                TelemetryFrame(
+            poses = self.side.frame_poses(t_j)
+            side_poses.append(poses)
+            self.downlinks.append(
+                Downlink(
                     t_s=t_j,
                     sol=sol_j,
                     lmst_h=lmst_j,
                     nate_mode=series.mode[k].value,
                     aqf=aqf.paper_name,
                     q_b_ll_est=q_est_j,
-                    q_b_ll_true=q_true_j,
                     p_s_est=p_est_j,
-                    p_s_true=p_true_j,
                     site_index=site_index[j],
                     p_mission_est=pm_est_j,
-                    p_mission_true=pm_true_j,
                     imu_integration_s=float(series.imu_integration_s[k]),
                     gyro_counter_s=float(series.gyro_counter_s[k]),
                     tilt_est_deg=float(series.tilt_est_deg[k]),
                     tilt_accel_deg=float(series.tilt_accel_deg[k]),
-                    hga_error_deg=hga_j,
-                    hga_margin_deg=HGA_POINTING_REQUIREMENT_DEG - hga_j,
-                    earth_up=up_j,
-                    attitude_error_deg=att_j,
-                    position_error_m=pos_j,
                     command=self.command,
-                    rocker_deg=rocker_j,
-                    bogie_deg=bogie_j,
-                    steer_deg=steer_j,
-                    sun_ll_true=sun_j,
-                    earth_ll_true=earth_j,
-                    hga_boresight_ll_true=bore_j,
+                    rocker_enc_deg=rocker_j,
+                    bogie_enc_deg=bogie_j,
+                    steer_enc_deg=steer_j,
+                    hga_azimuth_deg=az_j,
+                    hga_elevation_deg=el_j,
                     events=events,
-                    estimators=self.side.frame_estimates(t_j, p_mission_true[j], q_b_ll_true[j]),
+                    estimators={
+                        name: {
+                            "p_mission": [float(v) for v in p],
+                            "q_b_ll": None if q is None else [float(v) for v in q],
+                        }
+                        for name, (p, q) in poses.items()
+                    },
                     vo_failures_in_row=self.vo_failures_in_row,
                     hga_margin_predicted_deg=predicted,
                 )
             )
             self._last_frame_t = t_j
             self._last_mode = series.mode[k].value
+        figures = DownlinkFigures(
+            t_s=t,
+            q_b_ll_est=q_est,
+            p_mission_est=p_mission_est,
+            site_index=site_index,
+            hga_az_rad=hga_az,
+            hga_el_rad=hga_el,
+            hga_boresight_b=boresight_b,
+            side=side_poses,
+        )
+        self.truths.extend(self.scorer.score(figures, world))
 
     # ---- checkpoint -----------------------------------------------------------------------
 
@@ -316,11 +273,10 @@ class FrameRecorder:
             "events": [e.as_dict() for e in self.events],
             "vo_failures_in_row": self.vo_failures_in_row,
             "knowledge": self.knowledge.state(),
-            "site_origins_true": [p.copy() for p in self.site_origins_true],
+            "scorer": self.scorer.state(),
             "last_frame_t": self._last_frame_t,
             "last_mode": self._last_mode,
-            "sky_t0": self._sky_t0,
-            "sky_nodes": self._sky_nodes.copy(),
+            "earth_ivp": self._earth_ivp.state(),
         }
 
     def load_state(self, state: Mapping[str, Any]) -> None:
@@ -328,8 +284,7 @@ class FrameRecorder:
         self.events = [Event(e["text"], e["kind"], e["severity"]) for e in state["events"]]
         self.vo_failures_in_row = int(state["vo_failures_in_row"])
         self.knowledge.load_state(state["knowledge"])
-        self.site_origins_true = [np.array(p, dtype=np.float64) for p in state["site_origins_true"]]
+        self.scorer.load_state(state["scorer"])
         self._last_frame_t = float(state["last_frame_t"])
         self._last_mode = str(state["last_mode"])
-        self._sky_t0 = float(state["sky_t0"])
-        self._sky_nodes = np.array(state["sky_nodes"], dtype=np.float64)
+        self._earth_ivp.load_state(state["earth_ivp"])

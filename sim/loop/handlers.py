@@ -8,8 +8,10 @@ with the reason). It refuses, with nothing changed, by raising ``CommandRefusedE
 sun too low; the simulator a drive outside its limits). Adding a command: its class in
 ``sequences.commands`` and its handler here, in ``HANDLERS``.
 
-The HGA figures of an HGA pass are those of the frames (``sim.loop.frames``): the pass fails
-when its worst error leaves no margin.
+The HGA figures of an HGA pass are those of its frames' truth records (``sim.scoring``): the
+pass fails when its worst true error leaves no margin. That is the world's outcome (the
+link closes or it does not, and the ground sees the signal go), not the rover's knowledge; its
+figures are a score, an event of the truth record.
 """
 
 from __future__ import annotations
@@ -57,7 +59,7 @@ def turn_in_place(ctx: LoopContext, c: cmd.TurnInPlace) -> Details:
 
 def plant_site(ctx: LoopContext, c: cmd.PlantSite) -> Details:
     index = ctx.nate.plant_site()
-    ctx.recorder.site_origins_true.append(ctx.sim.drive_state.p_s.copy())
+    ctx.recorder.scorer.plant_site(ctx.sim.drive_state.p_s)
     ctx.event(f"Site {index} planted", "site")
     ctx.recorder.now(force=True)
     return {"site_index": index}
@@ -147,7 +149,7 @@ def hga_pass(ctx: LoopContext, c: cmd.HgaPass) -> Details:
         ctx.event(
             f"HGA pass with AQF {nate.aqf.paper_name}: pointing not assured", "hga", "warning"
         )
-    first = len(recorder.frames)
+    first = len(recorder.truths)
     recorder.now(force=True)
     end = sim.t_s + duration_s
     while sim.t_s < end - 1e-9:
@@ -156,16 +158,16 @@ def hga_pass(ctx: LoopContext, c: cmd.HgaPass) -> Details:
             recorder.at_rest(nate.step(imu_sample(sim.rest(step), 0)), force=True)
         else:
             recorder.at_rest_series(nate.step_series(imu_series(sim.rest_cycles(step))))
-    frames = recorder.frames[first:]
-    errors = [f.hga_error_deg for f in frames if f.earth_up]
+    truths = recorder.truths[first:]  # the pass's link: a world outcome, scored
+    errors = [f.hga_error_deg for f in truths if f.earth_up]
     worst = max(errors) if errors else math.nan
     margin = 2.0 - worst
-    earth_set = len(errors) != len(frames)
+    earth_set = len(errors) != len(truths)
     text = f"HGA pass: worst error {worst:.2f} deg, margin {margin:.2f} deg" + (
         ", Earth set during the pass" if earth_set else ""
     )
     severity: Severity = "error" if margin < 0.0 else "warning" if earth_set else "info"
-    recorder.frames[-1].events.append(Event(text, "hga", severity))
+    recorder.truths[-1].events.append(Event(text, "hga", severity))
     out: Details = {"hga_worst_error_deg": worst, "hga_min_margin_deg": margin}
     if margin < 0.0:
         out["failure"] = f"HGA margin gone: worst error {worst:.2f} deg > 2 deg"

@@ -35,6 +35,7 @@ from sim.rover.slip import SlipModel
 from sim.rover.truth import CONTROL_DT_S, TruthTrajectory
 from sim.sensors.encoders import EncoderParams, EncoderSamples, MobilityEncoders
 from sim.sensors.imu import ImuSamples, Ln200Imu, Ln200Params
+from sim.sensors.joint_encoders import JointEncoderParams, JointEncoders
 from sim.sensors.pancam import SunImage, render_sun_image
 from sim.world.local_level import q_ll_b_from_site
 from sim.world.mars_frames import earth_ll_truth, mars_rotation_ll, sun_ll_truth
@@ -124,7 +125,14 @@ class RoverSim:
         self._rng_cam = rng_cam
         self.totals = RunningTotals()
         self._q_ll_b_of_pose: tuple[bytes, FloatArray] = (b"", np.zeros(4))  # see q_ll_b
-        self._encoder_counts = self.encoders.read(self.drive_state.as_trajectory()).wheel_counts[0]
+        first = self.encoders.read(self.drive_state.as_trajectory())
+        self._encoder_counts = first.wheel_counts[0]
+        # The steering sensors' latest reading (what the downlink reports at rest) and the
+        # suspension's encoders, on a noise stream of their own so that adding them changed
+        # no other draw.
+        self.steer_reading_rad: FloatArray = first.steer_rad[0].copy()
+        rng_joints = np.random.default_rng([seed, 7010])
+        self.joint_encoders = JointEncoders(JointEncoderParams(), rng_joints)
 
     # ---- checkpoint ---------------------------------------------------------------------
 
@@ -138,6 +146,8 @@ class RoverSim:
             "imu": self.imu.state(),
             "encoders": self.encoders.state(),
             "encoder_counts": np.asarray(self._encoder_counts).copy(),
+            "steer_reading_rad": self.steer_reading_rad.copy(),
+            "joint_encoders": self.joint_encoders.state(),
             "slip": self.slip.state(),
             "rng_cam": self._rng_cam.bit_generator.state,
             "mast_bias_rad": self.mast_bias_rad.copy(),
@@ -151,6 +161,8 @@ class RoverSim:
         self.imu.load_state(state["imu"])
         self.encoders.load_state(state["encoders"])
         self._encoder_counts = np.array(state["encoder_counts"], dtype=np.int64)
+        self.steer_reading_rad = np.array(state["steer_reading_rad"], dtype=np.float64)
+        self.joint_encoders.load_state(state["joint_encoders"])
         self.slip.load_state(state["slip"])
         self._rng_cam.bit_generator.state = state["rng_cam"]
         self.mast_bias_rad = np.array(state["mast_bias_rad"], dtype=np.float64)
@@ -310,6 +322,7 @@ class RoverSim:
         counts = encoders.wheel_counts
         wheel_rad = self.encoders.wheel_angle_rad(counts[-1] - self._encoder_counts)
         self._encoder_counts = counts[-1]
+        self.steer_reading_rad = encoders.steer_rad[-1].copy()
         totals = self.totals
         totals.cycles_simulated += len(traj) - 1
         totals.distance_truth_m += float(np.sum(np.linalg.norm(np.diff(traj.p_s, axis=0), axis=1)))

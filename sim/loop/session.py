@@ -2,12 +2,13 @@
 
 docs/DESIGN.md, "One control cycle": ``sim`` advances the truth and makes the measurements, the
 sequencer hands the next command to the flight software when the previous one completes,
-SAPP's NATE (``estimation.sapp.nate``) steps on the measurements, and a telemetry frame puts the
-estimate beside the truth with the derived figures. ``RoverSession`` is the sequencer: it
-runs a list of typed commands (``sequences.commands``) in order, each through its handler
-(``sim.loop.handlers.HANDLERS``), and each yields a ``CommandReport``. The loop it runs them
-on is ``sim.loop.context``; the frames are built and scored in ``sim.loop.frames``; the
-estimators beside SAPP are ``sim.loop.side``.
+SAPP's NATE (``estimation.sapp.nate``) steps on the measurements, and each telemetry frame is
+two records: the rover's downlink and, beside it, the truth record that scores it.
+``RoverSession`` is the sequencer: it runs a list of typed commands (``sequences.commands``)
+in order, each through its handler (``sim.loop.handlers.HANDLERS``), and each yields a
+``CommandReport``. The loop it runs them on is ``sim.loop.context``; the frames are built in
+``sim.loop.frames`` and scored by ``sim.scoring``; the estimators beside SAPP are
+``sim.loop.side``.
 
 Commands are refused, with the reason and nothing changed, when NATE refuses them (wrong
 mode, out-of-range parameter, the sun too low) or when the simulator does (a drive outside
@@ -36,12 +37,13 @@ from estimation.vo.odometry import VisualOdometry
 from sequences import commands as cmd
 from sim.errors import InputError
 from sim.loop.context import CommandRefusedError, LoopContext
+from sim.loop.downlink import Downlink
 from sim.loop.frames import FrameRecorder
 from sim.loop.handlers import HANDLERS
 from sim.loop.rover_sim import Placement, RoverSim
 from sim.loop.side.estimators import SideEstimators
-from sim.loop.telemetry import TelemetryFrame
 from sim.loop.vo_drive import VO_RIG, VoDriveOptions
+from sim.scoring.truth import Truth
 
 FloatArray = NDArray[np.float64]
 VoFactory = Callable[[RoverSim], VisualOdometry]
@@ -50,7 +52,8 @@ VoFactory = Callable[[RoverSim], VisualOdometry]
 @dataclass
 class CommandReport:
     """What a command did: ``status`` is ``completed``, ``refused`` (nothing changed;
-    ``reason`` says why) or ``failed`` (it ran and its mode failed; ``reason``)."""
+    ``reason`` says why) or ``failed`` (it ran and its mode failed; ``reason``). ``events``
+    are the rover's (its downlink's), ``scores`` the truth records' (for scoring only)."""
 
     command: str
     status: str
@@ -58,6 +61,7 @@ class CommandReport:
     end_t_s: float
     reason: str | None = None
     events: list[Event] = field(default_factory=list)
+    scores: list[Event] = field(default_factory=list)
     details: dict[str, Any] = field(default_factory=dict)
     results: list[Any] = field(default_factory=list)
 
@@ -129,9 +133,16 @@ class RoverSession:
         return self.loop.side
 
     @property
-    def frames(self) -> list[TelemetryFrame]:
-        """The frames made so far (a consumer may clear the list once it has them)."""
-        return self.loop.recorder.frames
+    def downlinks(self) -> list[Downlink]:
+        """The rover's frames made so far (a consumer may clear the list once it has them,
+        with ``truths``)."""
+        return self.loop.recorder.downlinks
+
+    @property
+    def truths(self) -> list[Truth]:
+        """The truth record of each of ``downlinks`` (the same length, the same times):
+        for scoring, never for the ground."""
+        return self.loop.recorder.truths
 
     @property
     def vo(self) -> VisualOdometry:
@@ -155,7 +166,7 @@ class RoverSession:
         loop, recorder = self.loop, self.loop.recorder
         recorder.command = command.describe() if label is None else label
         report = CommandReport(recorder.command, "completed", loop.sim.t_s, loop.sim.t_s)
-        first_frame = len(recorder.frames)
+        first_frame = len(recorder.downlinks)
         loop.results = []
         try:
             details = handler(loop, command)
@@ -170,7 +181,8 @@ class RoverSession:
                 report.status, report.reason = "failed", str(failure)
         report.end_t_s = loop.sim.t_s
         report.results = loop.results
-        report.events = [e for f in recorder.frames[first_frame:] for e in f.events]
+        report.events = [e for f in recorder.downlinks[first_frame:] for e in f.events]
+        report.scores = [e for f in recorder.truths[first_frame:] for e in f.events]
         self.reports.append(report)
         recorder.command = ""
         return report
@@ -205,7 +217,7 @@ class RoverSession:
     def mission_origin_world(self) -> FloatArray:
         """The mission frame's origin (the first Site's, where the rover started) in the
         simulator's frame (truth; for drawing the terrain in mission coordinates)."""
-        return self.loop.recorder.site_origins_true[0].copy()
+        return self.loop.recorder.scorer.site_origins_true[0].copy()
 
     def attitude_error_rad(self) -> float:
         """Angle between NATE's estimate and the truth now, rad."""

@@ -212,14 +212,14 @@ def _run_sapp(
         frame_every_s=SUMMARY_FRAME_EVERY_S,
     )
     base = summarize(scenario, distance_m, seed, session.sim, reports[0].start_t_s, wall_s)
-    last = session.frames[-1]
+    last, scored = session.downlinks[-1], session.truths[-1]
     base["commands"] = [
         {
             "command": r.command,
             "status": r.status,
             "reason": r.reason,
             "duration_s": r.end_t_s - r.start_t_s,
-            "events": [e.as_dict() for e in r.events],
+            "events": [e.as_dict() for e in [*r.events, *r.scores]],
         }
         for r in reports
     ]
@@ -227,10 +227,10 @@ def _run_sapp(
     base["final_nate_mode"] = last.nate_mode
     base["attitude_error_deg"] = math.degrees(session.attitude_error_rad())
     base["p_s_est"] = last.p_s_est
-    base["p_s_true"] = last.p_s_true
-    base["position_error_m"] = last.position_error_m
+    base["p_s_true"] = scored.p_s_true
+    base["position_error_m"] = scored.position_error_m
     base["position_error_pct_of_distance"] = (
-        100.0 * last.position_error_m / max(session.sim.totals.distance_truth_m, 1e-9)
+        100.0 * scored.position_error_m / max(session.sim.totals.distance_truth_m, 1e-9)
     )
     base["estimators"] = {
         name: {
@@ -240,10 +240,10 @@ def _run_sapp(
             / max(session.sim.totals.distance_truth_m, 1e-9),
             "attitude_error_deg": e["attitude_error_deg"],
         }
-        for name, e in last.estimators.items()
+        for name, e in scored.estimators.items()
     }
     base["imu_integration_s"] = last.imu_integration_s
-    base["hga_error_deg"] = last.hga_error_deg
-    base["hga_margin_deg"] = last.hga_margin_deg
-    base["earth_above_horizon"] = last.earth_up
+    base["hga_error_deg"] = scored.hga_error_deg
+    base["hga_margin_deg"] = scored.hga_margin_deg
+    base["earth_above_horizon"] = scored.earth_up
     return base

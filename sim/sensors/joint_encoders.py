@@ -72,9 +72,16 @@ class JointEncoders:
 
     def read(self, truth: TruthTrajectory) -> JointSamples:
         """Quantised noisy readings of the truth suspension angles."""
-        angles = np.column_stack([truth.rocker_rad, truth.bogie_rad])
+        rocker, bogie = self.read_angles(truth.rocker_rad, truth.bogie_rad)
+        return JointSamples(truth.t_s.copy(), rocker, bogie)
+
+    def read_angles(
+        self, rocker_rad: FloatArray, bogie_rad: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        """Quantised noisy readings ``(rocker (N,), bogie (N, 2))`` of the true angles."""
+        angles = np.column_stack([rocker_rad, bogie_rad])
         if not np.all(np.isfinite(angles)):
             raise InputError("truth", "suspension angles are not finite")
         noisy = angles + self._p.noise_rad * self._rng.standard_normal(angles.shape)
         read = np.rint(noisy / self._p.lsb_rad) * self._p.lsb_rad
-        return JointSamples(truth.t_s.copy(), read[:, 0].copy(), read[:, 1:].copy())
+        return read[:, 0].copy(), read[:, 1:].copy()

@@ -1,10 +1,9 @@
 """The side estimators of a session as one group: which run (``--estimators``), their drive
-through each segment beside SAPP, and their pose and errors in each telemetry frame
+through each segment beside SAPP, and their pose in each telemetry frame
 (``sim.loop.side.kinematic``, ``sim.loop.side.radio``)."""
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -12,7 +11,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimation.events import Event
-from estimation.quaternion import quat_angle_between
 from estimation.sapp.nate import NateSeries
 from sim.errors import InputError
 from sim.loop.rover_sim import RoverSim, Segment
@@ -92,27 +90,19 @@ class SideEstimators:
             n: (e.p_mission[i], None if e.q_b_ll is None else e.q_b_ll[i]) for n, e in side.items()
         }
 
-    def frame_estimates(
-        self, t_s: float, p_mission_true: FloatArray, q_b_ll_true: FloatArray
-    ) -> dict[str, Any]:
-        """Each runner's pose in the frame at ``t_s`` and its errors against the truth."""
-        out: dict[str, Any] = {}
+    def frame_poses(self, t_s: float) -> dict[str, Pose]:
+        """Each runner's pose ``(p_mission, q_b_ll or None)`` in the frame at ``t_s`` (a
+        runner not started yet has none: it starts at the first drive). Their errors are the
+        scorer's (``sim.scoring.scorer``)."""
+        out: dict[str, Pose] = {}
         for runner in self.runners:
             if self._in_segment is None:  # at rest, up to this frame's time (the simulator
                 runner.rest_until(t_s, self.sim.drive_state.p_s)  # may have run a chunk ahead)
                 now = runner.estimate_now()
             else:
                 now = self._in_segment.get(runner.name)
-            if now is None:
-                continue  # not started: it starts at the first drive
-            p, q = now
-            att = None if q is None else float(quat_angle_between(q, q_b_ll_true))
-            out[runner.name] = {  # position-only estimators have no attitude (None)
-                "p_mission": [float(v) for v in p],
-                "q_b_ll": None if q is None else [float(v) for v in q],
-                "position_error_m": float(np.linalg.norm(p - p_mission_true)),
-                "attitude_error_deg": None if att is None else math.degrees(float(att)),
-            }
+            if now is not None:
+                out[runner.name] = now
         return out
 
     def state(self) -> dict[str, Any]:

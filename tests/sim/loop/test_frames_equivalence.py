@@ -1,13 +1,19 @@
-"""A whole sol's stored frames agree with those of the loop before it was made fast.
+"""A whole sol's stored frames agree with those of the loop before it was made fast, and before
+each frame became two records.
 
 Issue 16 rewrote the per-cycle path (NATE's step, gyro and odometry propagation, the frames
-built over a segment in arrays) without changing what it computes. The reference,
-``frames_before_fast_loop.json.gz`` (beside it), holds every frame (``TelemetryFrame.as_dict``) of
-the session below as the loop of commit 7a9fe57 made it, with the server's frame rate: a
+built over a segment in arrays) without changing what it computes; issue 21 split each frame
+into the rover's downlink and the scorer's truth record, without changing a figure. The
+reference, ``frames_before_fast_loop.json.gz`` (beside it), holds every frame (the one
+record of those days, as a dict) of the session below as the loop of commit 7a9fe57 made
+it, with the server's frame rate: a
 Fine attitude loaded from the truth, a straight drive, a turn in place, an arc, Articulate
 and an HGA pass, with both side estimators. It was written by running this module with
-``--write`` on that commit. Every number must agree to 1e-6 (metres, degrees, seconds, and
-the unitless quaternion components); texts, flags and modes exactly.
+``--write`` on that commit. A downlink and its truth record put back together
+(``sim.scoring.truth.merged``) must equal the old frame on every field it had (the fields the
+downlink has added since, such as the encoders' readings, are not in the reference). Every
+number must agree to 1e-6 (metres, degrees, seconds, and the unitless quaternion
+components); texts, flags and modes exactly.
 """
 
 from __future__ import annotations
@@ -23,6 +29,7 @@ from typing import Any
 from estimation.sapp.aqf import AttitudeQuality
 from sequences import commands as cmd
 from sim.loop.session import RoverSession
+from sim.scoring.truth import merged
 
 REFERENCE = Path(__file__).parent / "frames_before_fast_loop.json.gz"
 TOLERANCE = 1e-6
@@ -49,7 +56,10 @@ def session_frames() -> list[dict[str, Any]]:
             cmd.HgaPass(3.0),
         ]
     )
-    return [frame.as_dict() for frame in session.frames]
+    return [
+        merged(d.as_dict(), t.as_dict())
+        for d, t in zip(session.downlinks, session.truths, strict=True)
+    ]
 
 
 def _differences(before: Any, after: Any, path: str, out: list[str]) -> None:
@@ -77,6 +87,8 @@ def test_a_sols_frames_agree_with_the_loop_before_it_was_made_fast() -> None:
     with gzip.open(REFERENCE, "rt", encoding="utf-8") as f:
         before = json.load(f)
     after = json.loads(json.dumps(session_frames()))  # as stored: through JSON
+    assert len(after) == len(before)
+    after = [{k: v for k, v in a.items() if k in b} for a, b in zip(after, before, strict=True)]
     differences: list[str] = []
     _differences(before, after, "frames", differences)
     assert not differences, f"{len(differences)} differences, first: {differences[:5]}"
