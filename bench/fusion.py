@@ -58,7 +58,7 @@ def run_session_seed(site: str, seed: int, straight_m: float = 10.0) -> dict[str
     failed = [r.command for r in reports if r.status != "completed"]
     if failed:
         raise RuntimeError(f"{site} seed {seed}: {failed} did not complete")
-    last = session.frames[-1]
+    last = session.truths[-1]  # the scores of the last frame
     out = {"sapp": last.position_error_m, "distance_m": session.sim.totals.distance_truth_m}
     for name, e in last.estimators.items():
         out[name] = float(e["position_error_m"])

@@ -43,8 +43,9 @@ from estimation.ivp import earth_ll
 from estimation.sapp.sun_modes import SunResult
 from sequences import commands as cmd
 from sim.errors import InputError
+from sim.loop.downlink import Downlink
 from sim.loop.session import RoverSession
-from sim.loop.telemetry import TelemetryFrame
+from sim.scoring.truth import Truth
 from sim.world.mars_frames import earth_ll_truth, elevation_rad, sun_ll_truth
 from sim.world.marsclock import utc_to_t_s
 from sim.world.sites import site
@@ -108,10 +109,11 @@ def _heading_error_deg(q_b_ll_est: Any, q_b_ll_true: Any) -> float:
     return abs(d)
 
 
-def _frame_with(frames: list[TelemetryFrame], prefix: str) -> TelemetryFrame | None:
-    for f in frames:
-        if any(e.text.startswith(prefix) for e in f.events):
-            return f
+def _frame_with(session: RoverSession, prefix: str) -> tuple[Downlink, Truth] | None:
+    """The first frame (downlink and truth) whose downlink has an event starting ``prefix``."""
+    for d, t in zip(session.downlinks, session.truths, strict=True):
+        if any(e.text.startswith(prefix) for e in d.events):
+            return d, t
     return None
 
 
@@ -141,14 +143,18 @@ def acquisition_run(index: int, seed: int, gravity: bool) -> dict[str, Any]:
         "initial_heading_err_deg": min(heading_err0, 360.0 - heading_err0),
         "status": report.status,
     }
-    nadir = _frame_with(session.frames, "Nadir Update succeeded")
+    nadir = _frame_with(session, "Nadir Update succeeded")
     if nadir is not None:
-        out["nadir_tilt_err_b_rad"] = _tilt_error_b(nadir.q_b_ll_est, nadir.q_b_ll_true).tolist()
-    sunfind = _frame_with(session.frames, "Sunfind:")
+        out["nadir_tilt_err_b_rad"] = _tilt_error_b(
+            nadir[0].q_b_ll_est, nadir[1].q_b_ll_true
+        ).tolist()
+    sunfind = _frame_with(session, "Sunfind:")
     sun_results = [r for r in report.results if isinstance(r, SunResult)]
     out["sunfind_ok"] = bool(sun_results and sun_results[0].success)
     if sunfind is not None and out["sunfind_ok"]:
-        out["sunfind_heading_err_deg"] = _heading_error_deg(sunfind.q_b_ll_est, sunfind.q_b_ll_true)
+        out["sunfind_heading_err_deg"] = _heading_error_deg(
+            sunfind[0].q_b_ll_est, sunfind[1].q_b_ll_true
+        )
         out["sunfind_images"] = sun_results[0].n_images
     if len(sun_results) == 2:
         gaze = sun_results[1]
@@ -172,8 +178,8 @@ def odometry_run(site_name: str, seed: int, slip: bool) -> dict[str, Any]:
     )  # fmt: skip
     fine = session.execute(cmd.GetFineAttitude())
     distance = sum(r.details.get("distance_truth_m", 0.0) for r in session.run(ODOMETRY_COURSE))
-    last = session.frames[-1]
-    err = float(np.linalg.norm(np.subtract(last.p_mission_est, last.p_mission_true)[:2]))
+    last, scored = session.downlinks[-1], session.truths[-1]
+    err = float(np.linalg.norm(np.subtract(last.p_mission_est, scored.p_mission_true)[:2]))
     return {
         "site": site_name,
         "slip": slip,

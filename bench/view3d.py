@@ -75,6 +75,7 @@ from server.scene3d.model import TERRAIN_STEP_M, terrain_patch
 from server.scene3d.scene import TERRAIN_RECUT_M, VIEW_RATE_HZ, RoverScene
 from server.storage import Store
 from sim.errors import InputError
+from sim.scoring.truth import merged
 
 FloatArray = NDArray[np.float64]
 
@@ -218,7 +219,11 @@ def drive_frames(drive_m: float) -> tuple[RoverRuntime, list[dict[str, Any]]]:
     runtime plays them out (``as_dict``)."""
     runtime = RoverRuntime(ROVERS[ROVER])
     runtime.session.execute(cmd.DriveStraight(distance_m=drive_m))
-    return runtime, [frame.as_dict() for frame in runtime.session.frames]
+    session = runtime.session
+    return runtime, [
+        merged(d.as_dict(), t.as_dict())
+        for d, t in zip(session.downlinks, session.truths, strict=True)
+    ]
 
 
 @contextlib.contextmanager

@@ -31,7 +31,9 @@ from datetime import UTC, datetime
 from typing import Any
 
 from server.limits import ChannelLimits, LimitsError, check_levels, load_defaults
+from server.sinks import FrameBatch
 from server.storage import Store
+from sim.scoring.truth import merged
 
 # Channels that mean nothing while Earth is below the horizon (sim.loop.session's HGA figures).
 EARTH_CHANNELS = ("hga_margin_deg", "hga_error_deg")
@@ -183,9 +185,10 @@ class AlarmEngine:
 
     # ---- judging frames -------------------------------------------------------------
 
-    def publish(self, rover: str, frames: list[dict[str, Any]]) -> None:
+    def publish(self, rover: str, batch: FrameBatch) -> None:
         """A frame sink (``server.sinks``): judge a played-out batch, frame by frame, every
-        channel."""
+        channel (a channel of the downlink on the downlink, a truth channel on the truth)."""
+        frames = [merged(d, t) for d, t in zip(batch.downlink, batch.truth, strict=True)]
         with self._lock:
             self._load(rover)
             for frame in frames:

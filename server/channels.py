@@ -1,11 +1,13 @@
 """Telemetry at a glance: any numeric channel of the telemetry frame against time, over a
 sol or a range of sols, decimated on the server so that spikes survive.
 
-A channel is a numeric field of ``sim.loop.telemetry.TelemetryFrame`` (``hga_margin_deg``), one
+A channel is a numeric field of one of the two records of a frame (``hga_margin_deg``), one
 component of a numeric list field (``p_mission_est_0``), or a figure of an estimator
 running beside SAPP (``kinematic_ekf_position_error_m``): the names are the telemetry CSV's
-column names. Channels scored against the simulator's truth (``TRUTH_CHANNELS``, and every
-``*_true`` field) carry ``truth: true``: a real operator would not have them.
+column names. A channel of the rover's downlink (``sim.loop.downlink.Downlink``) is what the
+rover reports; a channel of the truth record (``sim.scoring.truth.Truth``: the simulator's
+truth and the scores against it) carries ``truth: true``: a real operator would not have it.
+The flag comes from the record the field belongs to, never from its name.
 
 Decimation keeps, per time bucket, the bucket's smallest and largest value (at their own
 times), so a one-frame spike is never averaged or skipped away; a bucket with a missing
@@ -20,20 +22,22 @@ from collections.abc import Callable
 from dataclasses import dataclass, fields
 from typing import Any
 
-from sim.loop.telemetry import TelemetryFrame
+from sim.loop.downlink import Downlink
+from sim.loop.side.kinematic import ESTIMATORS
 from sim.rover.truth import STEERED_WHEELS
+from sim.scoring.truth import Truth
 
 MAX_SOLS = 7  # sols per request: a sol is up to ~90 000 stored frames at 1 Hz
 MAX_POINTS = 10_000
 DEFAULT_POINTS = 2000
 MIN_POINTS = 4  # two buckets of min and max
 AXES = ("t_s", "sol", "lmst_h")  # the x axis, not channels
-# Components of the list fields (TelemetryFrame's docstring: quaternions [x, y, z, w],
+# Components of the list fields (the records' docstrings: quaternions [x, y, z, w],
 # positions and unit vectors [x, y, z] in their frame, bogies [left, right]).
-LENGTHS = {"q_": 4, "p_": 3, "bogie_deg": 2, "steer_deg": len(STEERED_WHEELS), "_ll_true": 3}
-# Scored against the simulator's truth (besides every *_true field).
-TRUTH_CHANNELS = {"position_error_m", "attitude_error_deg", "hga_error_deg", "hga_margin_deg"}
+LENGTHS = {"q_": 4, "p_": 3, "bogie_": 2, "steer_": len(STEERED_WHEELS), "_ll_true": 3}
+# Each side estimator's figures: its pose (downlink) and its errors (truth), with lengths.
 SIDE_FIELDS = {"position_error_m": None, "attitude_error_deg": None, "p_mission": 3, "q_b_ll": 4}
+SIDE_TRUTH = {"position_error_m", "attitude_error_deg"}
 UNITS = (("_deg", "deg"), ("_m", "m"), ("_s", "s"))
 
 
@@ -67,10 +71,6 @@ def vector_length(field_name: str) -> int:
     raise ValueError(f"no known length for the list field {field_name}")
 
 
-def _is_truth(field_name: str) -> bool:
-    return field_name in TRUTH_CHANNELS or field_name.endswith("_true")
-
-
 def _component(key: str, i: int) -> Callable[[dict[str, Any]], Any]:
     def read(f: dict[str, Any]) -> Any:
         value = f.get(key) or []
@@ -94,20 +94,28 @@ def _side(name: str, key: str, i: int | None) -> Callable[[dict[str, Any]], Any]
 
 
 def frame_channels() -> dict[str, Channel]:
-    """The numeric channels of every frame, from ``TelemetryFrame``'s field types."""
-    hints = typing.get_type_hints(TelemetryFrame)
+    """The numeric channels of every frame, from the two records' field types: the
+    downlink's, then the truth's (``truth: true``)."""
     out: dict[str, Channel] = {}
-    for f in fields(TelemetryFrame):
-        hint = hints[f.name]
-        if f.name in AXES:
-            continue
-        if hint in (float, int):
-            out[f.name] = Channel(f.name, _unit(f.name), _is_truth(f.name), _scalar(f.name))
-        elif typing.get_origin(hint) is list and typing.get_args(hint) == (float,):
-            for i in range(vector_length(f.name)):
-                name = f"{f.name}_{i}"
-                out[name] = Channel(name, _unit(f.name), _is_truth(f.name), _component(f.name, i))
+    for record, truth in ((Downlink, False), (Truth, True)):
+        hints = typing.get_type_hints(record)
+        for f in fields(record):
+            hint = hints[f.name]
+            if f.name in AXES:
+                continue
+            if hint in (float, int):
+                out[f.name] = Channel(f.name, _unit(f.name), truth, _scalar(f.name))
+            elif typing.get_origin(hint) is list and typing.get_args(hint) == (float,):
+                for i in range(vector_length(f.name)):
+                    name = f"{f.name}_{i}"
+                    out[name] = Channel(name, _unit(f.name), truth, _component(f.name, i))
     return out
+
+
+def truth_channel_names() -> set[str]:
+    """The names of every channel scored against, or read from, the simulator's truth."""
+    side = {f"{e}_{k}" for e in ESTIMATORS for k in SIDE_TRUTH}
+    return {c.name for c in frame_channels().values() if c.truth} | side
 
 
 def side_channels(estimators: list[str]) -> dict[str, Channel]:
@@ -118,7 +126,7 @@ def side_channels(estimators: list[str]) -> dict[str, Channel]:
         for key, n in SIDE_FIELDS.items():
             for i in [None] if n is None else list(range(n)):
                 full = f"{name}_{key}" + ("" if i is None else f"_{i}")
-                out[full] = Channel(full, _unit(key), _is_truth(key), _side(name, key, i))
+                out[full] = Channel(full, _unit(key), key in SIDE_TRUTH, _side(name, key, i))
     return out
 
 

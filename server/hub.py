@@ -30,6 +30,9 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
+from server.sinks import FrameBatch
+from sim.scoring.truth import merged
+
 MAX_RATE_HZ = 10.0
 QUEUE_FRAMES = 64
 QUEUE_NOTICES = 1024
@@ -89,7 +92,7 @@ class TelemetryHub:
         with self._lock:
             return len(self._clients.get(rover, set()))
 
-    def publish(self, rover: str, frames: list[dict[str, Any]]) -> None:
+    def publish(self, rover: str, batch: FrameBatch) -> None:
         """A frame sink (``server.sinks``): hand frames to every client of ``rover``
         (thread-safe, never blocks), each a copy stamped with ``published_wall``."""
         with self._lock:
@@ -97,7 +100,10 @@ class TelemetryHub:
         if not clients:
             return
         now = time.time()
-        stamped = [{**frame, "published_wall": now} for frame in frames]
+        stamped = [
+            {**merged(d, t), "published_wall": now}
+            for d, t in zip(batch.downlink, batch.truth, strict=True)
+        ]
         for client in clients:
             for frame in stamped:
                 try:

@@ -72,7 +72,7 @@ from server.queue import (
     moved,
     snapshot,
 )
-from server.sinks import FrameSink
+from server.sinks import Frame, FrameBatch, FrameSink, PlayedFrame, with_truth
 from sim.loop.session import RoverSession
 from sim.world.marsclock import (
     SOL_S,
@@ -162,7 +162,8 @@ class RoverRuntime:
         self.on_queue: Callable[[str], None] | None = None  # the queue or a step changed
         self.executing: str = ""
         self.current_step: tuple[int, int] | None = None  # (sequence id, step) executing
-        self._playout: deque[dict[str, Any]] = deque()
+        # (downlink, truth) record pairs still to play out, in time order
+        self._playout: deque[PlayedFrame] = deque()
         self._clock_t_s = self.session.sim.t_s  # the published clock (<= the session's)
         self._last_done_t_s = self._clock_t_s
         self._stop = threading.Event()
@@ -171,7 +172,8 @@ class RoverRuntime:
         self._last_checkpoint_wall = 0.0
         self._last_state: dict[str, Any] | None = None  # the last checkpoint taken (or restored)
         self._clock_changed = False  # since the clock thread's last checkpoint
-        self.last_frame: dict[str, Any] | None = None
+        self.last_frame: Frame | None = None  # the latest downlink record played out
+        self.last_truth: Frame | None = None  # and its truth record
         self.watermark_t_s = -math.inf  # frames up to here are stored already (restore)
 
     # ---- control ------------------------------------------------------------------
@@ -325,7 +327,7 @@ class RoverRuntime:
                 "effective_speed": _speed_json(self._effective_speed()),
                 "executing": self.executing,
                 "queue": [q.summary() for q in self.queue],
-                "frame": self.last_frame,
+                "frame": with_truth(self.last_frame, self.last_truth),
             }
 
     def _effective_speed(self) -> float:
@@ -433,10 +435,9 @@ class RoverRuntime:
         if duration_s <= 0.0:
             return
         session = self.session
-        first = len(session.frames)
         session.execute(cmd.Wait(duration_s), label="")  # the clock's own wait: no command
         del session.reports[:]
-        self._publish(session.frames[first:])
+        self._publish(self.session.take_frames())
 
     def _execute(self, item: QueuedSequence) -> None:
         session = self.session
@@ -460,12 +461,10 @@ class RoverRuntime:
             chunk = min(left, max(IDLE_STEP_S, speed))
             item.wait_left_s = left - chunk
             command = cmd.Wait(chunk)
-        first = len(session.frames)
         report = session.execute(command, label=step.command.describe())
-        frames = [f.as_dict() for f in session.frames[first:]]
+        frames = self.session.take_frames()  # they live on in the play-out, storage and hub
         with self.lock:
             self._playout.extend(frames)
-        del session.frames[:]  # the frames live on in the play-out, storage and hub
         del session.reports[:]  # and the report in storage: the checkpoint stays small
         if item.wait_left_s is not None and item.wait_left_s > 1e-9:
             return  # more of the WAIT to come
@@ -495,9 +494,9 @@ class RoverRuntime:
 
     def _advance_playout(self, budget_s: float) -> None:
         limit = self._clock_t_s + budget_s
-        out: list[dict[str, Any]] = []
+        out: list[PlayedFrame] = []
         with self.lock:
-            while self._playout and self._playout[0]["t_s"] <= limit:
+            while self._playout and self._playout[0][0]["t_s"] <= limit:
                 out.append(self._playout.popleft())
             ended = not self._playout and self.current_step is not None
             if not self._playout:
@@ -508,22 +507,21 @@ class RoverRuntime:
         if ended:
             self._queue_changed()
         if not math.isinf(budget_s):  # the clock moves by the whole budget, not frame to frame
-            ahead = self._playout[0]["t_s"] if self._playout else self.session.sim.t_s
+            ahead = self._playout[0][0]["t_s"] if self._playout else self.session.sim.t_s
             self._clock_t_s = max(self._clock_t_s, min(limit, ahead))
 
-    def _publish(self, frames: list[Any]) -> None:
-        batch = [f.as_dict() for f in frames]
-        del self.session.frames[:]
-        if batch:
-            self._emit(batch)
+    def _publish(self, frames: list[PlayedFrame]) -> None:
+        if frames:
+            self._emit(frames)
         self._clock_t_s = max(self._clock_t_s, self.session.sim.t_s)
 
-    def _emit(self, batch: list[dict[str, Any]]) -> None:
-        self._clock_t_s = max(self._clock_t_s, float(batch[-1]["t_s"]))
-        batch = [f for f in batch if f["t_s"] > self.watermark_t_s]
-        if not batch:
+    def _emit(self, pairs: list[PlayedFrame]) -> None:
+        self._clock_t_s = max(self._clock_t_s, float(pairs[-1][0]["t_s"]))
+        pairs = [p for p in pairs if p[0]["t_s"] > self.watermark_t_s]
+        if not pairs:
             return
-        self.last_frame = batch[-1]
+        batch = FrameBatch([d for d, _ in pairs], [t for _, t in pairs])
+        self.last_frame, self.last_truth = pairs[-1]
         for sink in self.sinks:
             sink.publish(self.spec.name, batch)
 
@@ -551,7 +549,7 @@ class RoverRuntime:
             "queue": [q.state() for q in self.queue],
             "clock": self._clock_state(),
             "last_done_t_s": self._last_done_t_s,
-            "playout": list(self._playout),
+            "playout": [list(p) for p in self._playout],
             "clock_t_s": self._clock_t_s,
             "executing": self.executing,
             "current_step": None if self.current_step is None else list(self.current_step),
@@ -579,7 +577,7 @@ class RoverRuntime:
             runtime.queue = deque(QueuedSequence.from_state(q) for q in state["queue"])
             runtime.clock = ClockState(bool(state["clock"]["running"]), state["clock"]["speed"])
             runtime._last_done_t_s = float(state["last_done_t_s"])
-            runtime._playout = deque(state["playout"])
+            runtime._playout = deque((d, t) for d, t in state["playout"])
             runtime._clock_t_s = float(state["clock_t_s"])
             runtime.executing = str(state["executing"])
             step = state["current_step"]

@@ -1,9 +1,12 @@
 """Where a rover's telemetry goes: the frame sinks.
 
 A ``RoverRuntime`` plays its frames out as its clock reaches them and hands each batch, in
-order, to every sink in its ``sinks`` list: storage (frames and their events), the alarm
-engine, the WebSocket hub and the 3D view. A frame is ``TelemetryFrame.as_dict()``
-(``sim.loop.telemetry``), the one definition of its fields.
+order, to every sink in its ``sinks`` list: storage (the records and their events), the alarm
+engine, the WebSocket hub and the 3D view. A batch (``FrameBatch``) is two lists of the same
+length: the rover's downlink records (``sim.loop.downlink.Downlink.as_dict()``) and, at the
+same times, the scorer's truth records (``sim.scoring.truth.Truth.as_dict()``). A sink that
+serves the ground reads the downlink; the truth goes only where the truth view allows it
+(docs/DESIGN.md, "Two records").
 
 ``server.state.Server`` wires them: every runtime gets ``StorageSink``, the alarm engine
 (``server.alarms.AlarmEngine``) and the hub (``server.hub.TelemetryHub``), in that order,
@@ -12,27 +15,56 @@ and a 3D view (``server.scene3d.scene.RoverScene``) joins its rover's sinks when
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, Protocol
 
-Frame = dict[str, Any]
+from sim.scoring.truth import merged
+
+Frame = dict[str, Any]  # one record as a JSON-ready dict
+PlayedFrame = tuple[Frame, Frame]  # a downlink record and its truth record
+
+
+@dataclass(frozen=True)
+class FrameBatch:
+    """Records played out together: ``downlink[i]`` and ``truth[i]`` share their ``t_s``."""
+
+    downlink: list[Frame]
+    truth: list[Frame]
+
+    def __post_init__(self) -> None:
+        if len(self.downlink) != len(self.truth):
+            raise ValueError(
+                f"a batch pairs its records: {len(self.downlink)} downlink, {len(self.truth)} truth"
+            )
+
+    def __len__(self) -> int:
+        return len(self.downlink)
+
+
+def with_truth(downlink: Frame | None, truth: Frame | None) -> Frame | None:
+    """``downlink`` merged with its ``truth`` record (``sim.scoring.truth.merged``) when
+    there is one of its time, else ``downlink`` as it is."""
+    if downlink is None or truth is None or truth["t_s"] != downlink["t_s"]:
+        return downlink
+    return merged(downlink, truth)
 
 
 class FrameSink(Protocol):
     """Receives every frame batch of the rovers it is attached to, in play-out order, on the
     rover's clock thread: it must not block (queue the work if it is slow)."""
 
-    def publish(self, rover: str, frames: list[Frame]) -> None: ...
+    def publish(self, rover: str, batch: FrameBatch) -> None: ...
 
 
 class StorageSink:
-    """Frames and the events they carry, handed to the storage writer (it batches them into
-    transactions off the clock thread)."""
+    """Both records of every frame and the events they carry, handed to the storage writer
+    (it batches them into transactions off the clock thread)."""
 
     def __init__(self, writer: Any) -> None:  # server.storage.BatchWriter
         self.writer = writer
 
-    def publish(self, rover: str, frames: list[Frame]) -> None:
-        self.writer.frames(rover, frames)
-        events = [(float(f["t_s"]), e) for f in frames for e in f.get("events", [])]
+    def publish(self, rover: str, batch: FrameBatch) -> None:
+        self.writer.frames(rover, batch.downlink, batch.truth)
+        events = [(float(f["t_s"]), e) for f in batch.downlink for e in f.get("events", [])]
         if events:
             self.writer.events(rover, events)

@@ -127,6 +127,7 @@ class Server:
         if last is not None:
             runtime.watermark_t_s = float(last["t_s"])
             runtime.last_frame = last
+            runtime.last_truth = self.store.last_truth(rover)
         held = set(runtime.queued_ids())
         pending = [
             s

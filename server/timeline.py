@@ -1,10 +1,12 @@
 """A sol's timeline for review, from storage: what ran, in which NATE mode and with which
-Attitude Quality Flag, what happened, and how good the estimate was.
+Attitude Quality Flag, what happened, and (in its ``truth`` part, from the truth records) how
+good the estimate was.
 
 Alarms (``server.alarms``) listed are those active at some time of the sol.
 Intervals are built from the stored frames (a new interval wherever the mode or flag
-changes); times are given as TT seconds, UTC and LMST hours. The distance driven is the
-length of the true path over the sol.
+changes); times are given as TT seconds, UTC and LMST hours. The summary's distance driven is
+the length of the path the rover reports (its estimate, from the downlink); the true
+distance is in the ``truth`` part.
 """
 
 from __future__ import annotations
@@ -81,24 +83,22 @@ def sol_timeline(store: Store, runtime: RoverRuntime, sol: int) -> dict[str, Any
         return None
     t0, t1 = span
     frames = store.frames(rover, t0, t1)
+    truths = list(store.truths(rover, t0, t1).values())
     commands = store.commands(rover, t0, t1)
     events = store.events(rover, t0, t1)
     submitted_by = store.submitters(c["sequence_id"] for c in commands if c["sequence_id"])
-    path = np.array([f["p_mission_true"] for f in frames], dtype=float)
-    distance = (
-        float(np.sum(np.linalg.norm(np.diff(path[:, :2], axis=0), axis=1)))
-        if len(path) > 1
-        else 0.0
-    )
+    distance = path_length_m(frames, "p_mission_est")  # what the rover reports it drove
 
-    def finite(key: str) -> list[float]:
+    def finite(records: list[dict[str, Any]], key: str) -> list[float]:
         return [
-            float(f[key]) for f in frames if f.get(key) is not None and math.isfinite(float(f[key]))
+            float(f[key])
+            for f in records
+            if f.get(key) is not None and math.isfinite(float(f[key]))
         ]
 
-    margins = [float(f["hga_margin_deg"]) for f in frames if f.get("earth_up")]
-    pos_err = finite("position_error_m")
-    att_err = finite("attitude_error_deg")
+    margins = [float(f["hga_margin_deg"]) for f in truths if f.get("earth_up")]
+    pos_err = finite(truths, "position_error_m")
+    att_err = finite(truths, "attitude_error_deg")
     return {
         "rover": rover,
         "sol": sol,
@@ -118,9 +118,21 @@ def sol_timeline(store: Store, runtime: RoverRuntime, sol: int) -> dict[str, Any
             "commands": len(commands),
             "commands_failed": sum(1 for c in commands if c["status"] != "completed"),
             "distance_m": distance,
+            "max_imu_integration_s": max(finite(frames, "imu_integration_s"), default=None),
+        },
+        # the simulator's truth and the scores against it (the truth view's, labelled so)
+        "truth": {
+            "distance_m": path_length_m(truths, "p_mission_true"),
             "max_position_error_m": max(pos_err) if pos_err else None,
             "max_attitude_error_deg": max(att_err) if att_err else None,
             "min_hga_margin_deg": min(margins) if margins else None,
-            "max_imu_integration_s": max(finite("imu_integration_s"), default=None),
         },
     }
+
+
+def path_length_m(records: list[dict[str, Any]], key: str) -> float:
+    """The horizontal length of the path of the positions ``key`` of ``records``, m."""
+    path = np.array([f[key] for f in records], dtype=float)
+    if len(path) < 2:
+        return 0.0
+    return float(np.sum(np.linalg.norm(np.diff(path[:, :2], axis=0), axis=1)))

@@ -36,7 +36,7 @@
   const view = {
     rover: null, span: null, plots: [], plotData: [], generation: 0, sol: null, timeline: null,
     lastT: -Infinity, latestSol: null, loading: false, pending: [], focus: null,
-    wasBusy: false, liveFrames: 0, lastTruePosition: null, droppedNotices: 0,
+    wasBusy: false, liveFrames: 0, lastPosition: null, lastTruePosition: null, droppedNotices: 0,
   };
 
   // ---- time formatting --------------------------------------------------------------
@@ -171,6 +171,7 @@
     view.timeline = timeline;
     view.lastT = Math.max(timeline.end.t_s, frames.length ? frames.at(-1).t_s : -Infinity);
     view.liveFrames = 0;
+    view.lastPosition = frames.length ? frames.at(-1).p_mission_est : null;
     view.lastTruePosition = frames.length ? frames.at(-1).p_mission_true : null;
     if (view.focus && view.focus.sol !== sol) view.focus = null;
     const link = byId("timeline-csv");
@@ -218,14 +219,20 @@
     const parts = [
       [`Sol ${timeline.sol}, ${hhmmss(timeline.start.lmst_h)}–${hhmmss(timeline.end.lmst_h)} LMST`, ""],
       [`${s.commands} command${s.commands === 1 ? "" : "s"} (${s.commands_failed} not completed)`, s.commands_failed ? "bad" : ""],
-      [`${fixed(s.distance_m, 2, " m")} driven`, ""],
-      [`max position error ${fixed(s.max_position_error_m, 2, " m")}`, ""],
-      [`max attitude error ${fixed(s.max_attitude_error_deg, 2, "°")}`, ""],
-      [`min HGA margin ${fixed(s.min_hga_margin_deg, 2, "°")}`,
-        s.min_hga_margin_deg !== null && s.min_hga_margin_deg < 0 ? "bad" : ""],
+      [`${fixed(s.distance_m, 2, " m")} driven (estimated)`, ""],
       [`max IMU time ${fixed(s.max_imu_integration_s, 0, " s")}`, ""],
       [`${s.frames} frames`, ""],
     ];
+    const t = timeline.truth;
+    if (t) {  // the simulator's truth: shown only where the truth view allows it
+      parts.push(
+        [`TRUTH ${fixed(t.distance_m, 2, " m")} driven`, "truth"],
+        [`TRUTH max position error ${fixed(t.max_position_error_m, 2, " m")}`, "truth"],
+        [`TRUTH max attitude error ${fixed(t.max_attitude_error_deg, 2, "°")}`, "truth"],
+        [`TRUTH min HGA margin ${fixed(t.min_hga_margin_deg, 2, "°")}`,
+          t.min_hga_margin_deg !== null && t.min_hga_margin_deg < 0 ? "truth bad" : "truth"],
+      );
+    }
     byId("timeline-summary").replaceChildren(...parts.map(([text, cls]) => {
       const span = document.createElement("span");
       span.textContent = text;
@@ -780,17 +787,23 @@
   function summarise(f) {
     const s = view.timeline.summary;
     const more = (a, b) => (a === null || a === undefined ? b : Math.max(a, b));
-    if (Number.isFinite(f.position_error_m)) s.max_position_error_m = more(s.max_position_error_m, f.position_error_m);
-    if (Number.isFinite(f.attitude_error_deg)) s.max_attitude_error_deg = more(s.max_attitude_error_deg, f.attitude_error_deg);
     if (Number.isFinite(f.imu_integration_s)) s.max_imu_integration_s = more(s.max_imu_integration_s, f.imu_integration_s);
+    s.distance_m += step(view.lastPosition, f.p_mission_est);
+    view.lastPosition = f.p_mission_est;
+    const t = view.timeline.truth;
+    if (!t) return;
+    if (Number.isFinite(f.position_error_m)) t.max_position_error_m = more(t.max_position_error_m, f.position_error_m);
+    if (Number.isFinite(f.attitude_error_deg)) t.max_attitude_error_deg = more(t.max_attitude_error_deg, f.attitude_error_deg);
     if (f.earth_up && Number.isFinite(f.hga_margin_deg)) {
-      s.min_hga_margin_deg = s.min_hga_margin_deg === null ? f.hga_margin_deg : Math.min(s.min_hga_margin_deg, f.hga_margin_deg);
+      t.min_hga_margin_deg = t.min_hga_margin_deg === null ? f.hga_margin_deg : Math.min(t.min_hga_margin_deg, f.hga_margin_deg);
     }
-    const last = view.lastTruePosition;
-    if (last && f.p_mission_true) {
-      s.distance_m += Math.hypot(f.p_mission_true[0] - last[0], f.p_mission_true[1] - last[1]);
-    }
+    t.distance_m += step(view.lastTruePosition, f.p_mission_true);
     view.lastTruePosition = f.p_mission_true;
+  }
+
+  // The horizontal step between two positions (0 when either is missing), m.
+  function step(last, now) {
+    return last && now ? Math.hypot(now[0] - last[0], now[1] - last[1]) : 0;
   }
 
   // A command the rover reported (a "command" notice, as the timeline lists it).

@@ -74,6 +74,7 @@ def channel_values(
     mission = runtime.spec.mission
     t0 = t_s_for_sol_lmst(mission, lo, 0.0)
     t1 = t_s_for_sol_lmst(mission, hi + 1, 0.0)
-    frames = [f for f in server.store.frames(rover, t0, t1) if lo <= int(f["sol"]) <= hi]
+    stored = server.store.frames(rover, t0, t1, with_truth=channels[channel].truth)
+    frames = [f for f in stored if lo <= int(f["sol"]) <= hi]
     return {"rover": rover, "sol_from": lo, "sol_to": hi,
             **channel_series(frames, channels[channel], max_points)}  # fmt: skip

@@ -1,5 +1,6 @@
 """Telemetry: sols with data, a sol's timeline, frames over a span (JSON or CSV), a sol's
-CSV file, the live WebSocket, and the frame's JSON schema (``sim.loop.telemetry``)."""
+CSV file, the live WebSocket, and the JSON schemas of a frame's two records (the rover's
+downlink and the simulator's truth)."""
 
 from __future__ import annotations
 
@@ -29,7 +30,8 @@ from server.api.telemetry_csv import frames_csv
 from server.hub import MAX_RATE_HZ, next_message
 from server.timeline import sol_timeline
 from server.validation.uploads import request_error
-from sim.loop.telemetry import telemetry_schema
+from sim.loop.downlink import downlink_schema
+from sim.scoring.truth import truth_schema
 
 routes = router()
 
@@ -72,7 +74,7 @@ def sol_telemetry_csv(
     span = server.store.sol_range(rover, sol)
     if span is None:
         raise HTTPException(404, f"no telemetry on sol {sol} for rover {rover!r}")
-    frames = server.store.frames(rover, span[0], span[1], every)
+    frames = server.store.frames(rover, span[0], span[1], every, with_truth=True)
     disposition = f'attachment; filename="{rover}_sol{sol}.csv"'
     return Response(
         frames_csv(frames), media_type="text/csv", headers={"Content-Disposition": disposition}
@@ -111,7 +113,7 @@ def telemetry(
     hi = runtime.t_s if t_to is None else t_to
     if not (math.isfinite(hi) and lo <= hi):
         raise request_error(("query", "to"), "from/to: need from <= to, to finite", "range")
-    frames = server.store.frames(rover, lo, hi, every, limit)
+    frames = server.store.frames(rover, lo, hi, every, limit, with_truth=True)
     if "text/csv" in request.headers.get("accept", ""):
         return Response(frames_csv(frames), media_type="text/csv")
     return frames
@@ -159,8 +161,15 @@ async def live(server: ServerDep, websocket: WebSocket, rover: str) -> None:
         server.hub.unsubscribe(rover, client)
 
 
-@routes.get("/api/schema/telemetry")
-def frame_schema(_: Viewer) -> dict[str, Any]:
-    """The JSON schema of a telemetry frame as ``/state``, ``/telemetry`` and the WebSocket
-    send it (``sim.loop.telemetry.TelemetryFrame``, the one definition of its fields)."""
-    return telemetry_schema()
+@routes.get("/api/schema/downlink")
+def downlink_record_schema(_: Viewer) -> dict[str, Any]:
+    """The JSON schema of the rover's downlink record, what the rover itself reports in a
+    frame (``sim.loop.downlink.Downlink``, the one definition of its fields)."""
+    return downlink_schema()
+
+
+@routes.get("/api/schema/truth")
+def truth_record_schema(_: Viewer) -> dict[str, Any]:
+    """The JSON schema of the truth record beside each frame: what only the simulator knows,
+    and the scores against it (``sim.scoring.truth.Truth``)."""
+    return truth_schema()

@@ -1,12 +1,15 @@
-"""Telemetry frames as CSV, the columns read from the frame's model (``TelemetryFrame``).
+"""Telemetry frames as CSV, the columns read from the two records' models (``Downlink`` and
+``Truth``).
 
-One column per scalar field (numbers, names, flags) in the model's order, then one per
-component of each vector field (``q_b_ll_est_0`` ...; lengths from ``server.channels``),
-then each estimator that can run beside SAPP with its figures (``<name>_position_error_m``
-...), then the frame's events in one cell. A field added to ``TelemetryFrame`` is a new
-column without an edit here. A figure a frame lacks (NaN, an estimator that did not run, a
-field frames stored by an older version do not have) is an empty cell, so every row is as
-long as the header.
+One column per scalar field (numbers, names, flags), then one per component of each vector
+field (``q_b_ll_est_0`` ...; lengths from ``server.channels``), then each estimator that can
+run beside SAPP with its figures (``<name>_position_error_m`` ...), then the frame's events in
+one cell. The columns that existed when a frame was one record keep the places they had
+then (``COLUMNS_BEFORE_THE_SPLIT``: scripts read the columns by position too); a field added
+to either record since is a new column after them, without an edit here. A figure a frame
+lacks (NaN, an estimator that did not run, a field frames stored by an older version do not
+have, or the truth where the reader may not see it) is an empty cell, so every row is as long
+as the header.
 """
 
 from __future__ import annotations
@@ -18,32 +21,39 @@ from dataclasses import fields
 from typing import Any
 
 from server.channels import SIDE_FIELDS, vector_length
+from sim.loop.downlink import Downlink
 from sim.loop.side.kinematic import ESTIMATORS
-from sim.loop.telemetry import TelemetryFrame
+from sim.scoring.truth import Truth
 
-# Two fields added after the CSV had users keep the place they were given then, beside
-# their kin (scripts read the columns by position too): each is placed after the named one.
-PLACED_AFTER = {
-    "hga_margin_predicted_deg": "hga_margin_deg",
-    "vo_failures_in_row": "hga_margin_predicted_deg",
-}
+# The frame's fields, in order, when it was one record (before issue 21's split).
+COLUMNS_BEFORE_THE_SPLIT = (
+    "t_s", "sol", "lmst_h", "nate_mode", "aqf", "q_b_ll_est", "q_b_ll_true", "p_s_est",
+    "p_s_true", "site_index", "p_mission_est", "p_mission_true", "imu_integration_s",
+    "gyro_counter_s", "tilt_est_deg", "tilt_accel_deg", "hga_error_deg", "hga_margin_deg",
+    "hga_margin_predicted_deg", "vo_failures_in_row", "earth_up", "attitude_error_deg",
+    "position_error_m", "command", "rocker_deg", "bogie_deg", "steer_deg", "sun_ll_true",
+    "earth_ll_true", "hga_boresight_ll_true",
+)  # fmt: skip
 
 
 def _columns() -> tuple[tuple[str, ...], dict[str, int]]:
-    """The scalar columns and the vector fields with their lengths, from the model."""
-    hints = typing.get_type_hints(TelemetryFrame)
+    """The scalar columns and the vector fields with their lengths, from the models."""
+    kinds: dict[str, Any] = {}
+    for record in (Downlink, Truth):
+        hints = typing.get_type_hints(record)
+        for f in fields(record):
+            kinds.setdefault(f.name, hints[f.name])
+    order = [n for n in COLUMNS_BEFORE_THE_SPLIT if n in kinds]
+    order += [n for n in kinds if n not in order]
     scalars: list[str] = []
     vectors: dict[str, int] = {}
-    for f in fields(TelemetryFrame):
-        hint = hints[f.name]
+    for name in order:
+        hint = kinds[name]
         if hint in (float, int, str, bool):
-            scalars.append(f.name)
+            scalars.append(name)
         elif typing.get_origin(hint) is list and typing.get_args(hint) == (float,):
-            vectors[f.name] = vector_length(f.name)
+            vectors[name] = vector_length(name)
         # events (the last cell) and estimators (the side columns) are not columns
-    for name, after in PLACED_AFTER.items():
-        scalars.remove(name)
-        scalars.insert(scalars.index(after) + 1, name)
     return tuple(scalars), vectors
 
 

@@ -66,7 +66,9 @@ from server.scene3d.model import (
     status_text,
     terrain_patch,
 )
+from server.sinks import FrameBatch, with_truth
 from server.storage import Store
+from sim.scoring.truth import merged
 from sim.world.sites import make_terrain
 
 log = logging.getLogger(__name__)
@@ -331,8 +333,10 @@ class RoverScene:
     def _history(self) -> list[dict[str, Any]]:
         """Stored frames, decimated, for the traverses and the slider after a restart, and
         the last one stored (decimation may have passed it over)."""
-        frames = self.store.frames(self.rover, -math.inf, math.inf, HISTORY_EVERY_S)
-        last = self.store.last_frame(self.rover)
+        frames = self.store.frames(
+            self.rover, -math.inf, math.inf, HISTORY_EVERY_S, with_truth=True
+        )
+        last = with_truth(self.store.last_frame(self.rover), self.store.last_truth(self.rover))
         if last is not None and (not frames or last["t_s"] > frames[-1]["t_s"]):
             frames.append(last)
         return frames
@@ -373,11 +377,11 @@ class RoverScene:
 
     # ---- frames in (runtime thread) ----------------------------------------------------
 
-    def publish(self, rover: str, frames: list[dict[str, Any]]) -> None:
+    def publish(self, rover: str, batch: FrameBatch) -> None:
         """A frame sink (``server.sinks``): keep the traverses and the newest frame."""
         with self._lock:
-            for f in frames:
-                self._take(f)
+            for d, t in zip(batch.downlink, batch.truth, strict=True):
+                self._take(merged(d, t))
         self._dirty.set()
 
     def _take(self, f: dict[str, Any]) -> None:

@@ -108,6 +108,19 @@ frames_table = Table(
     Index("ix_frames_rover_sol", "rover", "sol"),
 )
 
+# What only the simulator knows, beside each frame of the downlink (``frames``): the truth
+# records (sim.scoring.truth), in a table of their own so that the ground's queries never read
+# them (docs/DESIGN.md, "Two records").
+truth_frames = Table(
+    "truth_frames",
+    metadata,
+    Column("id", Integer, primary_key=True, autoincrement=True),
+    Column("rover", String(64), nullable=False),
+    Column("t_s", Double, nullable=False),
+    Column("data", JSON, nullable=False),
+    Index("ix_truth_frames_rover_t", "rover", "t_s"),
+)
+
 checkpoints = Table(
     "checkpoints",
     metadata,

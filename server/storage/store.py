@@ -40,8 +40,10 @@ from server.storage.schema import (
     now_utc,
     sequences,
     sqlite_pragmas,
+    truth_frames,
     upgrade_schema,
 )
+from sim.scoring.truth import merged
 
 
 def _finite(value: Any) -> Any:
@@ -329,10 +331,15 @@ class Store:
 
     # ---- telemetry frames --------------------------------------------------------
 
-    def add_frames(self, rover: str, frames: list[dict[str, Any]]) -> None:
-        """Store frames (``TelemetryFrame.as_dict()``) in one executemany."""
+    def add_frames(
+        self, rover: str, downlinks: list[dict[str, Any]], truths: list[dict[str, Any]]
+    ) -> None:
+        """Store frames, the downlink records (``Downlink.as_dict()``) and the truth record
+        of each (``Truth.as_dict()``), in one transaction."""
         with self.engine.begin() as conn:
-            self._insert_frames(conn, [(rover, f) for f in frames])
+            self._insert_frames(
+                conn, [(rover, d, t) for d, t in zip(downlinks, truths, strict=True)]
+            )
 
     def frames(
         self,
@@ -341,8 +348,10 @@ class Store:
         t_to: float,
         every_s: float = 0.0,
         limit: int | None = None,
+        with_truth: bool = False,
     ) -> list[dict[str, Any]]:
-        """Frames with t_from <= t_s <= t_to, ascending, at most ``limit`` of them.
+        """Downlink records with t_from <= t_s <= t_to, ascending, at most ``limit`` of them;
+        ``with_truth``: each merged with its truth record (``sim.scoring.truth.merged``).
 
         With ``every_s > 0`` they are decimated: a frame is kept when it is at least
         ``every_s`` after the last kept frame, and a frame with events is always kept (and
@@ -367,6 +376,9 @@ class Store:
                 out.append(frame_events(data))
                 if limit is not None and len(out) >= limit:
                     break
+        if with_truth and out:
+            truths = self.truths(rover, out[0]["t_s"], out[-1]["t_s"])
+            out = [merged(d, truths[d["t_s"]]) if d["t_s"] in truths else d for d in out]
         return out
 
     def sols(self, rover: str) -> list[int]:
@@ -385,12 +397,32 @@ class Store:
         return None if lo is None else (float(lo), float(hi))
 
     def last_frame(self, rover: str) -> dict[str, Any] | None:
-        """The latest frame of a rover, or ``None``."""
+        """The latest downlink record of a rover, or ``None``."""
         f = frames_table.c
         query = select(f.data).where(f.rover == rover).order_by(f.t_s.desc(), f.id.desc()).limit(1)
         with self.engine.connect() as conn:
             data: dict[str, Any] | None = conn.execute(query).scalar()
         return None if data is None else frame_events(data)
+
+    def last_truth(self, rover: str) -> dict[str, Any] | None:
+        """The latest truth record of a rover, or ``None``."""
+        f = truth_frames.c
+        query = select(f.data).where(f.rover == rover).order_by(f.t_s.desc(), f.id.desc()).limit(1)
+        with self.engine.connect() as conn:
+            data: dict[str, Any] | None = conn.execute(query).scalar()
+        return None if data is None else frame_events(data)
+
+    def truths(self, rover: str, t_from: float, t_to: float) -> dict[float, dict[str, Any]]:
+        """The truth records with t_from <= t_s <= t_to, by their time."""
+        f = truth_frames.c
+        query = (
+            select(f.t_s, f.data)
+            .where(f.rover == rover, f.t_s >= t_from, f.t_s <= t_to)
+            .order_by(f.t_s, f.id)
+        )
+        with self.engine.connect() as conn:
+            rows = conn.execution_options(yield_per=2000).execute(query)
+            return {float(row.t_s): frame_events(row.data) for row in rows}
 
     # ---- alarms (server.alarms) and operators' limits (server.limits) ---------------
 
@@ -473,13 +505,19 @@ class Store:
 
     # ---- the batch primitives, shared with BatchWriter ----------------------------
 
-    def _insert_frames(self, conn: Connection, rows: list[tuple[str, dict[str, Any]]]) -> None:
+    def _insert_frames(
+        self, conn: Connection, rows: list[tuple[str, dict[str, Any], dict[str, Any]]]
+    ) -> None:
         if rows:
             conn.execute(
                 insert(frames_table),
-                [{"rover": r, "t_s": float(f["t_s"]), "sol": int(f["sol"]), "data": f}
-                 for r, f in rows],
+                [{"rover": r, "t_s": float(d["t_s"]), "sol": int(d["sol"]), "data": d}
+                 for r, d, _ in rows],
             )  # fmt: skip
+            conn.execute(
+                insert(truth_frames),
+                [{"rover": r, "t_s": float(t["t_s"]), "data": t} for r, _, t in rows],
+            )
 
     def _insert_events(
         self, conn: Connection, rows: list[tuple[str, float, Mapping[str, Any]]]

@@ -40,7 +40,7 @@ class BatchWriter:
         self._flush_lock = threading.Lock()  # one flush at a time, in queue order
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        self._frames: list[tuple[str, dict[str, Any]]] = []
+        self._frames: list[tuple[str, dict[str, Any], dict[str, Any]]] = []
         self._events: list[tuple[str, float, Mapping[str, Any]]] = []
         self._commands: list[dict[str, Any]] = []
         self._checkpoints: dict[str, tuple[float, bytes]] = {}
@@ -53,10 +53,12 @@ class BatchWriter:
         self._thread = threading.Thread(target=self._run, name="storage-writer", daemon=True)
         self._thread.start()
 
-    def frames(self, rover: str, frames: list[dict[str, Any]]) -> None:
-        """Queue telemetry frames."""
+    def frames(
+        self, rover: str, downlinks: list[dict[str, Any]], truths: list[dict[str, Any]]
+    ) -> None:
+        """Queue telemetry frames: the downlink records and the truth record of each."""
         with self._lock:
-            self._frames.extend((rover, f) for f in frames)
+            self._frames.extend((rover, d, t) for d, t in zip(downlinks, truths, strict=True))
 
     def events(self, rover: str, events: list[tuple[float, Mapping[str, Any]]]) -> None:
         """Queue events as (t_s, ``{"text", "kind", "severity"}``) pairs."""

@@ -144,6 +144,15 @@ class RoverSession:
         for scoring, never for the ground."""
         return self.loop.recorder.truths
 
+    def take_frames(self) -> list[tuple[dict[str, Any], dict[str, Any]]]:
+        """The frames made so far as (downlink, truth) dict pairs, handed over: the lists
+        are emptied (a checkpoint stays small)."""
+        pairs = [
+            (d.as_dict(), t.as_dict()) for d, t in zip(self.downlinks, self.truths, strict=True)
+        ]
+        del self.downlinks[:], self.truths[:]
+        return pairs
+
     @property
     def vo(self) -> VisualOdometry:
         """The VO of ``vo=on`` drives."""

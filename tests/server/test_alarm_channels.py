@@ -45,18 +45,18 @@ def test_frames_carry_the_predicted_margin_from_the_rovers_own_knowledge(
     session: RoverSession,
 ) -> None:
     session.execute(cmd.Wait(1.0))
-    assert session.frames[-1].hga_margin_predicted_deg == -178.0  # AQF Unknown
+    assert session.downlinks[-1].hga_margin_predicted_deg == -178.0  # AQF Unknown
     session.execute(cmd.GetFineAttitude())
-    events = [e.text for f in session.frames for e in f.events]
+    events = [e.text for f in session.downlinks for e in f.events]
     found = next(re.search(r"Sungaze: converged, 3σ ([\d.]+) deg", e) for e in events
                  if e.startswith("Sungaze"))  # fmt: skip
     assert found is not None
-    fine = session.frames[-1]
+    fine = session.downlinks[-1]
     assert fine.aqf == "Fine" and fine.imu_integration_s == 0.0
     assert fine.hga_margin_predicted_deg == pytest.approx(2.0 - float(found.group(1)), abs=0.006)
-    session.frames.clear()
+    session.downlinks.clear()
     session.execute(cmd.DriveStraight(distance_m=2.0))
-    last = session.frames[-1]
+    last = session.downlinks[-1]
     grown = last.imu_integration_s * DRIFT_3SIGMA_DEG_PER_S
     assert last.imu_integration_s > 30.0
     assert last.hga_margin_predicted_deg == pytest.approx(fine.hga_margin_predicted_deg - grown)
@@ -66,19 +66,19 @@ def test_frames_carry_the_predicted_margin_from_the_rovers_own_knowledge(
 def test_vo_failures_in_a_row_count_failed_steps_and_a_converged_step_resets_them(
     session: RoverSession, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    assert session.frames[-1].vo_failures_in_row == 0
+    assert session.downlinks[-1].vo_failures_in_row == 0
 
     def blind(*args: object, **kwargs: object) -> None:
         raise ValueError("the mast looks at nothing")
 
     monkeypatch.setattr(session.sim, "navcam_pair", blind)
-    session.frames.clear()
+    session.downlinks.clear()
     report = session.execute(cmd.DriveStraight(distance_m=1.4, vo=True))
     assert report.details["vo_failures"] == report.details["vo_steps"] == 2
-    counts = [f.vo_failures_in_row for f in session.frames]
+    counts = [f.vo_failures_in_row for f in session.downlinks]
     assert counts[-1] == 2 and sorted(counts) == counts  # counted step by step
     session.execute(cmd.DriveStraight(distance_m=0.5))  # no VO: the count stands
-    assert session.frames[-1].vo_failures_in_row == 2
+    assert session.downlinks[-1].vo_failures_in_row == 2
     monkeypatch.undo()
     session.execute(cmd.DriveStraight(distance_m=0.5, vo=True))
-    assert session.frames[-1].vo_failures_in_row == 0
+    assert session.downlinks[-1].vo_failures_in_row == 0

@@ -15,6 +15,7 @@ import pytest
 from server.alarms import AlarmEngine, AlarmError
 from server.limits import LimitsError
 from server.storage import Store
+from tests.frame_batches import batch
 
 
 class Rig:
@@ -34,7 +35,7 @@ class Rig:
     def feed(self, t_s: float, **values: Any) -> None:
         frame = {"t_s": t_s, "aqf": "Fine", "earth_up": True, "hga_margin_deg": 1.9,
                  "hga_margin_predicted_deg": 0.5, **values}  # fmt: skip
-        self.engine.publish("spirit", [frame])
+        self.engine.publish("spirit", batch([frame]))
 
     def alarms(self, **kwargs: Any) -> list[dict[str, Any]]:
         return self.engine.listed("spirit", kwargs.get("listed"), 100)
@@ -147,7 +148,7 @@ def test_editing_a_limit_judges_the_latest_frame_at_once_and_survives_a_restart(
     rig: Rig,
 ) -> None:
     latest = {"t_s": 5.0, "aqf": "Fine", "earth_up": True, "hga_margin_deg": 1.8}
-    rig.engine.publish("spirit", [latest])
+    rig.engine.publish("spirit", batch([latest]))
     assert rig.alarms() == []
     rig.engine.set_limits("spirit", "hga_margin_deg", {"warning": 1.85, "critical": 0.0},
                           "ada", latest)  # fmt: skip
@@ -171,7 +172,7 @@ def test_editing_a_limit_judges_the_latest_frame_at_once_and_survives_a_restart(
     assert set(rig.store.stored_limits("spirit")) == {"hga_margin_deg"}
     # restart: a new engine on the same database keeps the limit and the listed alarm
     rig.engine = rig.new_engine()
-    rig.engine.publish("spirit", [{**latest, "t_s": 6.0, "hga_margin_deg": 1.7}])
+    rig.engine.publish("spirit", batch([{**latest, "t_s": 6.0, "hga_margin_deg": 1.7}]))
     assert len(rig.alarms()) == 1  # the same alarm, not a second one
     after = {c["channel"]: c for c in rig.engine.limits("spirit")}["hga_margin_deg"]
     assert after["warning"] == 1.85

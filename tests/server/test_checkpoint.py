@@ -16,8 +16,10 @@ import pytest
 from sequences import commands as cmd
 from server.checkpoint import CHECKPOINT_FORMAT, CheckpointFormatError, decode, encode
 from server.runtime import ROVERS, RoverRuntime
+from server.sinks import FrameBatch
 from sim.loop.rover_sim import RoverSim
 from sim.loop.session import RoverSession
+from sim.scoring.truth import merged
 
 START = datetime(2004, 4, 14, 16, 30, tzinfo=UTC)  # Spirit sol 100, ~10 LMST
 ESTIMATORS = ("sapp", "kinematic_ekf", "radio_ekf")
@@ -28,7 +30,10 @@ def _session() -> RoverSession:
 
 
 def _frames(session: RoverSession) -> list[dict[str, Any]]:
-    return [f.as_dict() for f in session.frames]
+    return [
+        merged(d.as_dict(), t.as_dict())
+        for d, t in zip(session.downlinks, session.truths, strict=True)
+    ]
 
 
 def test_a_simulator_loaded_from_its_state_runs_on_sample_for_sample() -> None:
@@ -55,7 +60,7 @@ def test_a_session_restored_from_its_checkpoint_runs_on_as_if_never_stopped() ->
     whole = _session()
     whole.run(before)
     blob = encode("spirit", whole.state())
-    del whole.frames[:]
+    del whole.downlinks[:], whole.truths[:]
     whole.run(after)
 
     restored = _session()
@@ -124,8 +129,8 @@ class _Collect:
     def __init__(self) -> None:
         self.frames: list[dict[str, Any]] = []
 
-    def publish(self, rover: str, frames: list[dict[str, Any]]) -> None:
-        self.frames.extend(frames)
+    def publish(self, rover: str, batch: FrameBatch) -> None:
+        self.frames.extend(merged(d, t) for d, t in zip(batch.downlink, batch.truth, strict=True))
 
 
 def _run_queue_out(runtime: RoverRuntime) -> list[dict[str, Any]]:

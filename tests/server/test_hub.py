@@ -8,6 +8,7 @@ import asyncio
 import pytest
 
 from server.hub import QUEUE_NOTICES, TelemetryHub, next_message
+from tests.frame_batches import batch
 
 EV_A = {"text": "a", "kind": "site", "severity": "info"}
 EV_B = {"text": "b", "kind": "nadir", "severity": "error"}
@@ -21,7 +22,9 @@ def test_notices_go_before_frames_and_frames_are_merged_to_the_newest() -> None:
     async def scenario() -> list[dict]:  # type: ignore[type-arg]
         hub = TelemetryHub()
         client = hub.subscribe("spirit")
-        hub.publish("spirit", [{"t_s": 1.0, "events": [EV_A]}, {"t_s": 2.0, "events": [EV_B]}])
+        hub.publish(
+            "spirit", batch([{"t_s": 1.0, "events": [EV_A]}, {"t_s": 2.0, "events": [EV_B]}])
+        )
         hub.notify("spirit", {"type": "command", "command": "DRIVE_STRAIGHT"})
         await asyncio.sleep(0)  # let call_soon_threadsafe deliver
         return [await next_message(client), await next_message(client)]
@@ -43,7 +46,7 @@ def test_each_merged_event_keeps_the_time_of_its_own_frame() -> None:
     async def scenario() -> dict:  # type: ignore[type-arg]
         hub = TelemetryHub()
         client = hub.subscribe("spirit")
-        hub.publish("spirit", frames)
+        hub.publish("spirit", batch(frames))
         await asyncio.sleep(0)
         return await next_message(client)
 

@@ -6,12 +6,12 @@ wall clock."""
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import pytest
 
 from sequences.validate import validate
 from server.runtime import IDLE_SPEED_AT_MAX, IDLE_STEP_S, ROVERS, RoverRuntime
+from server.sinks import FrameBatch
 
 
 @pytest.fixture(scope="module")
@@ -27,8 +27,8 @@ def test_an_empty_queue_at_max_keeps_the_clock_running_in_real_time(
     frames: list[float] = []
 
     class Times:  # a frame sink keeping each played-out frame's time
-        def publish(self, rover: str, batch: list[dict[str, Any]]) -> None:
-            frames.extend(f["t_s"] for f in batch)
+        def publish(self, rover: str, batch: FrameBatch) -> None:
+            frames.extend(f["t_s"] for f in batch.downlink)
 
     runtime.sinks.append(Times())
     start = runtime.t_s

@@ -17,6 +17,7 @@ from sequences.language import Sequence
 from sequences.validate import validate
 from server.checkpoint import decode
 from server.runtime import FRAME_EVERY_S, ROVERS, RoverRuntime
+from server.sinks import FrameBatch
 from server.state import Server, ServerConfig
 from server.storage.store import json_dumps
 from sim.loop.session import RoverSession
@@ -40,7 +41,7 @@ def _reference(sequence: Sequence) -> tuple[list[dict[str, Any]], list[float]]:
     ends = []
     for step in sequence.steps:
         ends.append(session.execute(step.command, label=step.command.describe()).end_t_s)
-    return [json.loads(json_dumps(f.as_dict())) for f in session.frames], ends
+    return [json.loads(json_dumps(f.as_dict())) for f in session.downlinks], ends
 
 
 def test_a_sol_at_max_stores_exactly_the_frames_of_the_session() -> None:
@@ -82,8 +83,8 @@ def ticked(monkeypatch: pytest.MonkeyPatch) -> tuple[RoverRuntime, list[bytes], 
     published: list[float] = []
 
     class Times:
-        def publish(self, rover: str, frames: list[dict[str, Any]]) -> None:
-            published.extend(f["t_s"] for f in frames)
+        def publish(self, rover: str, batch: FrameBatch) -> None:
+            published.extend(f["t_s"] for f in batch.downlink)
 
     runtime.sinks.append(Times())
     return runtime, blobs, published

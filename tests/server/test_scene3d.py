@@ -41,8 +41,12 @@ from server.scene3d.model import (
 )
 from server.scene3d.proxy import MAX_VIEWER_MESSAGE_BYTES, refusal
 from server.scene3d.scene import HISTORY_EVERY_S, RoverScene
+from server.sinks import FrameBatch
 from server.storage import Store
+from sim.loop.downlink import downlink_fields
+from sim.loop.session import RoverSession
 from sim.rover.geometry import MER_GEOMETRY, wheel_kinematics
+from sim.scoring.truth import merged, truth_fields
 from sim.world.sites import make_terrain
 from tests.server.test_server_restart import _free_port
 from tests.viser_wire import WireViewer
@@ -162,9 +166,9 @@ def test_the_scene_follows_the_frames(
     rover_scene, runtime = scene
     session = runtime.session
     session.execute(cmd.DriveStraight(distance_m=2.0))
-    frames = [f.as_dict() for f in session.frames]
+    frames = merged_frames(session)
     assert len(frames) > 3
-    rover_scene.publish("spirit", frames)
+    rover_scene.publish("spirit", batch_of(frames))
     last = frames[-1]
     _wait(lambda: np.allclose(rover_scene.model.root.position, last["p_mission_true"]))
     np.testing.assert_allclose(rover_scene.ghost.root.position, last["p_mission_est"])
@@ -187,8 +191,8 @@ def test_each_estimator_beside_sapp_is_a_traverse_of_its_own_colour(
     rover_scene.start()
     try:
         runtime.session.execute(cmd.DriveStraight(distance_m=2.0))
-        frames = [f.as_dict() for f in runtime.session.frames]
-        rover_scene.publish("spirit", frames)
+        frames = merged_frames(runtime.session)
+        rover_scene.publish("spirit", batch_of(frames))
         assert rover_scene.server is not None
         handles = rover_scene.server.scene._handle_from_node_name
         for name in ("kinematic_ekf", "radio_ekf"):
@@ -233,12 +237,31 @@ SLIDER = "Sol time (LMST h)"
 FOLLOW = "Follow live"
 
 
+def merged_frames(session: RoverSession) -> list[dict[str, Any]]:
+    """The session's frames, each downlink with its truth (``sim.scoring.truth.merged``)."""
+    return [
+        merged(d.as_dict(), t.as_dict())
+        for d, t in zip(session.downlinks, session.truths, strict=True)
+    ]
+
+
+def batch_of(frames: list[dict[str, Any]]) -> FrameBatch:
+    """``merged_frames`` as the runtime hands them to a sink: the two records apart (the
+    events and side estimates with the downlink; a drive has no scored events)."""
+    downlink_keys = set(downlink_fields())
+    truth_keys = set(truth_fields()) - {"events", "estimators"}
+    return FrameBatch(
+        [{k: v for k, v in f.items() if k in downlink_keys} for f in frames],
+        [{**{k: f[k] for k in truth_keys}, "events": [], "estimators": {}} for f in frames],
+    )
+
+
 @pytest.fixture(scope="module")
 def drive() -> list[dict[str, Any]]:
     """The frames of a short drive, from a runtime of their own (one a simulated second)."""
     runtime = RoverRuntime(ROVERS["spirit"])
     runtime.session.execute(cmd.DriveStraight(distance_m=3.0))
-    frames = [f.as_dict() for f in runtime.session.frames]
+    frames = merged_frames(runtime.session)
     assert frames[-1]["t_s"] - frames[0]["t_s"] > 4 * HISTORY_EVERY_S
     return frames
 
@@ -294,7 +317,7 @@ def test_a_viewer_who_scrubs_leaves_the_others_following(
     console: Console, drive: list[dict[str, Any]]
 ) -> None:
     half = len(drive) // 2
-    console.scene.publish("spirit", drive[:half])
+    console.scene.publish("spirit", batch_of(drive[:half]))
     a, b = _viewers(console, 2)
     try:
         _wait(
@@ -309,7 +332,7 @@ def test_a_viewer_who_scrubs_leaves_the_others_following(
         _wait(lambda: _at(a, "/rover", drive[0]["p_mission_true"]))
         assert b.owners("/rover") == {""}
 
-        console.scene.publish("spirit", drive[half:])
+        console.scene.publish("spirit", batch_of(drive[half:]))
         last = drive[-1]
         _wait(lambda: _at(b, "/rover", last["p_mission_true"]))
         _wait(lambda: status_text(last, True) in b.status())
@@ -332,7 +355,7 @@ def test_a_viewer_who_scrubs_leaves_the_others_following(
 def test_crafted_gui_messages_change_no_other_viewer_and_break_no_callback(
     console: Console, drive: list[dict[str, Any]]
 ) -> None:
-    console.scene.publish("spirit", drive)
+    console.scene.publish("spirit", batch_of(drive))
     _wait(lambda: console.scene.frames_drawn > 0)
     last = drive[-1]
     a, b = _viewers(console, 2)

@@ -1,9 +1,8 @@
 """Storage (issue 4, item 5): every Store method and the BatchWriter, on SQLite and on a real
 PostgreSQL server (``store_url`` in conftest.py runs each test on both).
 
-The telemetry is real: frames of a Nadir Update on the flat test site, as the server stores
-them (``TelemetryFrame.as_dict()``); larger sets are copies shifted in time.
-"""
+The telemetry is real: a Nadir Update's downlink records on the flat site (``as_dict()``);
+larger sets are copies shifted in time."""
 
 from __future__ import annotations
 
@@ -24,6 +23,7 @@ from typing import Any
 import pytest
 
 from server.storage import BatchWriter, Store
+from tests.frame_batches import scores_of
 
 ROOT = Path(__file__).resolve().parents[2]
 DT_S = 0.125  # 8 Hz
@@ -39,7 +39,7 @@ def real_frames() -> list[dict[str, Any]]:
     session = RoverSession("flat", 0, datetime(2004, 4, 14, 16, 30, tzinfo=UTC))
     report = session.execute(commands.NadirUpdate())
     assert report.status == "completed"
-    frames = [f.as_dict() for f in session.frames]
+    frames = [f.as_dict() for f in session.downlinks]
     assert len(frames) > 40 and any(f["events"] for f in frames)
     return frames
 
@@ -287,7 +287,7 @@ def test_an_old_events_table_gains_kind_and_severity(
 
     store = Store(store_url)
     old_frame = {**real_frames[0], "events": ["Nadir Update succeeded"]}
-    store.add_frames("spirit", [old_frame])
+    store.add_frames("spirit", [old_frame], scores_of([old_frame]))
     with store.engine.begin() as conn:
         conn.execute(text("DROP INDEX ix_events_rover_t"))
         conn.execute(text("ALTER TABLE events DROP COLUMN kind"))
@@ -350,8 +350,8 @@ def test_the_event_log_filters_and_pages(store: Store) -> None:
 
 
 def test_frames_round_trip_exactly(store: Store, real_frames: list[dict[str, Any]]) -> None:
-    store.add_frames("spirit", real_frames)
-    store.add_frames("opportunity", real_frames[:3])
+    store.add_frames("spirit", real_frames, scores_of(real_frames))
+    store.add_frames("opportunity", real_frames[:3], scores_of(real_frames[:3]))
     assert all_frames(store) == real_frames  # every field, bit for bit
     t = [f["t_s"] for f in real_frames]
     assert store.frames("spirit", t[5], t[9]) == real_frames[5:10]  # bounds inclusive
@@ -366,7 +366,7 @@ def test_non_finite_floats_are_stored_as_null(
     store: Store, real_frames: list[dict[str, Any]]
 ) -> None:
     frame = {**real_frames[0], "tilt_est_deg": math.nan, "hga_margin_deg": -math.inf}
-    store.add_frames("spirit", [frame])
+    store.add_frames("spirit", [frame], scores_of([frame]))
     (got,) = all_frames(store)
     assert got["tilt_est_deg"] is None and got["hga_margin_deg"] is None
     assert got["tilt_accel_deg"] == frame["tilt_accel_deg"]
@@ -375,7 +375,7 @@ def test_non_finite_floats_are_stored_as_null(
 def test_decimation_keeps_every_frame_with_events(
     store: Store, real_frames: list[dict[str, Any]]
 ) -> None:
-    store.add_frames("spirit", real_frames)
+    store.add_frames("spirit", real_frames, scores_of(real_frames))
     every_s = 2.0
     kept = store.frames("spirit", -math.inf, math.inf, every_s=every_s)
     with_events = [f for f in real_frames if f["events"]]
@@ -393,9 +393,11 @@ def test_decimation_keeps_every_frame_with_events(
 def test_sols_and_sol_range(store: Store, real_frames: list[dict[str, Any]]) -> None:
     sol = real_frames[0]["sol"]
     later = [{**f, "t_s": f["t_s"] + SOL_S, "sol": sol + 1} for f in real_frames]
-    store.add_frames("spirit", later)  # out of order on purpose
-    store.add_frames("spirit", real_frames)
-    store.add_frames("opportunity", [{**real_frames[0], "sol": 7}])
+    store.add_frames("spirit", later, scores_of(later))  # out of order on purpose
+    store.add_frames("spirit", real_frames, scores_of(real_frames))
+    store.add_frames(
+        "opportunity", [{**real_frames[0], "sol": 7}], scores_of([{**real_frames[0], "sol": 7}])
+    )
     assert store.sols("spirit") == [sol, sol + 1]
     assert store.sols("opportunity") == [7]
     assert store.sols("curiosity") == []
@@ -409,7 +411,7 @@ def test_data_survives_a_new_store_on_the_same_url(
     store_url: str, real_frames: list[dict[str, Any]]
 ) -> None:
     first = Store(store_url)
-    first.add_frames("spirit", real_frames)
+    first.add_frames("spirit", real_frames, scores_of(real_frames))
     seq = first.add_sequence("spirit", "s", "WAIT\n", "text", "queued", [], [], [])
     first.save_checkpoint("spirit", 123.5, b"state")
     first.close()
@@ -436,7 +438,7 @@ def test_checkpoint_replace(store: Store) -> None:
 def test_5000_frames_in_one_batch(store: Store, real_frames: list[dict[str, Any]]) -> None:
     frames = shifted(real_frames, 5000)
     start = time.perf_counter()
-    store.add_frames("spirit", frames)
+    store.add_frames("spirit", frames, scores_of(frames))
     elapsed = time.perf_counter() - start
     print(f"\n5000 frames, one batch, {store.engine.dialect.name}: {elapsed:.3f} s")
     got = all_frames(store)
@@ -461,7 +463,7 @@ def test_batch_writer_flushes_on_its_own(store: Store, real_frames: list[dict[st
     writer = BatchWriter(store, interval_s=0.2)
     writer.start()
     try:
-        writer.frames("spirit", real_frames[:10])
+        writer.frames("spirit", real_frames[:10], scores_of(real_frames[:10]))
         writer.events("spirit", [(real_frames[3]["t_s"], ev("Sungaze converged", "sungaze"))])
         writer.command(
             "spirit", sequence_id=seq, step_index=0, command="SUNGAZE", status="completed",
@@ -478,7 +480,9 @@ def test_batch_writer_flushes_on_its_own(store: Store, real_frames: list[dict[st
         assert store.load_checkpoint("spirit") == (2.0, b"new")
         assert writer.flushed_frames == 10
 
-        writer.frames("spirit", real_frames[10:20])  # and again, with no flush() called
+        writer.frames(
+            "spirit", real_frames[10:20], scores_of(real_frames[10:20])
+        )  # and again, with no flush() called
         wait_for(lambda: len(all_frames(store)) == 20)
     finally:
         writer.stop()
@@ -489,10 +493,10 @@ def test_batch_writer_stop_and_flush_write_everything(
 ) -> None:
     writer = BatchWriter(store, interval_s=3600.0)  # never on its own in this test
     writer.start()
-    writer.frames("spirit", real_frames[:5])
+    writer.frames("spirit", real_frames[:5], scores_of(real_frames[:5]))
     writer.flush()
     assert len(all_frames(store)) == 5
-    writer.frames("spirit", real_frames[5:])
+    writer.frames("spirit", real_frames[5:], scores_of(real_frames[5:]))
     writer.events("spirit", [(1.0, ev("e"))])
     writer.stop()
     assert all_frames(store) == real_frames
@@ -503,7 +507,7 @@ def test_batch_writer_drops_only_a_bad_row(
     store: Store, real_frames: list[dict[str, Any]], caplog: pytest.LogCaptureFixture
 ) -> None:
     writer = BatchWriter(store, interval_s=3600.0)
-    writer.frames("spirit", real_frames[:3])
+    writer.frames("spirit", real_frames[:3], scores_of(real_frames[:3]))
     writer.command(
         "spirit", sequence_id=10**6, step_index=0, command="WAIT", status="completed",
         reason=None, start_t_s=1.0, end_t_s=2.0, events=[],
@@ -527,7 +531,7 @@ writer.start()
 i = 0
 while True:
     batch = [dict(template, t_s=template["t_s"] + (i + k) * 0.125) for k in range(8)]
-    writer.frames("spirit", batch)
+    writer.frames("spirit", batch, [{"t_s": f["t_s"], "events": []} for f in batch])
     i += len(batch)
     time.sleep(0.005)
 """
@@ -588,7 +592,7 @@ def test_an_in_memory_store_loses_no_frame_to_a_reader_on_another_thread() -> No
     try:
         for batch in range(200):
             frames = [{"t_s": float(batch * 20 + i), "sol": 1, "events": []} for i in range(20)]
-            writer.frames("spirit", frames)
+            writer.frames("spirit", frames, scores_of(frames))
             writer.flush()
     finally:
         stop.set()

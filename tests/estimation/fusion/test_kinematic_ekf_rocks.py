@@ -87,6 +87,6 @@ def test_over_gusev_rocks_the_filter_holds_its_height() -> None:
     session = RoverSession("gusev", 5, START, slip=False, estimators=("sapp", "kinematic_ekf"))
     session.nate.load_attitude(session.q_b_ll_true(), AttitudeQuality.FINE)
     session.execute(cmd.DriveStraight(distance_m=5.0))
-    last = session.frames[-1]
-    error = np.subtract(last.estimators["kinematic_ekf"]["p_mission"], last.p_mission_true)
+    last, truth = session.downlinks[-1], session.truths[-1]
+    error = np.subtract(last.estimators["kinematic_ekf"]["p_mission"], truth.p_mission_true)
     assert np.linalg.norm(error) < 0.15  # m

@@ -26,7 +26,8 @@ TILT_LIMITS = {"warning": 20, "critical": 30}
 ROUTES: list[tuple[str, str, str, dict[str, Any]]] = [
     ("GET", "/api/rovers", "viewer", {}),
     ("GET", "/api/rovers/spirit/state", "viewer", {}),
-    ("GET", "/api/schema/telemetry", "viewer", {}),
+    ("GET", "/api/schema/downlink", "viewer", {}),
+    ("GET", "/api/schema/truth", "viewer", {}),
     ("GET", "/api/rovers/spirit/queue", "viewer", {}),
     ("GET", "/api/commands", "viewer", {}),
     ("GET", "/api/me", "viewer", {}),

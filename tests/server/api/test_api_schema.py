@@ -1,8 +1,9 @@
-"""``GET /api/schema/telemetry``: the frame's JSON schema, and the console read against it.
+"""``GET /api/schema/downlink`` and ``/api/schema/truth``: the JSON schemas of a frame's two
+records, and the console read against them.
 
-Every frame field the console's scripts read must be in the schema, so that renaming a field
-of ``TelemetryFrame`` fails here rather than leaving a blank in the browser. The scripts
-name a frame ``f`` (console.js, timeline.js, plot.js) or ``frame`` (eventlog.js; in
+Every frame field the console's scripts read must be in one of the schemas, so that renaming
+a field of ``Downlink`` or ``Truth`` fails here rather than leaving a blank in the browser. The
+scripts name a frame ``f`` (console.js, timeline.js, plot.js) or ``frame`` (eventlog.js; in
 view3d.js ``frame`` is the 3D view's iframe); the timeline's band lanes name the field they
 follow in a string (``bandLane(..., "nate_mode")``).
 """
@@ -19,7 +20,8 @@ import pytest
 from fastapi.testclient import TestClient
 
 from server.app import ServerConfig, create_app, data_dir_url
-from sim.loop.telemetry import telemetry_schema
+from sim.loop.downlink import downlink_schema
+from sim.scoring.truth import truth_schema
 
 WEB = Path(__file__).resolve().parents[3] / "web"
 TOKEN = "schema-test-token"
@@ -71,24 +73,36 @@ def test_the_schema_route_answers_as_the_state_route_does(client: tuple[TestClie
     c, public_read = client
     token = {"Authorization": f"Bearer {TOKEN}"}
     for headers in ({}, token):
-        schema = c.get("/api/schema/telemetry", headers=headers)
-        state = c.get("/api/rovers/spirit/state", headers=headers)
-        assert schema.status_code == state.status_code, (headers, schema.text)
+        for record in ("downlink", "truth"):
+            schema = c.get(f"/api/schema/{record}", headers=headers)
+            state = c.get("/api/rovers/spirit/state", headers=headers)
+            assert schema.status_code == state.status_code, (headers, schema.text)
     # as JSON: the schema's NaN default (no value yet) is null, as a frame sends it
-    sent = c.get("/api/schema/telemetry", headers=token).json()
-    assert sent == _nan_as_null(telemetry_schema())
-    if not public_read:
-        assert c.get("/api/schema/telemetry").status_code == 401
-    bad = c.get("/api/schema/telemetry", headers={"Authorization": "Bearer wrong"})
-    assert bad.status_code == 403
+    for record, schema_of in (("downlink", downlink_schema), ("truth", truth_schema)):
+        sent = c.get(f"/api/schema/{record}", headers=token).json()
+        assert sent == _nan_as_null(schema_of())
+        if not public_read:
+            assert c.get(f"/api/schema/{record}").status_code == 401
+        bad = c.get(f"/api/schema/{record}", headers={"Authorization": "Bearer wrong"})
+        assert bad.status_code == 403
+
+
+def test_the_two_records_share_only_their_time() -> None:
+    downlink = set(downlink_schema()["properties"])
+    truth = set(truth_schema()["properties"])
+    assert downlink & truth == {"t_s", "events", "estimators"}
+    for name in truth - {"t_s", "events", "estimators"}:  # every truth figure described
+        assert truth_schema()["properties"][name].get("description"), name
 
 
 def test_every_frame_field_the_console_reads_is_in_the_schema(
     client: tuple[TestClient, bool],
 ) -> None:
     c, _ = client
-    schema = c.get("/api/schema/telemetry", headers={"Authorization": f"Bearer {TOKEN}"}).json()
-    fields = set(schema["properties"])
+    fields: set[str] = set()
+    for record in ("downlink", "truth"):
+        got = c.get(f"/api/schema/{record}", headers={"Authorization": f"Bearer {TOKEN}"})
+        fields |= set(got.json()["properties"])
     read: dict[str, set[str]] = {}
     for script, name in FRAME_NAMES.items():
         text = (WEB / script).read_text(encoding="utf-8")
@@ -102,7 +116,7 @@ def test_every_frame_field_the_console_reads_is_in_the_schema(
 
 def test_a_renamed_field_would_be_caught() -> None:
     console = (WEB / "console.js").read_text(encoding="utf-8")
-    fields = set(telemetry_schema()["properties"])
+    fields = set(downlink_schema()["properties"]) | set(truth_schema()["properties"])
     assert "hga_margin_deg" in frame_fields_read(console, "f")
     renamed = fields - {"hga_margin_deg"} | {"hga_margin_now_deg"}
     assert frame_fields_read(console, "f") - renamed == {"hga_margin_deg"}

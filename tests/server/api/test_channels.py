@@ -43,7 +43,7 @@ def _sol_frames(client: TestClient, sol: int) -> list[dict[str, Any]]:
     server = client.app.state.server  # type: ignore[attr-defined]
     server.writer.flush()
     t0, t1 = server.store.sol_range("spirit", sol)
-    frames: list[dict[str, Any]] = server.store.frames("spirit", t0, t1)
+    frames: list[dict[str, Any]] = server.store.frames("spirit", t0, t1, with_truth=True)
     return frames
 
 

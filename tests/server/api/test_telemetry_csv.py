@@ -17,12 +17,13 @@ from server.api.telemetry_csv import (
     frames_csv,
 )
 from sim.loop.session import RoverSession
+from sim.scoring.truth import merged
 
 
 def test_rows_keep_their_columns_with_old_and_new_frames() -> None:
     session = RoverSession("flat", 3, datetime(2004, 4, 14, 15, 0, tzinfo=UTC))
     session.execute(cmd.DriveStraight(distance_m=0.5))
-    new = session.frames[-1].as_dict()
+    new = merged(session.downlinks[-1].as_dict(), session.truths[-1].as_dict())
     old = {k: v for k, v in new.items() if k not in ("sun_ll_true", "steer_deg", "rocker_deg")}
     rows = list(csv.reader(io.StringIO(frames_csv([new, old]))))
     header = rows[0]
@@ -41,7 +42,7 @@ def test_the_estimators_beside_sapp_have_their_columns_empty_where_they_did_not_
         "flat", 3, datetime(2004, 4, 14, 15, 0, tzinfo=UTC), estimators=("sapp", "radio_ekf")
     )
     session.execute(cmd.DriveStraight(distance_m=0.5))
-    frame = session.frames[-1].as_dict()
+    frame = merged(session.downlinks[-1].as_dict(), session.truths[-1].as_dict())
     rows = list(csv.reader(io.StringIO(frames_csv([frame]))))
     row = dict(zip(rows[0], rows[1], strict=True))
     radio = frame["estimators"]["radio_ekf"]

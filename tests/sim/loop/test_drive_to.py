@@ -23,7 +23,7 @@ def test_drive_to_arrives_with_perfect_sensors_and_no_slip(x_m: float, y_m: floa
     session.nate.load_attitude(session.q_b_ll_true(), AttitudeQuality.FINE)
     report = session.execute(cmd.DriveTo(x_m, y_m))
     assert report.status == "completed"
-    frame = session.frames[-1]
+    frame = session.truths[-1]
     assert np.hypot(frame.p_s_true[0] - x_m, frame.p_s_true[1] - y_m) < 0.02
     assert report.details["distance_m"] == pytest.approx(math.hypot(x_m, y_m), abs=1e-9)
 

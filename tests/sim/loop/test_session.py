@@ -13,6 +13,7 @@ import itertools
 import math
 from dataclasses import dataclass
 from datetime import UTC, datetime
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -21,14 +22,23 @@ from scipy.spatial.transform import Rotation
 from estimation.events import Event
 from estimation.sapp.aqf import AttitudeQuality as Aqf
 from sequences import commands as cmd
+from sim.loop.downlink import downlink_fields, downlink_schema
 from sim.loop.session import CommandReport, RoverSession
-from sim.loop.telemetry import telemetry_fields, telemetry_schema
+from sim.scoring.truth import merged, truth_fields, truth_schema
 
 DAY = datetime(2004, 4, 14, 16, 30, tzinfo=UTC)
 NIGHT = datetime(2004, 4, 14, 4, 0, tzinfo=UTC)
 SEED = 1
-# docs/DESIGN.md, "Contracts": the telemetry frame
-TELEMETRY_KEYS = set(telemetry_fields())  # the frame's one definition
+# docs/DESIGN.md, "Contracts": a frame's two records, each with its one definition
+TELEMETRY_KEYS = set(downlink_fields()) | set(truth_fields())
+
+
+def frames_of(session: RoverSession) -> list[SimpleNamespace]:
+    """The session's frames so far, each downlink with its truth, by attribute."""
+    return [
+        SimpleNamespace(**merged(d.as_dict(), t.as_dict()))
+        for d, t in zip(session.downlinks, session.truths, strict=True)
+    ]
 
 
 def nate_state(s: RoverSession) -> tuple[object, ...]:
@@ -69,9 +79,9 @@ def day() -> Day:
     s = RoverSession("gusev", SEED, DAY)
     fine = s.execute(cmd.GetFineAttitude())
     fine_error = s.attitude_error_rad()
-    n_fine = len(s.frames)
+    n_fine = len(s.downlinks)
     drive = s.execute(cmd.DriveStraight(distance_m=5.0))
-    n_drive = len(s.frames)
+    n_drive = len(s.downlinks)
     plant = s.execute(cmd.PlantSite())
     hga = s.execute(cmd.HgaPass(duration_min=5))
     articulate = s.execute(cmd.ArticulateStart())
@@ -92,7 +102,7 @@ def test_the_commands_complete_and_get_fine_attitude_reaches_fine(day: Day) -> N
     assert day.fine.events[-1] == Event("GetFineAttitude done: AQF Fine", "acquisition")
     assert any(e.text.startswith("Sungaze: converged") for e in day.fine.events)
     assert math.degrees(day.fine_error_rad) < 0.5  # truth: well inside 1.5 deg 3σ
-    last = day.session.frames[day.fine_frame_count - 1]
+    last = frames_of(day.session)[day.fine_frame_count - 1]
     assert last.aqf == "Fine" and last.nate_mode == "Idle"
     # the frame's error agrees with its own estimate and truth, and with the session's
     q_est, q_tru = Rotation.from_quat(last.q_b_ll_est), Rotation.from_quat(last.q_b_ll_true)
@@ -102,10 +112,10 @@ def test_the_commands_complete_and_get_fine_attitude_reaches_fine(day: Day) -> N
 
 
 def test_frames_carry_every_telemetry_key_and_time_runs_forward(day: Day) -> None:
-    frames = day.session.frames
+    frames = frames_of(day.session)
     assert len(frames) > 100
     for f in frames:
-        d = f.as_dict()
+        d = vars(f)
         assert d.keys() >= TELEMETRY_KEYS
         assert len(d["q_b_ll_est"]) == 4 and len(d["p_s_true"]) == 3
         assert isinstance(d["events"], list)
@@ -124,14 +134,14 @@ def test_frames_carry_every_telemetry_key_and_time_runs_forward(day: Day) -> Non
 def test_the_drive_is_tracked_and_plant_site_zeroes_both_positions(day: Day) -> None:
     assert day.drive.details["distance_truth_m"] == pytest.approx(5.0, abs=0.5)
     start, end = day.drive_frames
-    last = day.session.frames[end - 1]
+    last = frames_of(day.session)[end - 1]
     assert last.command == "DRIVE_STRAIGHT distance_m=5.0"
     p_est, p_true = np.array(last.p_s_est), np.array(last.p_s_true)
     assert float(np.linalg.norm(p_true[:2])) == pytest.approx(5.0, abs=0.5)
     assert float(np.linalg.norm(p_est - p_true)) < 0.5  # Ali et al. 2005 sec. 1: 10 % of distance
-    assert {f.nate_mode for f in day.session.frames[start:end]} >= {"Mobility"}
+    assert {f.nate_mode for f in frames_of(day.session)[start:end]} >= {"Mobility"}
     assert day.plant.details["site_index"] == 1
-    planted = [f for f in day.session.frames if f.command == "PLANT_SITE"][-1]
+    planted = [f for f in frames_of(day.session) if f.command == "PLANT_SITE"][-1]
     assert planted.site_index == 1
     assert planted.p_s_true == [0.0, 0.0, 0.0] and planted.p_s_est == [0.0, 0.0, 0.0]
     assert planted.p_mission_true == last.p_mission_true  # the rover did not move
@@ -140,7 +150,7 @@ def test_the_drive_is_tracked_and_plant_site_zeroes_both_positions(day: Day) -> 
 def test_the_hga_pass_keeps_the_pointing_within_2_deg(day: Day) -> None:
     worst = day.hga.details["hga_worst_error_deg"]
     assert 0.0 <= worst < 2.0 and day.hga.details["hga_min_margin_deg"] == pytest.approx(2 - worst)
-    hga_frames = [f for f in day.session.frames if f.command.startswith("HGA_PASS")]
+    hga_frames = [f for f in frames_of(day.session) if f.command.startswith("HGA_PASS")]
     assert all(f.earth_up for f in hga_frames)
     assert max(f.hga_error_deg for f in hga_frames) == pytest.approx(worst)
 
@@ -170,10 +180,10 @@ def test_at_night_an_hga_pass_and_the_sun_commands_are_refused() -> None:
     fine = s.execute(cmd.GetFineAttitude())
     assert fine.status == "refused" and "below the 5.0 deg minimum" in str(fine.reason)
     assert nate_state(s) == before and s.sim.t_s == t0
-    assert [f.aqf for f in s.frames] == ["Fine", "Fine"]  # one frame per refusal
+    assert [f.aqf for f in s.downlinks] == ["Fine", "Fine"]  # one frame per refusal
 
 
 def test_every_telemetry_field_says_what_it_is_in_the_schema() -> None:
-    schema = telemetry_schema()
-    assert list(schema["properties"]) == telemetry_fields()
-    assert all(p.get("description") for p in schema["properties"].values())
+    for schema, names in ((downlink_schema(), downlink_fields()), (truth_schema(), truth_fields())):
+        assert list(schema["properties"]) == names
+        assert all(p.get("description") for p in schema["properties"].values())

@@ -25,18 +25,20 @@ def test_the_ekf_runs_beside_sapp_and_reports_its_errors() -> None:
     session = RoverSession("flat", 5, START, slip=False, estimators=("sapp", "kinematic_ekf"))
     session.nate.load_attitude(session.q_b_ll_true(), AttitudeQuality.FINE)
     session.execute(cmd.Wait(duration_s=60.0))
-    assert session.frames[-1].estimators == {}  # it starts at the first drive
+    assert session.downlinks[-1].estimators == {}  # it starts at the first drive
     session.execute(cmd.DriveStraight(distance_m=3.0))
-    during = [f for f in session.frames if f.estimators]
+    during = [f for f in session.downlinks if f.estimators]
     assert len(during) > 50  # every frame of the drive
-    last = session.frames[-1].estimators["kinematic_ekf"]
+    last = session.downlinks[-1].estimators["kinematic_ekf"]
+    assert set(last) == {"p_mission", "q_b_ll"}  # its pose: what runs beside SAPP reports
+    last = {**last, **session.truths[-1].estimators["kinematic_ekf"]}  # and its score
     assert set(last) == {"p_mission", "q_b_ll", "position_error_m", "attitude_error_deg"}
     # flat ground, no slip, a 3-axis gyro: the filter stays within 1 % and a few tenths
     assert last["position_error_m"] < 0.03
     assert last["attitude_error_deg"] < 0.3
     assert last["p_mission"][0] == pytest.approx(3.0, abs=0.05)
     session.execute(cmd.Wait(duration_s=60.0))  # at rest it keeps its estimate
-    assert session.frames[-1].estimators["kinematic_ekf"]["p_mission"] == last["p_mission"]
+    assert session.downlinks[-1].estimators["kinematic_ekf"]["p_mission"] == last["p_mission"]
 
 
 def test_only_known_estimators_and_always_sapp() -> None:
