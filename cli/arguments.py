@@ -64,7 +64,7 @@ def port_number(text: str) -> int:
 
 def estimator_names(text: str) -> tuple[str, ...]:
     """An argparse type: comma-separated estimator names, ``sapp`` among them."""
-    from sim.loop.side.kinematic import ESTIMATORS
+    from sim.loop.downlink import ESTIMATORS
 
     names = tuple(n.strip() for n in text.split(",") if n.strip())
     unknown = [n for n in names if n not in ESTIMATORS]

@@ -33,6 +33,7 @@ Severities, one rule for all kinds:
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from typing import Literal
 
@@ -69,3 +70,30 @@ class Event:
 def failure_severity(success: bool) -> Severity:
     """``info`` for a mode that succeeded, ``error`` for one that failed."""
     return "info" if success else "error"
+
+
+def parameter_text(name: str, value: float | bool) -> str:
+    """The text of the event that reports a NATE parameter set (SET_PARAM)."""
+    return f"parameter {name} = {value}"
+
+
+_PARAMETER = re.compile(r"parameter (\w+) = (\S+)")
+
+
+def reported_parameter(text: str) -> tuple[str, float] | None:
+    """The parameter and numeric value a ``parameter_text`` reports (``None``: another
+    text, or a value that is not a number). A boolean reads as 0.0 or 1.0.
+
+    >>> reported_parameter(parameter_text("min_sun_elevation_rad", 0.1))
+    ('min_sun_elevation_rad', 0.1)
+    >>> reported_parameter("Site 1 planted") is None
+    True
+    """
+    found = _PARAMETER.fullmatch(text)
+    if found is None:
+        return None
+    value = {"True": "1", "False": "0"}.get(found[2], found[2])
+    try:
+        return found[1], float(value)
+    except ValueError:
+        return None

@@ -22,9 +22,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, fields
 from typing import Any
 
-from sim.loop.downlink import Downlink
-from sim.loop.side.kinematic import ESTIMATORS
-from sim.rover.truth import STEERED_WHEELS
+from estimation.geometry import STEERED_INDEX
+from sim.loop.downlink import ESTIMATORS, Downlink
 from sim.scoring.truth import Truth
 
 MAX_SOLS = 7  # sols per request: a sol is up to ~90 000 stored frames at 1 Hz
@@ -34,7 +33,7 @@ MIN_POINTS = 4  # two buckets of min and max
 AXES = ("t_s", "sol", "lmst_h")  # the x axis, not channels
 # Components of the list fields (the records' docstrings: quaternions [x, y, z, w],
 # positions and unit vectors [x, y, z] in their frame, bogies [left, right]).
-LENGTHS = {"q_": 4, "p_": 3, "bogie_": 2, "steer_": len(STEERED_WHEELS), "_ll_true": 3}
+LENGTHS = {"q_": 4, "p_": 3, "bogie_": 2, "steer_": len(STEERED_INDEX), "_ll_true": 3}
 # Each side estimator's figures: its pose (downlink) and its errors (truth), with lengths.
 SIDE_FIELDS = {"position_error_m": None, "attitude_error_deg": None, "p_mission": 3, "q_b_ll": 4}
 SIDE_TRUTH = {"position_error_m", "attitude_error_deg"}

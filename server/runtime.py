@@ -19,11 +19,9 @@ its queue of accepted sequences, and a thread that runs the clock:
   clock thread from its ``TICK_S`` sleep.
 - Immediate commands (``POST .../commands``) run before the next queued step, in the order sent.
 - Operators reorder the queue (``move``) and cancel from it (``cancel``) within the rules of
-  ``server.queue``. A step starts only if its sequence is still at the head when the clock
-  thread takes it up (checked under ``lock``), so a move or a cancel never races a starting
-  step. Every queue change is applied to the last checkpoint at once
-  (``_checkpoint_queue``), so a restart keeps the order the operators saw, and an
-  ``on_queue`` hook hears of it (``server.queue_view``).
+  ``server.queue``; a step starts only if its sequence is still at the head when the clock
+  thread takes it up (under ``lock``). Every queue change is applied to the last checkpoint
+  at once, and an ``on_queue`` hook hears of it (``server.queue_view``).
 - A step that fails (its mode ran and failed, e.g. a Sunfind that saw no sun) is reported
   and the sequence goes on; a step that is refused (it could not run, e.g. a drive while
   articulating) stops the sequence, whose later steps assumed it: the sequence ends
@@ -38,11 +36,13 @@ stored one (``watermark_t_s``) are dropped, so storage has no duplicates. Steps 
 again (those after the checkpoint) report again, and storage keeps one row per step
 (``server.storage``).
 
-The clock is the operators' intent, so it survives any restart (issue 13, defect 7): a
-clock change (pause, resume, speed) is checkpointed at once, as the last checkpoint with
-the new clock (``commit`` then stores it before ``set_clock`` returns), and again by the
-clock thread where the change takes effect, paused or not; and ``stop`` checkpoints the
-state the clock thread stopped in, so a graceful stop loses nothing.
+The clock is the operators' intent, so it survives any restart: a clock change is
+checkpointed at once (``commit`` stores it before ``set_clock`` returns) and again where it
+takes effect; ``stop`` checkpoints the state the clock thread stopped in.
+
+What the runtime publishes is the rover's downlink with the truth beside it
+(``server.sinks.FrameBatch``); ``last_frame`` is the latest downlink record played out, and
+``reported_params`` the NATE parameters the rover's events report it set: the ground's view.
 """
 
 from __future__ import annotations
@@ -52,11 +52,12 @@ import math
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import asdict, dataclass
 from datetime import UTC, datetime
 from typing import Any
 
+from estimation.events import reported_parameter
 from sequences import commands as cmd
 from sequences.language import Sequence, TimeTag
 from server.checkpoint import CheckpointFormatError, decode, encode
@@ -174,6 +175,7 @@ class RoverRuntime:
         self._clock_changed = False  # since the clock thread's last checkpoint
         self.last_frame: Frame | None = None  # the latest downlink record played out
         self.last_truth: Frame | None = None  # and its truth record
+        self.reported_params: dict[str, float] = {}
         self.watermark_t_s = -math.inf  # frames up to here are stored already (restore)
 
     # ---- control ------------------------------------------------------------------
@@ -221,7 +223,7 @@ class RoverRuntime:
             self._wake.set()
             if self._last_state is None or self.on_checkpoint is None:
                 return
-            self._save({**self._last_state, "clock": self._clock_state()})
+            self._save({**self._last_state, "clock": asdict(self.clock)})
         if self.commit is not None:
             self.commit()
 
@@ -522,16 +524,23 @@ class RoverRuntime:
             return
         batch = FrameBatch([d for d, _ in pairs], [t for _, t in pairs])
         self.last_frame, self.last_truth = pairs[-1]
+        self.note_reported(e for d in batch.downlink for e in d.get("events", ()))
         for sink in self.sinks:
             sink.publish(self.spec.name, batch)
+
+    def note_reported(self, events: Iterable[Mapping[str, Any]]) -> None:
+        """Keep what the rover's ``events`` report of its NATE parameters."""
+        for event in events:
+            got = reported_parameter(str(event.get("text", "")))
+            if event.get("kind") == "parameter" and got is not None:
+                self.reported_params[got[0]] = got[1]
 
     def _sequence_status(self, sequence_id: int, status: str, detail: str | None) -> None:
         if self.on_sequence is not None:
             self.on_sequence(sequence_id, status, detail)
 
     def checkpoint(self) -> None:
-        """Checkpoint the whole state now. Only from the clock thread, or when it is not
-        running: the session must not be in the middle of a command."""
+        """Checkpoint the whole state now, from the clock thread or with it stopped."""
         self._last_checkpoint_wall = time.monotonic()
         if self.on_checkpoint is None:
             return
@@ -540,23 +549,19 @@ class RoverRuntime:
             self._save(self.checkpoint_state())
 
     def checkpoint_state(self) -> dict[str, Any]:
-        """The runtime's state as plain data (``server.checkpoint``): the session's, the
-        queue (each sequence as its text), the clock, the frames still to play out and the
-        step executing. The caller holds ``lock``, between commands."""
+        """The runtime's state as plain data (``server.checkpoint``): session, queue (as
+        texts), clock, play-out, step executing. The caller holds ``lock``, between commands."""
         return {
             "estimators": list(self.estimators),
             "session": self.session.state(),
             "queue": [q.state() for q in self.queue],
-            "clock": self._clock_state(),
+            "clock": asdict(self.clock),
             "last_done_t_s": self._last_done_t_s,
             "playout": [list(p) for p in self._playout],
             "clock_t_s": self._clock_t_s,
             "executing": self.executing,
             "current_step": None if self.current_step is None else list(self.current_step),
         }
-
-    def _clock_state(self) -> dict[str, Any]:
-        return {"running": self.clock.running, "speed": self.clock.speed}
 
     def _save(self, state: dict[str, Any]) -> None:
         """Encode ``state`` and hand it to ``on_checkpoint`` (the caller holds ``lock``)."""
@@ -567,9 +572,8 @@ class RoverRuntime:
 
     @classmethod
     def restore(cls, spec: RoverSpec, blob: bytes) -> RoverRuntime:
-        """A runtime from a checkpoint blob (``server.checkpoint``). Raises
-        ``CheckpointFormatError`` for a blob it cannot read (an older format, a newer one,
-        or not a checkpoint): the caller starts the rover fresh."""
+        """A runtime from a checkpoint blob (``server.checkpoint``); ``CheckpointFormatError``
+        for a blob it cannot read (the caller starts the rover fresh)."""
         state = decode(spec.name, blob)
         try:
             runtime = cls(spec, estimators=tuple(state["estimators"]))

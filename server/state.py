@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -128,6 +129,7 @@ class Server:
             runtime.watermark_t_s = float(last["t_s"])
             runtime.last_frame = last
             runtime.last_truth = self.store.last_truth(rover)
+            runtime.note_reported(self.store.events(rover, -math.inf, runtime.watermark_t_s))
         held = set(runtime.queued_ids())
         pending = [
             s

@@ -21,8 +21,7 @@ from dataclasses import fields
 from typing import Any
 
 from server.channels import SIDE_FIELDS, vector_length
-from sim.loop.downlink import Downlink
-from sim.loop.side.kinematic import ESTIMATORS
+from sim.loop.downlink import ESTIMATORS, Downlink
 from sim.scoring.truth import Truth
 
 # The frame's fields, in order, when it was one record (before issue 21's split).

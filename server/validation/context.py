@@ -43,6 +43,7 @@ from sim.world.marsclock import (
     sol_number_t_s,
     t_s_for_sol_lmst,
 )
+from sim.world.sites import site
 
 if TYPE_CHECKING:  # the validation process (server.validation.pool) imports no runtime
     from server.runtime import RoverRuntime
@@ -191,18 +192,25 @@ class RoverSite:
 
 
 def rover_site(runtime: RoverRuntime) -> RoverSite:
-    """A rover's ``RoverSite`` from its state now."""
-    sim = runtime.session.sim
-    frame = runtime.last_frame or {}
+    """A rover's ``RoverSite`` as the ground knows it now: the landing site's coordinates,
+    and from the rover's last downlink record, read under the runtime's lock together with
+    the played-out clock so that both are of one moment, its AQF, IMU time and mode, and
+    the NATE parameters it has reported setting (``reported_params``; NATE's defaults
+    otherwise). Never from the live session, which may be a command ahead of the clock."""
+    landing = site(runtime.spec.site)
+    with runtime.lock:
+        frame = dict(runtime.last_frame or {})
+        t_s = float(runtime.t_s)
+        params = dict(runtime.reported_params)
     return RoverSite(
         runtime.spec.mission,
-        float(sim.lat_rad),
-        float(sim.lon_east_rad),
-        float(runtime.t_s),
-        aqf=frame.get("aqf", runtime.session.nate.aqf.paper_name),
-        imu_integration_s=float(frame.get("imu_integration_s", 0.0)),
-        articulating=runtime.session.nate.mode.value == "Articulate",
-        min_sun_elevation_rad=runtime.session.nate.params.min_sun_elevation_rad,
+        math.radians(landing.lat_deg),
+        math.radians(landing.lon_east_deg),
+        t_s,
+        aqf=frame.get("aqf", "Unknown"),
+        imu_integration_s=float(frame.get("imu_integration_s") or 0.0),
+        articulating=frame.get("nate_mode") == "Articulate",
+        min_sun_elevation_rad=float(params.get("min_sun_elevation_rad", MIN_SUN_ELEVATION_RAD)),
     )
 
 
@@ -224,4 +232,5 @@ def stored_rover_site(store: Store, rover: str) -> RoverSite | None:
         return None
     runtime = RoverRuntime.restore(spec, saved[1])
     runtime.last_frame = store.last_frame(rover)
+    runtime.note_reported(store.events(rover, -math.inf, runtime.t_s))
     return rover_site(runtime)

@@ -24,6 +24,10 @@ from typing import Annotated, Any
 from estimation.events import Event
 from sim.loop.records import Quat, Vec3, about, record_dict, record_fields, record_schema
 
+# The estimators a rover may run, SAPP and those beside it whose poses the downlink carries:
+# what `--estimators` accepts; SAPP always runs (``sim.loop.side``).
+ESTIMATORS = ("sapp", "kinematic_ekf", "radio_ekf")
+
 
 @dataclass(frozen=True)
 class Downlink:

@@ -20,7 +20,7 @@ import math
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from estimation.events import Event, Severity
+from estimation.events import Event, Severity, parameter_text
 from estimation.ivp import earth_ll
 from estimation.sapp.aqf import AttitudeQuality
 from estimation.sapp.hga_pointing import point_hga
@@ -67,7 +67,7 @@ def plant_site(ctx: LoopContext, c: cmd.PlantSite) -> Details:
 
 def set_param(ctx: LoopContext, c: cmd.SetParam) -> Details:
     ctx.nate.set_param(c.param, c.value)
-    ctx.event(f"parameter {c.param} = {c.value}", "parameter")
+    ctx.event(parameter_text(c.param, c.value), "parameter")
     ctx.recorder.now(force=True)
     return {}
 

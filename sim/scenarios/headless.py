@@ -18,9 +18,9 @@ from scipy.spatial.transform import Rotation
 
 from sequences import commands as cmd
 from sim.errors import InputError
+from sim.loop.downlink import ESTIMATORS
 from sim.loop.rover_sim import RoverSim
 from sim.loop.session import run_commands
-from sim.loop.side.kinematic import ESTIMATORS
 from sim.rover.drive import MAX_PATH_M, MAX_TURN_RAD
 from sim.rover.truth import CONTROL_DT_S
 from sim.world.marsclock import SOL_S, lmst_h_from_t_s, sol_number_t_s, t_s_to_utc

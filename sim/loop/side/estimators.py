@@ -13,9 +13,9 @@ from numpy.typing import NDArray
 from estimation.events import Event
 from estimation.sapp.nate import NateSeries
 from sim.errors import InputError
+from sim.loop.downlink import ESTIMATORS
 from sim.loop.rover_sim import RoverSim, Segment
 from sim.loop.side.kinematic import (
-    ESTIMATORS,
     DriveInputs,
     KinematicEkfRunner,
     SideEstimate,

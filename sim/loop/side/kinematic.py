@@ -42,8 +42,6 @@ from sim.world.mars_frames import sun_ll_truth
 
 FloatArray = NDArray[np.float64]
 
-# what `--estimators` accepts; SAPP always runs (the radio EKF: ``sim.loop.side.radio``)
-ESTIMATORS = ("sapp", "kinematic_ekf", "radio_ekf")
 # A corner steered by more than this stands steered: 10 σ of the steering sensors' 0.05 deg
 # (``sim.sensors.encoders``), and the corners of an arc up to ~80 m radius.
 STEERED_RAD = math.radians(0.5)

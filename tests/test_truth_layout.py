@@ -1,0 +1,83 @@
+"""What the ground may read of the simulator, pinned by imports (docs/DESIGN.md, "Two
+records"): the rule that the ground never reads the simulator's truth, as a matter of
+imports rather than of care.
+
+Every module of ``server/`` may import from ``sim/`` only what a real ground system has too:
+the Mars clock, the ephemeris and Mars frames, the landing sites and their terrain maps, the
+rover's design geometry, the downlink's definition and the simulator's input errors
+(``GROUND_KNOWLEDGE``). The truth records' definition (``sim.scoring.truth``) is imported by
+the few modules that carry or serve the truth view (``TRUTH_CARRIERS``); the simulator
+itself (a session, the world, the sensors, the scorer) only by the runtime that hosts it
+(``SIMULATOR_HOSTS``). Anything else fails here, naming the import.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from tests.test_layout import ROOT, import_graph
+
+GROUND_KNOWLEDGE = frozenset({
+    "sim.errors",  # the simulator's input errors, raised on bad arguments
+    "sim.loop.downlink",  # what the rover sends: the ground's own record
+    "sim.world.marsclock",  # Mars time
+    "sim.world.ephemeris",  # JPL's ephemeris, as a mission's navigation team has it
+    "sim.world.mars_frames",  # the IAU's Mars frames
+    "sim.world.sites",  # the landing sites' published coordinates and terrain maps
+    "sim.world.terrain",  # a terrain map (the ground's orbital and stereo maps)
+    "sim.rover.geometry",  # the rover's design drawings (for drawing it)
+})  # fmt: skip
+TRUTH = "sim.scoring.truth"
+TRUTH_CARRIERS = frozenset({
+    "server.sinks",  # hands each frame's two records on
+    "server.storage.store",  # stores and reads them
+    "server.hub",  # the WebSocket: the truth only to those the truth view allows
+    "server.alarms",  # alarms on truth channels (the truth view's)
+    "server.channels",  # which channels are truth
+    "server.api.telemetry",  # the truth record's schema
+    "server.api.telemetry_csv",  # its CSV columns
+    "server.scene3d.scene",  # the 3D view's truth layer
+})  # fmt: skip
+SIMULATOR_HOSTS = frozenset({"server.runtime"})  # hosts the rover sessions
+
+
+def truth_violations(graph: Mapping[str, set[str]]) -> list[str]:
+    """``importer -> imported`` for every import of ``sim`` a server module may not make."""
+    wrong = []
+    for importer, imported in sorted(graph.items()):
+        if importer.split(".")[0] != "server":
+            continue
+        for target in sorted(t for t in imported if t.split(".")[0] == "sim"):
+            allowed = (
+                target in GROUND_KNOWLEDGE
+                or (target == TRUTH and importer in TRUTH_CARRIERS)
+                or importer in SIMULATOR_HOSTS
+            )
+            if not allowed:
+                wrong.append(f"{importer} -> {target}")
+    return wrong
+
+
+def test_the_ground_imports_only_ground_knowledge_of_the_simulator() -> None:
+    wrong = truth_violations(import_graph(ROOT, ("server", "sim")))
+    assert not wrong, f"server modules reading the simulator: {wrong}"
+
+
+def test_the_named_modules_exist() -> None:
+    graph = import_graph(ROOT, ("server", "sim"))
+    missing = sorted((GROUND_KNOWLEDGE | TRUTH_CARRIERS | SIMULATOR_HOSTS | {TRUTH}) - set(graph))
+    assert not missing, f"the lists name modules that are gone: {missing}"
+
+
+def test_the_check_sees_the_simulator_imported_into_validation() -> None:
+    graph = {
+        "server.validation.context": {"sim.loop.session", "sim.world.marsclock"},
+        "server.timeline": {"sim.scoring.truth"},
+        "server.hub": {"sim.scoring.truth"},
+        "server.runtime": {"sim.loop.session"},
+        "sim.loop.session": {"sim.scoring.truth"},
+    }
+    assert truth_violations(graph) == [
+        "server.timeline -> sim.scoring.truth",
+        "server.validation.context -> sim.loop.session",
+    ]
