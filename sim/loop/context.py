@@ -102,6 +102,11 @@ class LoopContext:
         if nate.busy:
             raise CommandRefusedError(f"WAIT: refused while {nate.mode.value} runs")
         if nate.wait_hint_s > CONTROL_DT_S:  # Idle: one jump
+            if self.recorder.events and duration_s > CONTROL_DT_S:
+                # events waiting for a frame (a command that took no time: sim.loop.frames)
+                # are reported at the next cycle, not at the end of the jump
+                frame(nate.step(imu_sample(sim.rest(CONTROL_DT_S), 0)))
+                duration_s -= CONTROL_DT_S
             out = nate.step(imu_sample(sim.rest(duration_s), 0))
             frame(out, force=True)
             return

@@ -10,6 +10,14 @@ microradian from the chord. Position errors are in the mission frame (the first 
 whose true origin is where the rover started; the true Site origins are kept as the
 operators plant Sites. Frames are thinned to one per ``frame_every_s`` of 8 Hz data, but a
 frame with events or a mode change is always kept.
+
+One frame per moment: a rover's frames have strictly increasing ``t_s``. A command that
+takes no time (PLANT_SITE, SET_PARAM, ARTICULATE_START/STOP, a refusal) comes at the moment
+the previous command's last frame reported, and that frame has been handed on (the runtime
+plays out and stores each command's frames when the command completes), so it makes no
+second frame of that moment: its events wait for the next frame, which they force (the
+next 8 Hz cycle: ``LoopContext.wait`` steps one before jumping), and its mode counts as
+reported.
 """
 
 from __future__ import annotations
@@ -70,7 +78,11 @@ class FrameRecorder:
     # ---- when a frame is made ---------------------------------------------------------
 
     def keep(self, out: NateOutput, force: bool) -> bool:
-        """Whether the cycle ``out`` makes a frame (module docstring)."""
+        """Whether the cycle ``out`` makes a frame (module docstring: never a second frame of
+        a moment, even when forced)."""
+        if out.t_s <= self._last_frame_t:
+            self._last_mode = out.mode.value
+            return False
         return (
             force
             or bool(out.events)
