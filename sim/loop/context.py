@@ -96,6 +96,14 @@ class LoopContext:
             details["failure"] = self.recorder.last_event() or "the mode failed"
         return details
 
+    def report(self) -> None:
+        """A frame of the rover now, or, when this moment has its frame already (the
+        previous command's last: sim.loop.frames), at the next control cycle, at rest."""
+        if self.recorder.reported(self.nate.t_s) and not self.nate.busy:
+            self.wait(CONTROL_DT_S)
+        else:
+            self.recorder.now(force=True)
+
     def wait(self, duration_s: float) -> None:
         """Let time pass; Articulate keeps propagating at 8 Hz, Idle is jumped over."""
         nate, sim, frame = self.nate, self.sim, self.recorder.at_rest

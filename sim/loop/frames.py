@@ -17,7 +17,8 @@ the previous command's last frame reported, and that frame has been handed on (t
 plays out and stores each command's frames when the command completes), so it makes no
 second frame of that moment: its events wait for the next frame, which they force (the
 next 8 Hz cycle: ``LoopContext.wait`` steps one before jumping), and its mode counts as
-reported.
+reported. PLANT_SITE and SET_PARAM, whose change the operator waits to see, take that cycle
+themselves (``LoopContext.report``).
 """
 
 from __future__ import annotations
@@ -80,7 +81,7 @@ class FrameRecorder:
     def keep(self, out: NateOutput, force: bool) -> bool:
         """Whether the cycle ``out`` makes a frame (module docstring: never a second frame of
         a moment, even when forced)."""
-        if out.t_s <= self._last_frame_t:
+        if self.reported(out.t_s):
             self._last_mode = out.mode.value
             return False
         return (
@@ -166,6 +167,10 @@ class FrameRecorder:
                 kept.append(k)
                 last_t, last_mode, pending = t, mode, False
         return kept
+
+    def reported(self, t_s: float) -> bool:
+        """Whether a frame of the moment ``t_s`` has been made (module docstring)."""
+        return t_s <= self._last_frame_t
 
     def last_event(self) -> str:
         """The text of the latest event in a frame (``""``: none)."""
