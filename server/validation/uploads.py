@@ -46,8 +46,13 @@ def request_error(loc: tuple[str | int, ...], msg: str, kind: str) -> HTTPExcept
 
 
 def too_large(limit: int) -> HTTPException:
-    """The 413 of a body over ``limit`` bytes."""
-    return HTTPException(413, f"body over {limit} bytes")
+    """The 413 of a body over ``limit`` bytes, naming the limit as README.md and
+    docs/sequences.md give it (in MB, 10^6 bytes) and in bytes.
+
+    >>> too_large(1_000_000).detail
+    'body over the upload limit of 1 MB (1000000 bytes)'
+    """
+    return HTTPException(413, f"body over the upload limit of {limit / 1e6:g} MB ({limit} bytes)")
 
 
 async def read_body(request: Request, limit: int) -> bytes:

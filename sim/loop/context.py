@@ -96,12 +96,25 @@ class LoopContext:
             details["failure"] = self.recorder.last_event() or "the mode failed"
         return details
 
+    def report(self) -> None:
+        """A frame of the rover now, or, when this moment has its frame already (the
+        previous command's last: sim.loop.frames), at the next control cycle, at rest."""
+        if self.recorder.reported(self.nate.t_s) and not self.nate.busy:
+            self.wait(CONTROL_DT_S)
+        else:
+            self.recorder.now(force=True)
+
     def wait(self, duration_s: float) -> None:
         """Let time pass; Articulate keeps propagating at 8 Hz, Idle is jumped over."""
         nate, sim, frame = self.nate, self.sim, self.recorder.at_rest
         if nate.busy:
             raise CommandRefusedError(f"WAIT: refused while {nate.mode.value} runs")
         if nate.wait_hint_s > CONTROL_DT_S:  # Idle: one jump
+            if self.recorder.events and duration_s > CONTROL_DT_S:
+                # events waiting for a frame (a command that took no time: sim.loop.frames)
+                # are reported at the next cycle, not at the end of the jump
+                frame(nate.step(imu_sample(sim.rest(CONTROL_DT_S), 0)))
+                duration_s -= CONTROL_DT_S
             out = nate.step(imu_sample(sim.rest(duration_s), 0))
             frame(out, force=True)
             return

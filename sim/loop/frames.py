@@ -8,6 +8,15 @@ estimators' poses) and the ``Truth`` (``sim.scoring.truth``), which the scorer
 IVP's Earth is interpolated between nodes a minute apart (``sim.loop.sky``). Frames are
 thinned to one per ``frame_every_s`` of 8 Hz data, but a frame with events or a mode change is
 always kept.
+
+One frame per moment: a rover's frames have strictly increasing ``t_s``. A command that
+takes no time (PLANT_SITE, SET_PARAM, ARTICULATE_START/STOP, a refusal) comes at the moment
+the previous command's last frame reported, and that frame has been handed on (the runtime
+plays out and stores each command's frames when the command completes), so it makes no
+second frame of that moment: its events wait for the next frame, which they force (the
+next 8 Hz cycle: ``LoopContext.wait`` steps one before jumping), and its mode counts as
+reported. PLANT_SITE and SET_PARAM, whose change the operator waits to see, take that cycle
+themselves (``LoopContext.report``).
 """
 
 from __future__ import annotations
@@ -63,7 +72,11 @@ class FrameRecorder:
     # ---- when a frame is made ---------------------------------------------------------
 
     def keep(self, out: NateOutput, force: bool) -> bool:
-        """Whether the cycle ``out`` makes a frame (module docstring)."""
+        """Whether the cycle ``out`` makes a frame (module docstring: never a second frame of
+        a moment, even when forced)."""
+        if self.reported(out.t_s):
+            self._last_mode = out.mode.value
+            return False
         return (
             force
             or bool(out.events)
@@ -150,6 +163,10 @@ class FrameRecorder:
                 kept.append(k)
                 last_t, last_mode, pending = t, mode, False
         return kept
+
+    def reported(self, t_s: float) -> bool:
+        """Whether a frame of the moment ``t_s`` has been made (module docstring)."""
+        return t_s <= self._last_frame_t
 
     def last_event(self) -> str:
         """The text of the latest event in a frame (``""``: none)."""

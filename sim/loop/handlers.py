@@ -61,14 +61,14 @@ def plant_site(ctx: LoopContext, c: cmd.PlantSite) -> Details:
     index = ctx.nate.plant_site()
     ctx.recorder.scorer.plant_site(ctx.sim.drive_state.p_s)
     ctx.event(f"Site {index} planted", "site")
-    ctx.recorder.now(force=True)
+    ctx.report()
     return {"site_index": index}
 
 
 def set_param(ctx: LoopContext, c: cmd.SetParam) -> Details:
     ctx.nate.set_param(c.param, c.value)
     ctx.event(parameter_text(c.param, c.value), "parameter")
-    ctx.recorder.now(force=True)
+    ctx.report()
     return {}
 
 

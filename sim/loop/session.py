@@ -175,7 +175,7 @@ class RoverSession:
         loop, recorder = self.loop, self.loop.recorder
         recorder.command = command.describe() if label is None else label
         report = CommandReport(recorder.command, "completed", loop.sim.t_s, loop.sim.t_s)
-        first_frame = len(recorder.downlinks)
+        first_frame, waited = len(recorder.downlinks), len(recorder.events)
         loop.results = []
         try:
             details = handler(loop, command)
@@ -190,7 +190,11 @@ class RoverSession:
                 report.status, report.reason = "failed", str(failure)
         report.end_t_s = loop.sim.t_s
         report.results = loop.results
-        report.events = [e for f in recorder.downlinks[first_frame:] for e in f.events]
+        # with the events still waiting for a frame (a command that took no time comes at a
+        # moment already reported: sim.loop.frames)
+        made = len(recorder.downlinks) > first_frame
+        waiting = list(recorder.events) if made else recorder.events[waited:]
+        report.events = [e for f in recorder.downlinks[first_frame:] for e in f.events] + waiting
         report.scores = [e for f in recorder.truths[first_frame:] for e in f.events]
         self.reports.append(report)
         recorder.command = ""

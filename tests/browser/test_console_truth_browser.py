@@ -213,7 +213,9 @@ def test_a_failed_upload_clears_the_old_diagnostics(
     big.write_text("SEQUENCE big\n" + "# padding\n" * 120_000)  # over the 1 MB limit
     page.set_input_files("[data-testid=file-input]", str(big))
     page.click("#upload-file")
-    expect(status).to_have_text(re.compile(r"^Upload failed \(413\): body over \d+ bytes$"))
+    expect(status).to_have_text(
+        re.compile(r"^Upload failed \(413\): body over the upload limit of 1 MB \(1000000 bytes\)$")
+    )
     expect(diagnostics).to_have_count(0)
     # the editor's check comes back late (a busy server): it is not shown over the upload's
     assert len(held) == 1

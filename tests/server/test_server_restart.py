@@ -78,12 +78,32 @@ def serving(
     proc = _start(data_dir, port, token, **start)
     base = f"http://127.0.0.1:{port}"
     auth = {"Authorization": f"Bearer {token}"}
+
+    def answers() -> bool:
+        if proc.poll() is not None:  # it will never answer: say why at once
+            log = (data_dir / "server.log").read_text(errors="replace")
+            raise AssertionError(f"the server exited with status {proc.returncode}:\n{log}")
+        return httpx.get(f"{base}{ready}", headers=auth).status_code == 200
+
     try:
-        _wait(lambda: httpx.get(f"{base}{ready}", headers=auth).status_code == 200)
+        _wait(answers, timeout_s=ready_deadline_s())
         yield base
     finally:
         proc.kill()
         proc.wait(timeout=10)
+
+
+READY_DEADLINE_S = 120.0  # an idle machine's generous bound on a start (a few s here)
+
+
+def ready_deadline_s(load: float | None = None, cores: int | None = None) -> float:
+    """How long ``serving`` waits for a server to answer: ``READY_DEADLINE_S`` times the
+    machine's load per core (the 1-minute load average) when that is above 1, so a busy CI
+    machine is given the time its queue of processes takes. A server that exits fails at
+    once instead (``serving``)."""
+    load = os.getloadavg()[0] if load is None else load
+    cores = (os.cpu_count() or 1) if cores is None else cores
+    return READY_DEADLINE_S * max(1.0, load / cores)
 
 
 def _wait(predicate: Any, timeout_s: float = 60.0) -> Any:
@@ -252,3 +272,17 @@ def test_a_running_rover_resumes_where_sigterm_stopped_it(
     c = _up(tmp_path, port, servers)
     state = c.get("/api/rovers/spirit/state").json()
     assert state["t_s"] >= resumed.t_s and state["clock"]["speed"] == 100
+
+
+def test_a_server_that_exits_is_reported_at_once_with_its_log(tmp_path: Path) -> None:
+    """The fixture waits for readiness, not a fixed time: a server that exits (here on a
+    bad ``--estimators``) fails the fixture with its exit status and its log."""
+    with pytest.raises(AssertionError) as failed, serving(tmp_path, estimators="sapp,bogus"):
+        pass
+    assert "exited with status 2" in str(failed.value)
+    assert "--estimators must list sapp" in str(failed.value)
+
+
+def test_the_readiness_deadline_grows_with_the_machines_load() -> None:
+    idle, busy = ready_deadline_s(load=0.0, cores=2), ready_deadline_s(load=8.0, cores=2)
+    assert idle >= 120.0 and busy == pytest.approx(4 * idle)

@@ -13,6 +13,8 @@ import pytest
 from fastapi.testclient import TestClient
 
 from server.app import ServerConfig, create_app, data_dir_url
+from server.state import MAX_UPLOAD_BYTES
+from server.validation.uploads import too_large
 
 TOKEN = "test-operator-token"
 AUTH = {"Authorization": f"Bearer {TOKEN}"}
@@ -137,7 +139,13 @@ def test_validate_only_stores_nothing(client: TestClient) -> None:
 
 def test_oversized_upload_413_and_bad_bodies_422(client: TestClient) -> None:
     big = "WAIT duration_s=1\n" * 2000  # 36 kB > the 20 kB limit of this server
-    assert client.post("/api/rovers/spirit/sequences", content=big, headers=AUTH).status_code == 413
+    r = client.post("/api/rovers/spirit/sequences", content=big, headers=AUTH)
+    assert r.status_code == 413
+    # the message names the limit (issue 21), as README and docs/sequences.md give it
+    assert r.json()["detail"] == "body over the upload limit of 0.02 MB (20000 bytes)"
+    assert too_large(MAX_UPLOAD_BYTES).detail == (
+        "body over the upload limit of 1 MB (1000000 bytes)"
+    )
     r = client.post("/api/rovers/spirit/clock", json={"speed": 0.5}, headers=AUTH)
     assert r.status_code == 422 and "speed" in r.text
     r = client.post("/api/rovers/spirit/clock", json={"warp": 9}, headers=AUTH)

@@ -141,7 +141,11 @@ def test_the_drive_is_tracked_and_plant_site_zeroes_both_positions(day: Day) -> 
     assert float(np.linalg.norm(p_est - p_true)) < 0.5  # Ali et al. 2005 sec. 1: 10 % of distance
     assert {f.nate_mode for f in frames_of(day.session)[start:end]} >= {"Mobility"}
     assert day.plant.details["site_index"] == 1
-    planted = [f for f in frames_of(day.session) if f.command == "PLANT_SITE"][-1]
+    # the drive's last frame reported the moment PLANT_SITE came at: the next frame (the
+    # HGA pass's first) reports the planted Site, with its event (sim.loop.frames)
+    assert [e.text for e in day.plant.events] == ["Site 1 planted"]
+    planted_event = Event("Site 1 planted", "site").as_dict()
+    planted = next(f for f in frames_of(day.session) if planted_event in f.events)
     assert planted.site_index == 1
     assert planted.p_s_true == [0.0, 0.0, 0.0] and planted.p_s_est == [0.0, 0.0, 0.0]
     assert planted.p_mission_true == last.p_mission_true  # the rover did not move
@@ -180,7 +184,12 @@ def test_at_night_an_hga_pass_and_the_sun_commands_are_refused() -> None:
     fine = s.execute(cmd.GetFineAttitude())
     assert fine.status == "refused" and "below the 5.0 deg minimum" in str(fine.reason)
     assert nate_state(s) == before and s.sim.t_s == t0
-    assert [f.aqf for f in s.downlinks] == ["Fine", "Fine"]  # one frame per refusal
+    # one frame of that moment (sim.loop.frames): the second refusal's event waits for the
+    # next frame, and is in its report
+    assert [f.aqf for f in s.downlinks] == ["Fine"]
+    assert [e.text for e in s.downlinks[0].events] == [e.text for e in hga.events]
+    assert [e.text for e in fine.events] == [e.text for e in s.loop.recorder.events]
+    assert "GET_FINE_ATTITUDE refused" in fine.events[0].text
 
 
 def test_every_telemetry_field_says_what_it_is_in_the_schema() -> None:
