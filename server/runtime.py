@@ -17,7 +17,8 @@ its queue of accepted sequences, and a thread that runs the clock:
   At ``inf`` a command, its play-out (whole, before a checkpoint that then need not carry
   it) and the next step follow without a pause; a new sequence or clock change wakes the
   clock thread from its ``TICK_S`` sleep.
-- Immediate commands (``POST .../commands``) run before the next queued step, in the order sent.
+- Immediate commands (``POST .../commands``) run in the order sent, before every sequence not
+  yet started; a started sequence's steps run back to back first (``server.queue.insert``).
 - Operators reorder the queue (``move``) and cancel from it (``cancel``) within the rules of
   ``server.queue``. A step starts only if its sequence is still at the head when the clock
   thread takes it up (checked under ``lock``), so a move or a cancel never races a starting
