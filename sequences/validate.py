@@ -129,7 +129,8 @@ DE421, which ends 2053-10-08, less the simulator's spare day) for both missions:
 Opportunity's, since it landed 21 days after Spirit (whose last sol is 17,689). Without a
 rover context a ``@ sol N`` tag beyond it is an error (``beyond-ephemeris``): the rover
 would refuse it. ``sequences`` may not import ``sim``, so this is a constant;
-tests/server/test_validation_context.py ties it to the ephemeris and both missions' clocks."""
+tests/server/validation/test_validation_context.py ties it to the ephemeris and both
+missions' clocks."""
 
 _DRIVES = (cmd.DriveStraight, cmd.DriveArc, cmd.TurnInPlace, cmd.DriveTo)
 

@@ -1,13 +1,15 @@
 """Live telemetry fan-out: frames from the rover threads to WebSocket clients.
 
 Each client has its own bounded queue. The rover thread never waits: a full queue drops
-its oldest frame (``put_latest``), so a slow client loses frames, not the simulation, and
-never slows the other clients. Each client's sender sends at most ``MAX_RATE_HZ`` frames
-per wall second: it takes the newest frame waiting and carries the events of the frames
-it skipped, each stamped with its own frame's ``t_s``, ``sol`` and ``lmst_h``
-(``stamped_events``), so no event is lost to decimation nor shown at the wrong time (a
-client too slow even for that loses whole frames, events included, and is told how many
-in ``dropped``).
+its oldest frame (``put_frames``), so a slow client loses frames, not the simulation, and
+never slows the other clients; it is told how many in ``dropped``. A frame's events do not
+go with it: they wait apart (``Client.events``), each stamped with its own frame's ``t_s``,
+``sol`` and ``lmst_h`` (``stamped_events``). Each client's sender sends at most
+``MAX_RATE_HZ`` frames per wall second: it takes the newest frame waiting and carries every
+event waiting, so no event is lost to decimation nor to a full queue (at max speed one
+batch is a whole drive's frames, far more than the queue holds), nor shown at the wrong
+time. Only a client ``QUEUE_EVENTS`` events behind loses the oldest, and is told how many
+in ``dropped_events`` (so it knows to re-read the event log over REST).
 
 Besides frames, the hub carries *notices*: small messages with a ``type`` (``"command"``,
 ``"alarm"``, ``"queue"``, ...) that say something changed (``notify``). A frame has no
@@ -36,11 +38,13 @@ from sim.scoring.truth import merged
 MAX_RATE_HZ = 10.0
 QUEUE_FRAMES = 64
 QUEUE_NOTICES = 1024
+QUEUE_EVENTS = 4096  # a sol of 8 Hz activity has a few hundred
 
 
 @dataclass(eq=False)
 class Client:
-    """One WebSocket subscriber: its queue and how many frames it lost to a full queue."""
+    """One WebSocket subscriber: its frames, the events of the frames not yet sent, its
+    notices, and how many of each it lost to a full queue."""
 
     loop: asyncio.AbstractEventLoop
     queue: asyncio.Queue[dict[str, Any]] = field(
@@ -49,14 +53,23 @@ class Client:
     dropped: int = 0
     notices: deque[dict[str, Any]] = field(default_factory=deque)
     dropped_notices: int = 0
+    events: deque[dict[str, Any]] = field(default_factory=deque)
+    dropped_events: int = 0
     wake: asyncio.Event = field(default_factory=asyncio.Event)
 
-    def put_latest(self, frame: dict[str, Any]) -> None:
-        """Enqueue on the client's loop, dropping the oldest frame when full."""
-        if self.queue.full():
-            self.queue.get_nowait()
-            self.dropped += 1
-        self.queue.put_nowait(frame)
+    def put_frames(self, frames: list[dict[str, Any]]) -> None:
+        """Enqueue a batch on the client's loop, dropping the oldest frames when full; the
+        batch's events wait apart, stamped, so a dropped frame loses none of them."""
+        for frame in frames:
+            if self.queue.full():
+                self.queue.get_nowait()
+                self.dropped += 1
+            self.queue.put_nowait(frame)
+            for event in stamped_events(frame):
+                if len(self.events) >= QUEUE_EVENTS:
+                    self.events.popleft()
+                    self.dropped_events += 1
+                self.events.append(event)
         self.wake.set()
 
     def put_notice(self, notice: dict[str, Any]) -> None:
@@ -105,12 +118,10 @@ class TelemetryHub:
             for d, t in zip(batch.downlink, batch.truth, strict=True)
         ]
         for client in clients:
-            for frame in stamped:
-                try:
-                    client.loop.call_soon_threadsafe(client.put_latest, frame)
-                except RuntimeError:  # the client's loop has closed
-                    self.unsubscribe(rover, client)
-                    break
+            try:
+                client.loop.call_soon_threadsafe(client.put_frames, stamped)
+            except RuntimeError:  # the client's loop has closed
+                self.unsubscribe(rover, client)
 
     def notify(self, rover: str, notice: dict[str, Any]) -> None:
         """Hand a notice (a dict with a ``type``) to every client of ``rover``
@@ -141,8 +152,8 @@ def stamped_events(frame: dict[str, Any]) -> list[dict[str, Any]]:
 
 
 async def next_message(client: Client) -> dict[str, Any]:
-    """The next message to send: a notice if one waits, else the newest frame with the
-    skipped frames' events."""
+    """The next message to send: a notice if one waits, else the newest frame with every
+    event waiting (those of the frames it skipped or that a full queue dropped)."""
     while True:
         notice = pending_notice(client)
         if notice is not None:
@@ -152,11 +163,11 @@ async def next_message(client: Client) -> dict[str, Any]:
         client.wake.clear()
         await client.wake.wait()
     frame = client.queue.get_nowait()
-    events = stamped_events(frame)
     while not client.queue.empty():
         frame = client.queue.get_nowait()
-        events.extend(stamped_events(frame))
     out = dict(frame)
-    out["events"] = events
+    out["events"] = list(client.events)
+    client.events.clear()
     out["dropped"] = client.dropped
+    out["dropped_events"] = client.dropped_events
     return out

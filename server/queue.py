@@ -3,7 +3,9 @@ move, and their checkpointed form.
 
 Only the head of the queue runs. A sequence that has started, and an immediate command,
 keep their place (nothing moves in front of them): a started sequence's later steps assume
-the rover its earlier steps left, and an immediate command was sent to run next.
+the rover its earlier steps left, and an immediate command was sent to run next. So an
+immediate command goes in front of every sequence that has not started, but after a started
+one: it waits for the started sequence to end, its steps run back to back.
 
 In a checkpoint a queued sequence is plain data: its text (``sequences.language.to_text``,
 parsed again on restore) and where it stands.
@@ -125,7 +127,7 @@ class Cancelled:
 def pinned(item: QueuedSequence) -> str | None:
     """Why ``item`` keeps its place in the queue (``None``: it may move)."""
     if item.immediate:
-        return "is an immediate command (it runs before every queued step)"
+        return "is an immediate command (it runs before every sequence not yet started)"
     if item.has_started:
         steps = len(item.sequence.steps)
         return f"has started (at step {min(item.next_step + 1, steps)} of {steps})"
@@ -155,13 +157,29 @@ def snapshot(
 
 
 def insert(queue: list[QueuedSequence], item: QueuedSequence) -> None:
-    """Put ``item`` in ``queue``: an immediate command before the sequences but after the
-    immediate commands sent before it (commands run in the order sent), a sequence last."""
+    """Put ``item`` in ``queue``: an immediate command after the entries that keep their
+    place (a started sequence, the immediate commands sent before it: commands run in the
+    order sent) and before the other sequences, a sequence last."""
     if item.immediate:
-        ahead = next((i for i, q in enumerate(queue) if not q.immediate), None)
-        queue.insert(len(queue) if ahead is None else ahead, item)
+        queue.insert(_first_free([pinned(q) is not None for q in queue]), item)
     else:
         queue.append(item)
+
+
+def _first_free(kept: Seq[bool]) -> int:
+    """Where an immediate command goes: after the entries at the head that keep their place
+    (``kept``, in queue order), nothing moving in front of them."""
+    return next((i for i, k in enumerate(kept) if not k), len(kept))
+
+
+def _kept_state(entry: Mapping[str, Any]) -> bool:
+    """``pinned`` for an entry's ``state()``: an immediate command or a started sequence."""
+    return bool(
+        entry["immediate"]
+        or entry["started"]
+        or entry["next_step"] > 0
+        or entry["wait_left_s"] is not None
+    )
 
 
 def moved(
@@ -199,8 +217,9 @@ def merged(
 ) -> list[dict[str, Any]]:
     """A checkpoint's queue ``saved`` (entries' ``state()``, an older copy) with the queue
     changes since applied: sequences that finished since keep their places there (a restart
-    runs them again), ``removed`` goes, one queued since is added as new, and the others take
-    the order they have in ``queue`` now."""
+    runs them again), ``removed`` goes, one queued since is added as new (an immediate command
+    as ``insert`` puts it: after a started sequence, even one that finished since), and the
+    others take the order they have in ``queue`` now."""
     out = [dict(q) for q in saved if q["sequence_id"] != removed]
     now = list(queue)
     held = {q["sequence_id"] for q in out}
@@ -208,7 +227,7 @@ def merged(
         if item.sequence_id not in held:
             fresh = QueuedSequence(item.sequence_id, item.sequence, immediate=item.immediate)
             if item.immediate:
-                out.insert(0, fresh.state())
+                out.insert(_first_free([_kept_state(q) for q in out]), fresh.state())
             else:
                 out.append(fresh.state())
     order = {item.sequence_id: i for i, item in enumerate(now)}

@@ -14,27 +14,23 @@ its queue of accepted sequences, and a thread that runs the clock:
 - A command executes as a whole in the session (a drive takes a few seconds of wall time)
   and its frames are then *played out*: published (WebSocket subscribers, storage) as the
   clock reaches their time. So what is stored and shown never runs ahead of the clock.
-  At ``inf`` a command, its play-out (whole, before a checkpoint that then need not carry
-  it) and the next step follow without a pause; a new sequence or clock change wakes the
-  clock thread from its ``TICK_S`` sleep.
-- Immediate commands (``POST .../commands``) run before the next queued step, in the order sent.
+  At ``inf`` a command, its play-out (whole, before the checkpoint) and the next step follow
+  without a pause; a new sequence or clock change wakes the clock thread from its sleep.
+- Immediate commands (``POST .../commands``) run in the order sent, after a started sequence.
 - Operators reorder the queue (``move``) and cancel from it (``cancel``) within the rules of
   ``server.queue``; a step starts only if its sequence is still at the head when the clock
   thread takes it up (under ``lock``). Every queue change is applied to the last checkpoint
   at once, and an ``on_queue`` hook hears of it (``server.queue_view``).
-- A step that fails (its mode ran and failed, e.g. a Sunfind that saw no sun) is reported
-  and the sequence goes on; a step that is refused (it could not run, e.g. a drive while
-  articulating) stops the sequence, whose later steps assumed it: the sequence ends
-  ``failed``. A sequence that ran to the end is ``completed``, with the failed steps in
-  its ``detail``.
+- A step that fails (its mode ran and failed) is reported and the sequence goes on; a step
+  that is refused (it could not run) stops the sequence, which ends ``failed``. A sequence
+  that ran to the end is ``completed``, with the failed steps in its ``detail``.
 
-The runtime's state (session, queue, clock, frames still to play out) is checkpointed as
-plain data (``server.checkpoint``, versioned; ``checkpoint_state``) once per wall second
-through the storage writer, in the same transaction as the frames published before it. A
-runtime restored from a checkpoint resumes there; frames it publishes again up to the last
-stored one (``watermark_t_s``) are dropped, so storage has no duplicates. Steps it runs
-again (those after the checkpoint) report again, and storage keeps one row per step
-(``server.storage``).
+The runtime's state (session, queue, clock, frames still to play out) is checkpointed as plain data
+(``server.checkpoint``, versioned; ``checkpoint_state``) once per wall second through the storage
+writer, in the same transaction as the frames published before it. A runtime restored from a
+checkpoint resumes there; frames it publishes again up to the last stored one (``watermark_t_s``)
+are dropped, so storage has no duplicates. Steps it runs again (those after the checkpoint) report
+again, and storage keeps one row per step (``server.storage``).
 
 The clock is the operators' intent, so it survives any restart: a clock change is
 checkpointed at once (``commit`` stores it before ``set_clock`` returns) and again where it
@@ -387,6 +383,10 @@ class RoverRuntime:
         step = self._next_step()
         sim_t = self.session.sim.t_s
         target = math.inf if step is None else self._start_time(step[1])
+        if step is not None and sim_t + 1e-6 < self._clock_t_s and target <= self._clock_t_s:
+            # the idle rover lags the clock: a due step starts at the clock shown (issue 21)
+            self._idle(self._clock_t_s - sim_t)
+            sim_t = self.session.sim.t_s
         if target <= sim_t + 1e-6:
             assert step is not None
             self._execute(step[0])

@@ -56,7 +56,9 @@ function detailText(r) {
 // The other panels (alarms, queue, event log, plots: one script each) follow the console
 // through these hooks rather than reaching into it. Events: "frame" (each live frame),
 // "notice" (each typed WebSocket message: {type: "alarm" | "command" | ...}), "state"
-// (each /state poll's body), "rover" (the rover picked), "me" (who signed in or out).
+// (each /state poll's body), "rover" (the rover picked), "me" (who signed in or out), "live"
+// (the telemetry WebSocket of that rover opened: subscribed, so what a REST read made from
+// now on misses comes over it).
 const roverops = {
   api, lmst, state, mayAct, applyRole, authHeaders, listeners: {},
   on(name, fn) { (this.listeners[name] ||= []).push(fn); },
@@ -102,11 +104,34 @@ function showFrame(f) {
   roverops.emit("frame", f);
   // Each event at its own time: a message at max speed carries the events of the frames
   // the hub skipped, each stamped with its frame's lmst_h.
-  for (const e of f.events || []) {
-    const li = document.createElement("li");
-    li.textContent = `${lmst(e.lmst_h ?? f.lmst_h)} ${e.text}`;
-    li.className = `sev-${e.severity}`;
-    $("events").prepend(li);
+  for (const e of f.events || []) showEvent({ lmst_h: f.lmst_h, t_s: f.t_s, ...e });
+}
+
+// The Rover panel lists the rover's own events (in frames) since the page opened, newest
+// first, each once (key: t_s and text). A reconnect brings the ones made while the socket
+// was down from the stored log (fillGap).
+const SERVER_KINDS = new Set(["sequence", "alarm"]); // the server's events: in no frame
+const roverEvents = { keys: new Set(), last: -Infinity, connections: 0 };
+function showEvent(e) {
+  const key = `${e.t_s}|${e.text}`;
+  if (roverEvents.keys.has(key)) return;
+  roverEvents.keys.add(key);
+  roverEvents.last = Math.max(roverEvents.last, e.t_s);
+  const li = document.createElement("li");
+  li.textContent = `${lmst(e.lmst_h)} ${e.text}`;
+  li.className = `sev-${e.severity}`;
+  li.dataset.tS = String(e.t_s);
+  const list = $("events");
+  let next = null; // the newest already shown that is not newer than e
+  for (const o of list.children) if (Number(o.dataset.tS) <= e.t_s) { next = o; break; }
+  list.insertBefore(li, next);
+}
+
+async function fillGap(rover, since) {
+  const r = await api(`/api/rovers/${encodeURIComponent(rover)}/events?limit=1000`);
+  if (!r.ok || rover !== state.rover) return;
+  for (const e of r.body.events) {
+    if (e.t_s >= since && !SERVER_KINDS.has(e.kind)) showEvent(e);
   }
 }
 
@@ -183,6 +208,11 @@ function connect() {
   if (state.ws) state.ws.close();
   const scheme = location.protocol === "https:" ? "wss" : "ws";
   const ws = new WebSocket(`${scheme}://${location.host}/ws/rovers/${state.rover}/telemetry`);
+  ws.onopen = () => {
+    if (state.ws !== ws) return;
+    if (roverEvents.connections++ > 0) fillGap(state.rover, roverEvents.last);
+    roverops.emit("live", state.rover);
+  };
   ws.onmessage = (m) => {
     const message = JSON.parse(m.data);
     if (message.type) roverops.emit("notice", message);
@@ -497,6 +527,7 @@ async function start() {
     state.rover = $("rover").value;
     roverops.emit("rover", state.rover);
     $("events").replaceChildren();
+    Object.assign(roverEvents, { keys: new Set(), last: -Infinity, connections: 0 });
     connect(); refreshState(); refreshSequences();
   });
   $("pause").addEventListener("click", () => clock({ action: "pause" }));

@@ -3,6 +3,10 @@
 // filters; live events from the "frame" hook are matched here against the same filters).
 // A row names its sol and LMST; clicking it asks the sol timeline to show that moment
 // (roverops.emit("focus", {sol, t_s})).
+// No event is lost between the stored ones and the live ones: the log loads again each time
+// the telemetry WebSocket opens (the "live" hook: the server subscribed it before it opened,
+// so whatever the load does not list yet comes live; the key drops what both bring), and
+// again when the server says this page fell so far behind that it lost events or notices.
 (function () {
   "use strict";
 
@@ -16,6 +20,7 @@
   // matching at the last fetch; liveAdded: matching events the live feed added since
   const view = {
     rover: null, generation: 0, keys: new Set(), sols: new Set(), loaded: 0, restTotal: 0, liveAdded: 0,
+    dropped: 0, // events and notices this connection lost (server.hub): beyond it, load again
   };
 
   function el(tag, props = {}, ...children) {
@@ -219,8 +224,24 @@
     view.who = who;
     if (view.rover) load();
   });
-  ro.on("frame", live);
+  // Lost on the way (a client too far behind, server.hub): the stored log has them.
+  function lostSome(message) {
+    const lost = (message.dropped_events || 0) + (message.dropped_notices || 0);
+    if (lost <= view.dropped) return false;
+    view.dropped = lost;
+    load();
+    return true;
+  }
+  ro.on("frame", (frame) => { if (!lostSome(frame)) live(frame); });
   // the server's own events (a sequence started or done, an alarm) are in no frame
-  ro.on("notice", (n) => { if (n.type === "event" && ro.state.rover === view.rover) live({ events: [n.event] }); });
+  ro.on("notice", (n) => {
+    if (ro.state.rover !== view.rover || lostSome(n)) return;
+    if (n.type === "event") live({ events: [n.event] });
+  });
+  // subscribed (at page load, after a reconnect, for another rover): what came meanwhile
+  ro.on("live", (rover) => {
+    view.dropped = 0;
+    if (rover === view.rover) load();
+  });
   if (ro.state.rover) pickRover(ro.state.rover);
 })();

@@ -128,8 +128,14 @@ async def live(server: ServerDep, websocket: WebSocket, rover: str) -> None:
     if rover not in server.rovers:
         await websocket.close(code=4404)
         return
-    await websocket.accept()
+    # Subscribed before the accept: a page that loads the stored events once its socket is
+    # open misses none published in between (web/eventlog.js).
     client = server.hub.subscribe(rover)
+    try:
+        await websocket.accept()
+    except BaseException:
+        server.hub.unsubscribe(rover, client)
+        raise
     period = 1.0 / MAX_RATE_HZ
 
     async def send_frames(done: anyio.CancelScope) -> None:

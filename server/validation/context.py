@@ -17,9 +17,9 @@ coarsely, and only what changes slowly is interpolated:
 
 A sequence therefore costs one ephemeris call per 32 sols it reaches, however often it
 asks: 40,000 HGA passes (406 sols) take 13 calls, and one HGA pass on each of the 17,600
-sols the ephemeris covers ~550. tests/server/test_validation_context.py checks the elevations
-against ``body_ll_truth`` (within 0.05 deg over a sol at both landing sites) and counts
-the calls. The context also carries the ephemeris' last instant, past which
+sols the ephemeris covers ~550. tests/server/validation/test_validation_context.py checks
+the elevations against ``body_ll_truth`` (within 0.05 deg over a sol at both landing sites)
+and counts the calls. The context also carries the ephemeris' last instant, past which
 ``sequences.validate`` refuses a step instead of asking.
 """
 

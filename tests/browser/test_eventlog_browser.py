@@ -170,3 +170,79 @@ def test_live_events_take_their_place_in_time_not_in_order_of_arrival(page: Page
     expect(rows.nth(0)).to_contain_text("sequence #99 later failed")
     expect(rows.nth(1)).to_contain_text("DRIVE_TO later refused")
     expect(rows.nth(2)).to_contain_text("Nadir Update earlier")
+
+
+VO_DRIVE = "SEQUENCE vo_drive\nDRIVE_STRAIGHT distance_m=4.0 vo=on\nPLANT_SITE\n"
+SERVER_KINDS = ("sequence", "alarm")  # the server's own events: in no frame
+
+
+def test_at_max_speed_the_live_log_lists_exactly_the_stored_events(page: Page, server: str) -> None:
+    """Issue 21, "events missing live": at max speed a vo=on drive's frames come in one
+    batch, and the live event log and the Rover panel missed VO steps 1-3, which a reload
+    listed. Opened afresh (its stored events loaded while it subscribes), the page lists
+    live exactly the events stored once the sequence has ended, as (t_s, text); the Rover
+    panel every frame event that came after it opened."""
+    page.reload()
+    page.wait_for_function("roverops.state.ws && roverops.state.ws.readyState === 1")
+    before = {(e["t_s"], e["text"]) for e in _log(server)}
+    rows = page.get_by_test_id("eventlog-row")
+    expect(rows).to_have_count(len(before))
+    with httpx.Client(base_url=server, headers=AUTH, timeout=10.0) as c:
+        c.post("/api/rovers/spirit/clock", json={"action": "resume"}).raise_for_status()
+        c.post("/api/rovers/spirit/clock", json={"speed": "max"}).raise_for_status()
+        r = c.post("/api/rovers/spirit/sequences", content=VO_DRIVE)
+        assert r.status_code == 201, r.text
+        _wait(lambda: any("vo_drive completed" in e["text"] for e in _log(server)), 120.0)
+        c.post("/api/rovers/spirit/clock", json={"action": "pause"}).raise_for_status()
+    stored = _log(server)
+    assert any(e["text"].startswith("VO step 1/") for e in stored)
+    # the log has the sequence's end, the server's last event, once it has it all
+    expect(rows.filter(has_text="vo_drive completed")).to_have_count(1)
+    expect(rows).to_have_count(len(stored))
+    shown = rows.evaluate_all(
+        "rows => rows.map(r => [Number(r.dataset.tS), r.lastElementChild.textContent])"
+    )
+    assert {(t, text) for t, text in shown} == {(e["t_s"], e["text"]) for e in stored}
+    rover_panel = {
+        line.split(" ", 1)[1]
+        for line in page.get_by_test_id("events").locator("li").all_text_contents()
+    }
+    new = [e for e in stored if (e["t_s"], e["text"]) not in before]
+    wanted = {e["text"] for e in new if e["kind"] not in SERVER_KINDS}
+    assert wanted and wanted <= rover_panel
+
+
+def test_events_made_while_the_socket_was_down_are_listed_after_it_reconnects(
+    page: Page, server: str
+) -> None:
+    """Issue 21: a reconnect lost what happened while the socket was down. Here the page's
+    socket is cut (its reconnection held: routed to nothing), a sequence runs at max,
+    then the page reconnects: both lists show the sequence's events."""
+    held: list[Any] = []
+
+    def route(ws: Any) -> None:
+        if not released:
+            held.append(ws)  # answered by no one: open, silent
+        else:
+            ws.connect_to_server()
+
+    released = False
+    page.route_web_socket("**/ws/rovers/spirit/telemetry", route)
+    page.evaluate("roverops.state.ws.close()")  # console.js reconnects after a second
+    page.wait_for_function("roverops.state.ws && roverops.state.ws.readyState === 1")
+    _wait(lambda: held)
+    with httpx.Client(base_url=server, headers=AUTH, timeout=10.0) as c:
+        c.post("/api/rovers/spirit/clock", json={"action": "resume"}).raise_for_status()
+        r = c.post("/api/rovers/spirit/sequences", content="SEQUENCE gap\nPLANT_SITE\n")
+        assert r.status_code == 201, r.text
+        _wait(lambda: any("gap completed" in e["text"] for e in _log(server)), 120.0)
+        c.post("/api/rovers/spirit/clock", json={"action": "pause"}).raise_for_status()
+    rows = page.get_by_test_id("eventlog-row")
+    assert rows.filter(has_text="gap completed").count() == 0  # nothing came while cut
+    released = True
+    held[0].close()  # the page reconnects, to the server this time
+    expect(rows.filter(has_text="gap completed")).to_have_count(1)
+    stored = _log(server)
+    expect(rows).to_have_count(len(stored))
+    planted = next(e for e in stored if e["text"].endswith("planted"))  # newest first: the gap's
+    expect(page.get_by_test_id("events").locator("li", has_text=planted["text"])).to_have_count(1)

@@ -8,6 +8,7 @@ import asyncio
 import pytest
 
 from server.hub import QUEUE_NOTICES, TelemetryHub, next_message
+from server.sinks import FrameBatch
 from tests.frame_batches import batch
 
 EV_A = {"text": "a", "kind": "site", "severity": "info"}
@@ -88,3 +89,72 @@ def test_a_client_far_behind_loses_the_oldest_notices_and_is_told() -> None:
 def test_a_notice_needs_a_type() -> None:
     with pytest.raises(ValueError, match="type"):
         TelemetryHub().notify("spirit", {"id": 1})
+
+
+class _Collect:
+    """A frame sink beside the hub: every frame the runtime published, in order."""
+
+    def __init__(self) -> None:
+        self.frames: list[dict] = []  # type: ignore[type-arg]
+
+    def publish(self, rover: str, batch: FrameBatch) -> None:
+        self.frames.extend(batch.downlink)  # the rover's events are the downlink's
+
+
+VO_DRIVE = "SEQUENCE vo_drive\nNADIR_UPDATE\nDRIVE_STRAIGHT distance_m=4.0 vo=on\nPLANT_SITE\n"
+
+
+def test_at_max_speed_every_event_of_every_frame_reaches_a_client_exactly_once() -> None:
+    """Issue 21, "events missing live": at max speed a command's frames are published in
+    one batch (a vo=on drive's hundreds), far more than a client's frame queue holds. The
+    client, read at the route's MAX_RATE_HZ, receives every event of every published frame,
+    once, at its own frame's time; the frames it never saw are counted in ``dropped``."""
+    import math
+    import threading
+
+    from sequences.language import parse
+    from server.hub import MAX_RATE_HZ, QUEUE_FRAMES
+    from server.runtime import ROVERS, RoverRuntime
+
+    runtime = RoverRuntime(ROVERS["spirit"])
+    runtime.set_clock(speed=math.inf)
+    published = _Collect()
+    hub = TelemetryHub()
+    runtime.sinks.extend([published, hub])
+
+    def run_queue_out() -> None:  # the clock thread's ticks, until the queue is done
+        runtime.enqueue(1, parse(VO_DRIVE))
+        for _ in range(200):
+            if not runtime.queue and not runtime._playout:
+                return
+            runtime._tick(0.05)
+        raise AssertionError("the sequence did not end")
+
+    async def scenario() -> tuple[list[dict], int]:  # type: ignore[type-arg]
+        client = hub.subscribe("spirit")
+        ticker = threading.Thread(target=run_queue_out)
+        ticker.start()
+        received: list[dict] = []  # type: ignore[type-arg]
+        dropped = 0
+        while ticker.is_alive() or not client.queue.empty():
+            try:
+                message = await asyncio.wait_for(next_message(client), 0.5)
+            except TimeoutError:
+                continue
+            received.extend(message["events"])
+            dropped = message["dropped"]
+            await asyncio.sleep(1.0 / MAX_RATE_HZ)  # the route's pacing (server.api.telemetry)
+        ticker.join()
+        return received, dropped
+
+    received, dropped = _run(scenario())
+    sent = [
+        {**e, "t_s": f["t_s"], "sol": f["sol"], "lmst_h": f["lmst_h"]}
+        for f in published.frames
+        for e in f["events"]
+    ]
+    assert len(published.frames) > QUEUE_FRAMES  # the batch overflowed the client's queue ...
+    assert dropped > 0  # ... and frames were dropped
+    assert any(e["text"].startswith("VO step 1/") for e in sent)
+    key = lambda e: (e["t_s"], e["text"], e["kind"], e["severity"], e["sol"], e["lmst_h"])  # noqa: E731
+    assert sorted(map(key, received)) == sorted(map(key, sent))  # every one, exactly once

@@ -76,23 +76,23 @@ def test_a_started_sequence_and_an_immediate_command_keep_their_place() -> None:
     runtime._tick(0.05)  # sequence 1 runs its first step
     assert runtime.queue[0].next_step == 1
     runtime.enqueue(9, _seq("SEQUENCE now\nSUNFIND\n"), immediate=True)
-    assert runtime.queued_ids() == [9, 1, 2, 3]
+    assert runtime.queued_ids() == [1, 9, 2, 3]  # nothing in front of the started sequence
     refusals = {
         (1, 2): "sequence 1 has started (at step 2 of 3): it keeps its place",
         (9, 3): "sequence 9 is an immediate command",
-        (3, 1): "position 1 is in front of sequence 1, which has started (at step 2 of 3): "
-        "the highest free position is 2",
-        (3, 0): "position 0 is in front of sequence 1",
+        (3, 1): "position 1 is in front of sequence 9, which is an immediate command "
+        "(it runs before every sequence not yet started): the highest free position is 2",
+        (3, 0): "position 0 is in front of sequence 9",
         (2, 4): "position 4 is past the end of the queue (positions 0 to 3)",
     }
     for (sequence_id, to), why in refusals.items():
         with pytest.raises(QueueError, match=re.escape(why)):
             runtime.move(sequence_id, to)
-        assert runtime.queued_ids() == [9, 1, 2, 3]  # nothing changed
+        assert runtime.queued_ids() == [1, 9, 2, 3]  # nothing changed
     with pytest.raises(NotQueuedError, match="sequence 7 is not in spirit's queue"):
         runtime.move(7, 2)
     runtime.move(3, 2)
-    assert runtime.queued_ids() == [9, 1, 3, 2]
+    assert runtime.queued_ids() == [1, 9, 3, 2]
     pinned = {e.sequence_id: e.pinned for e in runtime.queue_snapshot()}
     assert pinned[3] is None and pinned[2] is None
     assert pinned[9] and pinned[1] and "started" in pinned[1]
@@ -239,3 +239,40 @@ def test_immediate_commands_run_in_the_order_they_were_sent() -> None:
     runtime.enqueue(2, _seq("NADIR_UPDATE\n"), immediate=True)
     runtime.enqueue(3, _seq("GET_TILT_ATTITUDE\n"), immediate=True)
     assert runtime.queued_ids() == [2, 3, 1]
+
+
+def test_an_immediate_command_waits_for_a_started_sequence_to_end() -> None:
+    """Issue 21: an immediate command sent while a started sequence is between its steps
+    (its drive done and played out, its PLANT_SITE not yet taken up) ran between them,
+    though nothing moves in front of a started sequence. It runs after the sequence's last
+    step, and before the sequences that have not started."""
+    runtime, reports = _runtime()
+    drive = "SEQUENCE drive\nNADIR_UPDATE\nDRIVE_STRAIGHT distance_m=0.5\nPLANT_SITE\n"
+    runtime.enqueue(1, _seq(drive))
+    runtime.enqueue(2, _seq("SEQUENCE later\nGET_TILT_ATTITUDE\n"))
+    _tick_until(runtime, lambda: runtime.queue[0].next_step == 2 and not runtime._playout)
+    assert runtime.current_step is None  # between the drive and the PLANT_SITE
+    runtime.enqueue(9, _seq("SEQUENCE now\nNADIR_UPDATE\n"), immediate=True)
+    assert runtime.queued_ids() == [1, 9, 2]
+    _tick_until(runtime, lambda: not runtime.queue and not runtime._playout)
+    order = [(r["sequence_id"], r["command"].split()[0]) for r in reports]
+    assert order == [
+        (1, "NADIR_UPDATE"),
+        (1, "DRIVE_STRAIGHT"),
+        (1, "PLANT_SITE"),
+        (9, "NADIR_UPDATE"),
+        (2, "GET_TILT_ATTITUDE"),
+    ]
+
+
+def test_a_restart_keeps_an_immediate_command_behind_a_sequence_started_before_it() -> None:
+    """The checkpoint's copy of the queue (``server.queue.merged``): sequence 1 had started
+    at the last checkpoint and has finished since, then an immediate command came. A
+    restart runs sequence 1's rest again, so the command still goes after it."""
+    from server.queue import QueuedSequence, merged
+
+    started = QueuedSequence(1, _seq(), next_step=1, started=True)
+    later = QueuedSequence(2, _seq())
+    saved = [started.state(), later.state()]
+    now = [QueuedSequence(9, _seq("SEQUENCE now\nSUNFIND\n"), immediate=True), later]
+    assert [q["sequence_id"] for q in merged(saved, now, None)] == [1, 9, 2]

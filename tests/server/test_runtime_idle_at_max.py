@@ -6,6 +6,7 @@ wall clock."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import pytest
 
@@ -62,3 +63,38 @@ def test_a_time_tag_at_max_is_still_skipped_to_at_once(runtime: RoverRuntime) ->
     assert not runtime.queue  # it ran, two hours on, after at most twenty ticks
     assert runtime.t_s > start + 3600.0
     assert runtime.state()["effective_speed"] == IDLE_SPEED_AT_MAX
+
+
+def test_a_sequence_starts_at_the_clock_its_operators_saw(tmp_path: Path) -> None:
+    """Issue 21: "sequence #1 started" was stamped 7 s after its first command's events.
+    At max with nothing queued the played-out clock runs up to IDLE_STEP_S ahead of the
+    simulated rover, and a sequence sent then started at the rover's older time while its
+    started event took the clock's. The started event (``server.state``, stored) carries the
+    time its first step started: no later than that step's first event, and not before the
+    clock the operators saw when they sent it."""
+    from server.state import Server, ServerConfig
+
+    server = Server(ServerConfig(database_url=f"sqlite:///{tmp_path / 'r.db'}", start_clocks=False))
+    try:
+        rover = server.rovers["spirit"]
+        rover.set_clock(speed=math.inf)
+        for _ in range(28):  # 7 s of idle wall time: the clock is ahead of the rover
+            rover._tick(0.25)
+        sent_at = rover.t_s
+        assert sent_at > rover.session.sim.t_s + 1.0  # the situation of the defect
+        text = "SEQUENCE first\nPLANT_SITE\nNADIR_UPDATE\n"  # its event at its start
+        seq_id = server.store.add_sequence("spirit", "first", text, "text", "queued", [], [], [])
+        result = validate(text)
+        assert result.sequence is not None
+        rover.enqueue(seq_id, result.sequence)
+        for _ in range(20):
+            if not rover.queue and not rover._playout:
+                break
+            rover._tick(0.05)
+        server.writer.flush()
+        events = server.store.events("spirit", -math.inf, math.inf)
+        started = next(e for e in events if e["text"] == f"sequence #{seq_id} first started")
+        planted = next(e for e in events if e["text"] == "Site 1 planted")
+        assert sent_at - 1e-6 <= started["t_s"] <= planted["t_s"]
+    finally:
+        server.stop()

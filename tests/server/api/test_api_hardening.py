@@ -5,9 +5,9 @@ before the body, one 422 shape, strict types, declared bodies and errors).
 
 No wall-clock asserts: "the event loop stays free" is proven by another request answered
 while a validation is held on a ``threading.Event`` (in the threadpool path,
-``validation_processes=0``: an event does not cross processes; tests/server/test_validation_pool.py
-covers the process path), and "the limit is enforced while
-streaming" by counting the bytes the server pulled."""
+``validation_processes=0``: an event does not cross processes;
+tests/server/validation/test_validation_pool.py covers the process path), and "the limit is
+enforced while streaming" by counting the bytes the server pulled."""
 
 from __future__ import annotations
 

@@ -20,6 +20,7 @@ def test_a_command_the_session_ran_but_the_ground_has_not_seen_does_not_show() -
     # The session runs ahead of the played-out clock: nothing is published yet.
     runtime.session.execute(cmd.SetParam("min_sun_elevation_rad", 0.2))
     runtime.session.execute(cmd.ArticulateStart())
+    runtime.session.execute(cmd.Wait(2.0))  # a frame that reports the mode
     assert runtime.session.nate.mode.value == "Articulate"
     ahead = rover_site(runtime)
     assert not ahead.articulating  # the ground has not seen the rover articulate

@@ -30,7 +30,7 @@ from server.validation.pool import ValidationPool, check_upload
 TOKEN = "validation-pool-token"
 AUTH = {"Authorization": f"Bearer {TOKEN}"}
 LIMIT = 50_000
-EXAMPLES = sorted((Path(__file__).resolve().parents[2] / "sequences" / "examples").iterdir())
+EXAMPLES = sorted((Path(__file__).resolve().parents[3] / "sequences" / "examples").iterdir())
 REJECTED = "SEQUENCE rejected\n@ sol 43 10:00 LMST DRIVE_STRAIGHT distance_m=-1\nNO_SUCH\n"
 WAIT_S = 30.0  # how long a process may take to end before the test calls it stuck
 SPIRIT = RoverSite("spirit", -0.2555, 3.0658, 1.6e8)
