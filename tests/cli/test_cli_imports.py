@@ -41,22 +41,20 @@ def _imported_by(*argv: str) -> list[str]:
 def _heavy(modules: list[str], server_allowed: tuple[str, ...]) -> list[str]:
     """The simulator (but its error type), any server module outside ``server_allowed``,
     and the heavy libraries (numba, OpenCV, the web stack, viser) among ``modules``."""
-    found = []
-    for name in modules:
+
+    def heavy(name: str) -> bool:
         top = name.split(".")[0]
-        if top == "sim" and name not in ("sim", _SHARED_ERRORS):
-            found.append(name)
-        elif top == "server" and name != "server" and not name.startswith(server_allowed):
-            found.append(name)
-        elif top in ("numba", "cv2", "fastapi", "uvicorn", "viser"):
-            found.append(name)
-    return found
+        if top == "sim":
+            return name not in ("sim", _SHARED_ERRORS)
+        if top == "server":
+            return name != "server" and not name.startswith(server_allowed)
+        return top in ("numba", "cv2", "fastapi", "uvicorn", "viser")
+
+    return [name for name in modules if heavy(name)]
 
 
 @pytest.mark.parametrize("action", [["list"], ["add", "ada", "--role", "viewer"]])
-def test_users_imports_only_the_accounts_and_the_storage(
-    tmp_path: Path, action: list[str]
-) -> None:
+def test_users_imports_only_the_accounts_and_the_storage(tmp_path: Path, action: list[str]) -> None:
     modules = _imported_by("users", *action, "--data-dir", str(tmp_path))
     assert "server.access.accounts" in modules  # the probe saw the command's own imports
     assert _heavy(modules, ("server.access", "server.storage")) == []
