@@ -15,8 +15,9 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
+# exec: Ctrl-C or SIGTERM reaches the server itself, which shuts down and exits 0 ("stopped").
 run: $(STAMP)
-	$(BIN)/roverops serve --data-dir data
+	exec $(BIN)/roverops serve --data-dir data
 
 test: lint typecheck pytest
 

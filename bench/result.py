@@ -10,7 +10,8 @@
   since JSON has no NaN.
 - ``targets``: ``{metric: {"le": x}}`` holds when the metric is at most ``x``, ``{"ge": x}``
   when it is at least ``x`` (both may be given; NaN meets neither).
-- ``ok``: every target met. ``roverops`` exits 1 when it is false, after printing.
+- ``ok``: every target met. ``roverops`` exits 1 when it is false, after printing, and
+  names each missed target on stderr (``misses``: the metric, its value, the target).
 - ``machine``: CPUs, Python and platform: wall-clock figures depend on the machine.
 
 docs/BENCHMARKS.md keeps the latest figures under these keys, with the command and the
@@ -83,3 +84,30 @@ def bench_result(
         "ok": ok,
         "machine": machine(),
     }
+
+
+def target_text(target: dict[str, float]) -> str:
+    """A target as a reader writes it.
+
+    >>> target_text({"le": 5.0}), target_text({"ge": 1.0, "le": 2.5})
+    ('≤ 5', '≥ 1 and ≤ 2.5')
+    """
+    bounds = [
+        f"{sign} {target[key]:g}" for key, sign in (("ge", "≥"), ("le", "≤")) if key in target
+    ]
+    return " and ".join(bounds)
+
+
+def misses(result: dict[str, Any]) -> list[dict[str, Any]]:
+    """The targets ``result`` (``bench_result``'s object) missed, in its targets' order:
+    ``{"metric", "value", "target"}`` each, ``value`` None for a figure that does not exist.
+
+    >>> misses(bench_result("demo", {"wall_s": 6.0}, {"wall_s": {"le": 5}}))
+    [{'metric': 'wall_s', 'value': 6.0, 'target': {'le': 5}}]
+    """
+    missed = []
+    for metric, target in result["targets"].items():
+        value = result["metrics"][metric]
+        if not meets(math.nan if value is None else value, target):
+            missed.append({"metric": metric, "value": value, "target": target})
+    return missed

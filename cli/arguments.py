@@ -91,7 +91,7 @@ def on_off(name: str) -> Callable[[str], bool]:
 
 def database_url(args: argparse.Namespace) -> str:
     """The server database's URL: ``--database-url``, else SQLite in ``--data-dir``."""
-    from server.app import data_dir_url
+    from server.storage import data_dir_url  # not server.app: it imports the whole server
 
     try:
         return str(args.database_url or data_dir_url(args.data_dir))

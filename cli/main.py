@@ -17,6 +17,7 @@ from typing import Any
 from cli.arguments import estimator_names, finite_float, non_negative_int
 from cli.bench import add_bench
 from cli.output import print_result
+from cli.run_report import print_run
 from cli.serve import add_serve, add_users
 from cli.validate import add_validate
 from sim.errors import InputError
@@ -91,7 +92,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="estimators to run, comma-separated: sapp (always), kinematic_ekf, radio_ekf",
     )
     run.add_argument("--json", action="store_true", help="print JSON")
-    run.set_defaults(handler=_cmd_run)
+    run.set_defaults(handler=_cmd_run, printer=print_run)
 
     add_validate(sub)
     add_serve(sub)

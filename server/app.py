@@ -44,6 +44,7 @@ from server.api import (
 from server.api.deps import AUTH_ERRORS
 from server.api.routing import AuthFirstRoute, allow_every_method, document_public_reads
 from server.state import Server, ServerConfig
+from server.storage import data_dir_url
 
 __all__ = ["Server", "ServerConfig", "create_app", "data_dir_url"]
 
@@ -86,9 +87,3 @@ def create_app(config: ServerConfig) -> FastAPI:
                 audit):  # fmt: skip
         app.include_router(api.routes)
     return app
-
-
-def data_dir_url(data_dir: Path) -> str:
-    """The embedded SQLite database under ``data_dir``."""
-    data_dir.mkdir(parents=True, exist_ok=True)
-    return f"sqlite:///{(data_dir / 'roverops.db').resolve()}"

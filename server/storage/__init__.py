@@ -54,7 +54,7 @@ from server.storage.schema import (
     sequences,
     users,
 )
-from server.storage.store import Store
+from server.storage.store import Store, data_dir_url
 from server.storage.writer import BatchWriter
 
 __all__ = [
@@ -68,6 +68,7 @@ __all__ = [
     "audit_log",
     "checkpoints",
     "commands",
+    "data_dir_url",
     "event_dict",
     "events",
     "frames_table",

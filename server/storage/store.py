@@ -13,6 +13,7 @@ import math
 import threading
 from collections.abc import Iterable, Mapping
 from datetime import UTC, datetime
+from pathlib import Path
 from typing import Any
 
 from sqlalchemy import (
@@ -141,6 +142,12 @@ class OneThreadAtATimePool(StaticPool):
     def _do_return_conn(self, record: Any) -> None:
         super()._do_return_conn(record)
         self._holder.release()
+
+
+def data_dir_url(data_dir: Path) -> str:
+    """The embedded SQLite database under ``data_dir`` (created if missing)."""
+    data_dir.mkdir(parents=True, exist_ok=True)
+    return f"sqlite:///{(data_dir / 'roverops.db').resolve()}"
 
 
 class Store:
