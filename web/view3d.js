@@ -98,6 +98,7 @@
       let detail = `HTTP ${response.status}`;
       try { detail = (await response.json()).detail; } catch (_) { /* not JSON */ }
       frame.hidden = true;
+      byId("view3d-toggle").hidden = true; // nothing to show or hide
       note.textContent = `3D view unavailable: ${detail}`;
       return;
     }
@@ -105,6 +106,7 @@
     view.path = scene.url;
     view.src = view.origin + scene.url;
     frame.hidden = false;
+    byId("view3d-toggle").hidden = false;
     byId("view3d-open").href = scene.url;
     apply();
   }
