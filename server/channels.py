@@ -4,8 +4,9 @@ sol or a range of sols, decimated on the server so that spikes survive.
 A channel is a numeric field of ``sim.loop.telemetry.TelemetryFrame`` (``hga_margin_deg``), one
 component of a numeric list field (``p_mission_est_0``), or a figure of an estimator
 running beside SAPP (``kinematic_ekf_position_error_m``): the names are the telemetry CSV's
-column names. Channels scored against the simulator's truth (``TRUTH_CHANNELS``, and every
-``*_true`` field) carry ``truth: true``: a real operator would not have them.
+column names. Channels scored against the simulator's truth or read from it
+(``is_truth``: ``TRUTH_CHANNELS``, and every ``*_true`` field) carry ``truth: true``: a real
+operator would not have them.
 
 Decimation keeps, per time bucket, the bucket's smallest and largest value (at their own
 times), so a one-frame spike is never averaged or skipped away; a bucket with a missing
@@ -31,8 +32,13 @@ AXES = ("t_s", "sol", "lmst_h")  # the x axis, not channels
 # Components of the list fields (TelemetryFrame's docstring: quaternions [x, y, z, w],
 # positions and unit vectors [x, y, z] in their frame, bogies [left, right]).
 LENGTHS = {"q_": 4, "p_": 3, "bogie_deg": 2, "steer_deg": len(STEERED_WHEELS), "_ll_true": 3}
-# Scored against the simulator's truth (besides every *_true field).
-TRUTH_CHANNELS = {"position_error_m", "attitude_error_deg", "hga_error_deg", "hga_margin_deg"}
+# Scored against the simulator's truth, or the truth itself under a name without ``_true``
+# (besides every *_true field): the true joint angles (the rover's own are its encoders'),
+# and whether Earth is really above the horizon.
+TRUTH_CHANNELS = {
+    "position_error_m", "attitude_error_deg", "hga_error_deg", "hga_margin_deg",
+    "earth_up", "rocker_deg", "bogie_deg", "steer_deg",
+}  # fmt: skip
 SIDE_FIELDS = {"position_error_m": None, "attitude_error_deg": None, "p_mission": 3, "q_b_ll": 4}
 UNITS = (("_deg", "deg"), ("_m", "m"), ("_s", "s"))
 
@@ -67,7 +73,9 @@ def vector_length(field_name: str) -> int:
     raise ValueError(f"no known length for the list field {field_name}")
 
 
-def _is_truth(field_name: str) -> bool:
+def is_truth(field_name: str) -> bool:
+    """Whether a frame field (or a side estimator's figure) is the simulator's truth or
+    scored against it: what the truth view alone may show (``channels``, alarm limits)."""
     return field_name in TRUTH_CHANNELS or field_name.endswith("_true")
 
 
@@ -102,11 +110,11 @@ def frame_channels() -> dict[str, Channel]:
         if f.name in AXES:
             continue
         if hint in (float, int):
-            out[f.name] = Channel(f.name, _unit(f.name), _is_truth(f.name), _scalar(f.name))
+            out[f.name] = Channel(f.name, _unit(f.name), is_truth(f.name), _scalar(f.name))
         elif typing.get_origin(hint) is list and typing.get_args(hint) == (float,):
             for i in range(vector_length(f.name)):
                 name = f"{f.name}_{i}"
-                out[name] = Channel(name, _unit(f.name), _is_truth(f.name), _component(f.name, i))
+                out[name] = Channel(name, _unit(f.name), is_truth(f.name), _component(f.name, i))
     return out
 
 
@@ -118,7 +126,7 @@ def side_channels(estimators: list[str]) -> dict[str, Channel]:
         for key, n in SIDE_FIELDS.items():
             for i in [None] if n is None else list(range(n)):
                 full = f"{name}_{key}" + ("" if i is None else f"_{i}")
-                out[full] = Channel(full, _unit(key), _is_truth(key), _side(name, key, i))
+                out[full] = Channel(full, _unit(key), is_truth(key), _side(name, key, i))
     return out
 
 
