@@ -13,10 +13,24 @@ before anyone looked. While it is listed:
 - a new violation after it cleared (and before it was acknowledged) raises it again: the
   clear time is dropped and ``violations`` counts, rather than a new alarm.
 
-A value that is missing (a tilt without an accelerometer sample, HGA figures while Earth is
-below the horizon) neither raises nor clears. Every raise, escalation, re-raise, clear and
-acknowledgement is stored (``alarms`` table) and sent to the rover's WebSocket clients as
-``{"type": "alarm", "alarm": {...}}``. Alarms of a truth-view channel carry ``truth``.
+A value that is missing (a tilt without an accelerometer sample), or that means nothing now
+(a channel's ``needs``, ``server.limits``: the true HGA figures while Earth is below the
+horizon, the predicted margin without a heading) neither raises nor clears.
+
+Beside the value that raised it (its worst), an alarm carries its latest value and that
+value's time (stored when its level changes, a name changes, or at least once a minute of
+the rover's clock for a number), and its active spans, raised to cleared, one per violation.
+
+Shelved, as COSMOS and Yamcs allow: a shelved alarm is neither raised again nor escalated
+(its latest value and a clear still count). An operator shelves a listed alarm for a
+duration of the rover's clock (``shelve``; it is unshelved when that ends, and its shelf
+goes with it once it is done). A deliberate acquisition is expected: while a command that
+sets the AQF runs (its ``aqf_after`` in ``sequences.commands``), the channels whose limits
+say ``shelved_while_acquiring`` are shelved, no alarm raised on them.
+
+Every raise, escalation, re-raise, clear, shelf and acknowledgement is stored (``alarms``
+table) and sent to the rover's WebSocket clients as ``{"type": "alarm", "alarm": {...}}``.
+Alarms of a truth-view channel carry ``truth`` (``server.channels.is_truth``).
 
 Changing a limit (``set_limits``) re-judges that channel at once against the latest
 frame: loosening a limit can clear an alarm while the rover stands still.
@@ -30,14 +44,14 @@ from collections.abc import Callable
 from datetime import UTC, datetime
 from typing import Any
 
+from sequences.commands import COMMANDS
 from server.limits import ChannelLimits, LimitsError, check_levels, load_defaults
 from server.sinks import FrameBatch
 from server.storage import Store
 from sim.scoring.truth import merged
 
-# Channels that mean nothing while Earth is below the horizon (sim.loop.session's HGA figures).
-EARTH_CHANNELS = ("hga_margin_deg", "hga_error_deg")
 RANK = {"warning": 1, "critical": 2}
+LATEST_EVERY_S = 60.0  # a number's latest value is stored at least this often (rover's clock)
 
 When = Callable[[str, float], dict[str, Any]]  # (rover, t_s) -> {t_s, utc, lmst_h, sol}
 Notify = Callable[[str, dict[str, Any]], None]
@@ -46,11 +60,32 @@ OnEvent = Callable[[str, float | None, dict[str, str]], None]
 
 
 class AlarmError(Exception):
-    """An acknowledgement that cannot be (``status`` 404 or 409)."""
+    """An acknowledgement or a shelf that cannot be (``status`` 404 or 409)."""
 
     def __init__(self, status: int, message: str) -> None:
         super().__init__(message)
         self.status = status
+
+
+def acquiring(frame: dict[str, Any]) -> bool:
+    """Whether the frame's command deliberately sets the AQF (``aqf_after``): the frame's
+    ``command`` is the command's text, its name first."""
+    command = COMMANDS.get(str(frame.get("command") or "").split(" ", 1)[0])
+    return command is not None and command.aqf_after is not None
+
+
+def _spans(row: dict[str, Any]) -> list[list[float | None]]:
+    """The active spans (a row from before they were stored: raised to its last clear)."""
+    if row.get("spans"):
+        return [list(span) for span in row["spans"]]
+    return [[row["raised_t_s"], row["cleared_t_s"]]]
+
+
+def _latest(row: dict[str, Any]) -> dict[str, Any]:
+    if row.get("latest"):
+        return dict(row["latest"])
+    return {"value": row["value"], "t_s": row["raised_t_s"], "utc": row["raised_utc"],
+            "lmst_h": row["raised_lmst_h"], "sol": row["raised_sol"]}  # fmt: skip
 
 
 def alarm_json(row: dict[str, Any]) -> dict[str, Any]:
@@ -69,7 +104,9 @@ def alarm_json(row: dict[str, Any]) -> dict[str, Any]:
         "violations": row["violations"],
         "raised": {"t_s": row["raised_t_s"], "utc": row["raised_utc"],
                    "lmst_h": row["raised_lmst_h"], "sol": row["raised_sol"]},
-        "acknowledged": acknowledged, "cleared": cleared,
+        "acknowledged": acknowledged, "cleared": cleared, "latest": _latest(row),
+        "spans": [{"from_t_s": a, "to_t_s": b} for a, b in _spans(row)],
+        "shelved": row.get("shelved") or None,
     }  # fmt: skip
 
 
@@ -142,7 +179,7 @@ class AlarmEngine:
             self.store.set_limits(rover, channel, stored, by)
             self._apply(rover, channel, new)
             if last_frame is not None:
-                self._judge(rover, channel, last_frame)
+                self._judge(rover, channel, last_frame, acquiring(last_frame))
             return next(c for c in self.limits(rover) if c["channel"] == channel)
 
     def reset_limits(
@@ -156,7 +193,7 @@ class AlarmEngine:
             self.store.reset_limits(rover, channel)
             self._apply(rover, channel, self.defaults[channel])
             if last_frame is not None:
-                self._judge(rover, channel, last_frame)
+                self._judge(rover, channel, last_frame, acquiring(last_frame))
             return next(c for c in self.limits(rover) if c["channel"] == channel)
 
     def _apply(self, rover: str, channel: str, limits: ChannelLimits) -> None:
@@ -188,37 +225,64 @@ class AlarmEngine:
     def publish(self, rover: str, batch: FrameBatch) -> None:
         """A frame sink (``server.sinks``): judge a played-out batch, frame by frame, every
         channel (a channel of the downlink on the downlink, a truth channel on the truth)."""
-        frames = [merged(d, t) for d, t in zip(batch.downlink, batch.truth, strict=True)]
         with self._lock:
             self._load(rover)
-            for frame in frames:
-                for channel in self._limits[rover]:
-                    self._judge(rover, channel, frame)
+            limits = self._limits[rover]
+            any_truth = any(limits[c].truth for c in limits)
+            for downlink, truth in zip(batch.downlink, batch.truth, strict=True):
+                scored = merged(downlink, truth) if any_truth else downlink
+                expected = acquiring(downlink)
+                for channel in limits:
+                    frame = scored if limits[channel].truth else downlink  # the rover's own
+                    self._judge(rover, channel, frame, expected)
 
-    def _judge(self, rover: str, channel: str, frame: dict[str, Any]) -> None:
+    def _judge(self, rover: str, channel: str, frame: dict[str, Any], expected: bool) -> None:
+        """Judge one channel on one frame; ``expected``: an attitude acquisition runs."""
         limits = self._limits[rover][channel]
-        value = frame.get(channel)
-        if channel in EARTH_CHANNELS and not frame.get("earth_up"):
-            value = None
+        value = limits.judged_value(frame)
         level = limits.level_of(value)
-        row = self._listed[rover].get(channel)
         t_s = float(frame["t_s"])
-        if level is not None:
-            if row is None:
+        row = self._listed[rover].get(channel)
+        if row is not None and row.get("shelved") and t_s >= row["shelved"]["until"]["t_s"]:
+            self._change(rover, row, {"shelved": None}, t_s, what="unshelved: its shelf ended")
+            row = self._listed[rover].get(channel)  # done: no longer listed
+        held = expected and limits.shelved_while_acquiring
+        if row is None:
+            if level is not None and not held:
                 self._raise(rover, limits, level, value, t_s)
-            elif row["cleared_t_s"] is not None:
+            return
+        held = held or bool(row.get("shelved"))
+        changes: dict[str, Any] = {}
+        if level is not None and not held:
+            if row["cleared_t_s"] is not None:
                 worse = RANK[level] > RANK[row["level"]]
-                self._change(rover, row, {
+                changes = {
                     "cleared_t_s": None, "cleared_utc": None, "cleared_lmst_h": None,
-                    "violations": row["violations"] + 1,
+                    "violations": row["violations"] + 1, "spans": [*_spans(row), [t_s, None]],
                     **(self._crossing(limits, level, value) if worse else {}),
-                }, t_s)  # fmt: skip
+                }  # fmt: skip
             elif RANK[level] > RANK[row["level"]]:
-                self._change(rover, row, self._crossing(limits, level, value), t_s)
-        elif row is not None and row["cleared_t_s"] is None and limits.inside(value):
+                changes = self._crossing(limits, level, value)
+        elif level is None and row["cleared_t_s"] is None and limits.inside(value):
             when = self._when(rover, t_s)
-            self._change(rover, row, {"cleared_t_s": t_s, "cleared_utc": when["utc"],
-                                      "cleared_lmst_h": when["lmst_h"]})  # fmt: skip
+            spans = _spans(row)
+            spans[-1][1] = t_s
+            changes = {"cleared_t_s": t_s, "cleared_utc": when["utc"],
+                       "cleared_lmst_h": when["lmst_h"], "spans": spans}  # fmt: skip
+        if changes or self._latest_moved(limits, row, value, t_s):
+            changes["latest"] = {"value": value, **self._when(rover, t_s)}
+            self._change(rover, row, changes, t_s)
+
+    @staticmethod
+    def _latest_moved(limits: ChannelLimits, row: dict[str, Any], value: Any, t_s: float) -> bool:
+        """Whether to store a listed alarm's latest value: its level changed, a name changed,
+        or a number changed and the stored one is a minute (rover's clock) old."""
+        latest = _latest(row)
+        if value == latest["value"]:
+            return False
+        if limits.level_of(value) != limits.level_of(latest["value"]) or value is None:
+            return True
+        return limits.kind != "numeric" or t_s - latest["t_s"] >= LATEST_EVERY_S
 
     @staticmethod
     def _crossing(limits: ChannelLimits, level: str, value: Any) -> dict[str, Any]:
@@ -233,6 +297,7 @@ class AlarmEngine:
             "raised_utc": when["utc"], "raised_lmst_h": when["lmst_h"],
             "raised_sol": when["sol"], "cleared_t_s": None, "cleared_utc": None,
             "cleared_lmst_h": None, "acknowledged_by": None, "acknowledged_at": None,
+            "latest": {"value": value, **when}, "spans": [[t_s, None]], "shelved": None,
             **self._crossing(limits, level, value),
         }  # fmt: skip
         row["id"] = self.store.add_alarm(row)
@@ -241,15 +306,23 @@ class AlarmEngine:
         self._event(rover, t_s, row, "raised")
 
     def _change(
-        self, rover: str, row: dict[str, Any], values: dict[str, Any], t_s: float | None = None
-    ) -> None:
-        """Store and send a change of a listed alarm (``t_s``: the frame that made it)."""
+        self, rover: str, row: dict[str, Any], values: dict[str, Any], t_s: float | None = None,
+        what: str | None = None,
+    ) -> None:  # fmt: skip
+        """Store and send a change of a listed alarm (``t_s``: the frame that made it;
+        ``what``: the event log's words, if not the change's own)."""
+        merged = {**row, **values}
+        done = merged["cleared_t_s"] is not None and merged["acknowledged_by"] is not None
+        if done and merged.get("shelved"):
+            values = {**values, "shelved": None}  # its shelf goes with it
         self.store.update_alarm(row["id"], values)
         row.update({k: v.isoformat() if isinstance(v, datetime) else v for k, v in values.items()})
-        if row["cleared_t_s"] is not None and row["acknowledged_by"] is not None:
+        if done:
             self._listed[rover].pop(row["channel"], None)  # done: no longer listed
         self._notify(rover, {"type": "alarm", "alarm": alarm_json(row)})
-        if values.get("acknowledged_by") is not None:  # then the event log's line
+        if what is not None:
+            self._event(rover, t_s, row, what, cleared=True)
+        elif values.get("acknowledged_by") is not None:  # then the event log's line
             self._event(rover, None, row, f"acknowledged by {values['acknowledged_by']}")
         elif values.get("cleared_t_s") is not None:
             self._event(rover, values["cleared_t_s"], row, "cleared", cleared=True)
@@ -285,6 +358,42 @@ class AlarmEngine:
                 raise AlarmError(409, f"alarm {alarm_id} was acknowledged by {by_at}")
             self._change(rover, row, {"acknowledged_by": by, "acknowledged_at": datetime.now(UTC)})
             return alarm_json(row)
+
+    def shelve(
+        self, alarm_id: int, duration_s: float, by: str, reason: str, now_t_s: float | None
+    ) -> dict[str, Any]:
+        """Shelve a listed alarm for ``duration_s`` of the rover's clock from ``now_t_s``
+        (its latest value's time if ``None``); ``AlarmError`` 404 unknown, 409 done."""
+        with self._lock:
+            row = self._listed_row(alarm_id, "shelve")
+            start = _latest(row)["t_s"] if now_t_s is None else now_t_s
+            until = self._when(row["rover"], start + duration_s)
+            shelf = {"by": by, "reason": reason, "until": until}
+            lmst = f"sol {until['sol']} {until['lmst_h'] % 24:.2f} h LMST"
+            self._change(row["rover"], row, {"shelved": shelf}, None,
+                         what=f"shelved by {by} until {lmst}")  # fmt: skip
+            return alarm_json(row)
+
+    def unshelve(self, alarm_id: int, by: str) -> dict[str, Any]:
+        """End a shelf before its time (``AlarmError`` 404 unknown, 409 not shelved)."""
+        with self._lock:
+            row = self._listed_row(alarm_id, "unshelve")
+            if not row.get("shelved"):
+                raise AlarmError(409, f"alarm {alarm_id} is not shelved")
+            self._change(row["rover"], row, {"shelved": None}, None, what=f"unshelved by {by}")
+            return alarm_json(row)
+
+    def _listed_row(self, alarm_id: int, verb: str) -> dict[str, Any]:
+        found = self.store.alarms(alarm_id=alarm_id)
+        if not found:
+            raise AlarmError(404, f"no alarm {alarm_id}")
+        rover = found[0]["rover"]
+        self._load(rover)
+        listed = self._listed[rover].get(found[0]["channel"])
+        if listed is None or listed["id"] != alarm_id:
+            raise AlarmError(409, f"alarm {alarm_id} is done (acknowledged and cleared): "
+                                  f"nothing to {verb}")  # fmt: skip
+        return listed
 
     def listed(self, rover: str, listed: bool | None, limit: int) -> list[dict[str, Any]]:
         """A rover's alarms, newest first (``listed`` as ``Store.alarms``)."""

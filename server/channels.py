@@ -24,7 +24,7 @@ from typing import Any
 
 from estimation.geometry import STEERED_INDEX
 from sim.loop.downlink import ESTIMATORS, Downlink
-from sim.scoring.truth import Truth
+from sim.scoring.truth import TRUTH_FIELDS, Truth
 
 MAX_SOLS = 7  # sols per request: a sol is up to ~90 000 stored frames at 1 Hz
 MAX_POINTS = 10_000
@@ -68,6 +68,15 @@ def vector_length(field_name: str) -> int:
         if field_name.startswith(key) or field_name.endswith(key):
             return n
     raise ValueError(f"no known length for the list field {field_name}")
+
+
+def is_truth(name: str) -> bool:
+    """Whether a frame field, a channel or a side estimator's figure is the simulator's truth
+    or scored against it: what the truth view alone may show (``channels``, alarm limits),
+    by the record it belongs to (``sim.scoring.truth.Truth``)."""
+    shared = ("t_s", "events", "estimators")  # in both records: the downlink's
+    truth_only = name in TRUTH_FIELDS and name not in shared
+    return truth_only or name in SIDE_TRUTH or name in truth_channel_names()
 
 
 def _component(key: str, i: int) -> Callable[[dict[str, Any]], Any]:

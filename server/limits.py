@@ -17,7 +17,13 @@ Three kinds of channel:
 - ``state``: a name; alarms while it is one of the listed states.
 
 A level may be ``null`` (or ``[]`` for a state channel): no alarm at that level.
-``truth`` marks a channel scored against the simulator's truth (no real rover has it).
+``truth`` marks a channel scored against the simulator's truth (no real rover has it): it is
+``server.channels.is_truth``'s word, not the file's, so the two cannot disagree.
+
+Two optional keys say when a value means something (``NEEDS``: judged as no value
+otherwise, so it neither raises nor clears) and whether a deliberate attitude acquisition
+makes its violations expected (``shelved_while_acquiring``: not raised while a command that
+sets the AQF runs, ``sequences.commands`` ``aqf_after``).
 
 >>> limits = load_defaults()
 >>> limits["aqf"].level_of("Unknown"), limits["aqf"].level_of("Coarse")
@@ -30,13 +36,22 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from server.channels import is_truth
+
 DEFAULTS_FILE = Path(__file__).resolve().parent / "limits_default.json"
 KINDS = ("numeric", "ordinal", "state")
 LEVELS = ("warning", "critical")
+# What a value needs to mean anything: a heading (AQF Coarse or Fine: with TiltOnly or
+# Unknown the predicted HGA margin is 2 deg minus 180), or Earth above the horizon.
+NEEDS: dict[str, Callable[[dict[str, Any]], bool]] = {
+    "heading": lambda frame: frame.get("aqf") in ("Coarse", "Fine"),
+    "earth_up": lambda frame: bool(frame.get("earth_up")),
+}
 
 
 class LimitsError(ValueError):
@@ -58,6 +73,14 @@ class ChannelLimits:
     direction: str = "high"
     hysteresis: float = 0.0
     values: tuple[str, ...] = ()
+    needs: str | None = None
+    shelved_while_acquiring: bool = False
+
+    def judged_value(self, frame: dict[str, Any]) -> Any:
+        """The frame's value of the channel, or ``None`` where it means nothing (``needs``)."""
+        if self.needs is not None and not NEEDS[self.needs](frame):
+            return None
+        return frame.get(self.channel)
 
     def level_of(self, value: Any) -> str | None:
         """``"critical"``, ``"warning"`` or ``None`` for ``value`` (``None`` for a value
@@ -102,6 +125,7 @@ class ChannelLimits:
             "channel": self.channel, "kind": self.kind, "units": self.units,
             "truth": self.truth, "why": self.why,
             "warning": self.limit_for("warning"), "critical": self.limit_for("critical"),
+            "needs": self.needs, "shelved_while_acquiring": self.shelved_while_acquiring,
         }  # fmt: skip
         if self.kind != "state":
             out["direction"] = self.direction
@@ -204,7 +228,7 @@ def _channel(name: str, spec: Any) -> ChannelLimits:
     if not isinstance(spec, dict):
         raise LimitsError(f"{name}: must be an object")
     known = {"kind", "values", "direction", "warning", "critical", "hysteresis", "units",
-             "truth", "why"}  # fmt: skip
+             "why", "needs", "shelved_while_acquiring"}  # fmt: skip
     extra = sorted(set(spec) - known)
     if extra:
         raise LimitsError(f"{name}: unknown key(s) {', '.join(extra)}")
@@ -224,12 +248,19 @@ def _channel(name: str, spec: Any) -> ChannelLimits:
         or len(set(values)) != len(values)
     ):
         raise LimitsError(f"{name}.values: a list of distinct names is required")
-    for key, kind_ok in (("units", str), ("why", str), ("truth", bool)):
+    for key, kind_ok in (("units", str), ("why", str)):
         if not isinstance(spec.get(key), kind_ok):
             raise LimitsError(f"{name}.{key}: required, a {kind_ok.__name__}")
+    needs = spec.get("needs")
+    if needs is not None and needs not in NEEDS:
+        raise LimitsError(f"{name}.needs: one of {', '.join(NEEDS)} or absent, got {needs!r}")
+    shelved = spec.get("shelved_while_acquiring", False)
+    if not isinstance(shelved, bool):
+        raise LimitsError(f"{name}.shelved_while_acquiring: a bool, got {shelved!r}")
     base = ChannelLimits(
         channel=name, kind=kind, warning=None, critical=None, units=spec["units"],
-        truth=spec["truth"], why=spec["why"], direction=direction, values=tuple(values),
+        truth=is_truth(name), why=spec["why"], direction=direction, values=tuple(values),
+        needs=needs, shelved_while_acquiring=shelved,
     )  # fmt: skip
     levels = {k: spec.get(k) for k in LEVELS}
     if "hysteresis" in spec:

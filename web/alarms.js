@@ -39,8 +39,9 @@
 
   // ---- the banner ---------------------------------------------------------------------
 
+  // A shelved alarm is the operators' choice not to be told: not in the banner.
   function unacknowledged() {
-    return [...view.alarms.values()].filter((a) => !a.acknowledged);
+    return [...view.alarms.values()].filter((a) => !a.acknowledged && !a.shelved);
   }
 
   function renderBanner() {
@@ -77,6 +78,7 @@
     tr.dataset.truth = String(a.truth);
     tr.dataset.acknowledged = String(Boolean(a.acknowledged));
     tr.dataset.cleared = String(Boolean(a.cleared));
+    tr.dataset.shelved = String(Boolean(a.shelved));
     tr.className = `alarm level-${a.level}${a.acknowledged && a.cleared ? " done" : ""}`;
     tr.title = a.message;
     const raised = el("td");
@@ -86,6 +88,32 @@
     const level = el("td", a.level, `alarm-level level-${a.level}`);
     const value = el("td", `${valueText(a.value, a.units)} vs ${valueText(a.limit, a.units)}`);
     if (a.violations > 1) value.append(el("div", `${a.violations} violations`, "dim"));
+    // the value now (the one above raised it, or is its worst)
+    const latest = el("td");
+    latest.dataset.testid = "alarm-latest";
+    if (a.latest) {
+      latest.append(el("div", a.latest.value === null ? "no value" : valueText(a.latest.value, a.units)),
+        el("div", lmstText(a.latest), "dim"));
+    }
+    const shelf = el("div", null, "alarm-shelf");
+    shelf.dataset.testid = "alarm-shelved";
+    if (a.shelved) {
+      shelf.textContent = `shelved by ${a.shelved.by} until ${lmstText(a.shelved.until)}${a.shelved.reason ? `: ${a.shelved.reason}` : ""}`;
+      const off = el("button", "Unshelve");
+      off.type = "button"; off.dataset.role = "operator"; off.dataset.testid = "alarm-unshelve";
+      off.addEventListener("click", () => shelve(a.id, off, null));
+      shelf.append(" ", off);
+    } else if (!(a.acknowledged && a.cleared)) {
+      const hours = el("select");
+      hours.setAttribute("aria-label", `shelve alarm ${a.id} for`);
+      hours.dataset.role = "operator";
+      for (const h of [1, 4, 12, 24]) hours.append(new Option(`${h} h`, String(h * 3600)));
+      const on = el("button", "Shelve");
+      on.type = "button"; on.dataset.role = "operator"; on.dataset.testid = "alarm-shelve";
+      on.title = "neither raised again nor escalated for that long of the rover's clock";
+      on.addEventListener("click", () => shelve(a.id, on, Number(hours.value)));
+      shelf.append(hours, " ", on);
+    }
     const ack = el("td");
     ack.dataset.testid = "alarm-acknowledged";
     if (a.acknowledged) {
@@ -102,7 +130,8 @@
     cleared.dataset.testid = "alarm-cleared";
     if (a.cleared) cleared.append(el("div", utcText(a.cleared.utc)), el("div", `${ro.lmst(a.cleared.lmst_h % 24)} LMST`, "dim"));
     else cleared.textContent = "active";
-    tr.append(raised, channel, level, value, ack, cleared);
+    cleared.append(shelf);
+    tr.append(raised, channel, level, value, latest, ack, cleared);
     return tr;
   }
 
@@ -124,6 +153,20 @@
     const status = byId("alarm-status");
     if (r.ok) { upsert(r.body); status.textContent = `Alarm #${id} acknowledged`; return; }
     status.textContent = `Not acknowledged: ${r.body && r.body.detail ? JSON.stringify(r.body.detail) : r.status}`;
+    await loadAlarms();
+  }
+
+  async function shelve(id, button, durationS) {
+    button.disabled = true;
+    const r = durationS === null
+      ? await ro.api(`/api/alarms/${id}/unshelve`, { method: "POST" })
+      : await ro.api(`/api/alarms/${id}/shelve`, {
+        method: "POST", headers: { "Content-Type": "application/json" },
+        body: JSON.stringify({ duration_s: durationS }),
+      });
+    const status = byId("alarm-status");
+    if (r.ok) { upsert(r.body); status.textContent = `Alarm #${id} ${durationS === null ? "unshelved" : "shelved"}`; return; }
+    status.textContent = `Not ${durationS === null ? "unshelved" : "shelved"}: ${problems(r)}`;
     await loadAlarms();
   }
 

@@ -90,8 +90,11 @@ function showFrame(f) {
   imu.className = f.imu_integration_s > IMU_WARN_S ? "warn" : "";
   const predicted = $("hga-margin-predicted");
   const own = f.hga_margin_predicted_deg;
-  predicted.textContent = own === null || own === undefined ? "—" : `${own.toFixed(2)}°`;
-  predicted.className = own === null || own === undefined ? "" : own < 0 ? "bad" : "good";
+  // Without a heading (TiltOnly, Unknown) the rover predicts 2° minus 180°: not a margin.
+  const heading = f.aqf === "Coarse" || f.aqf === "Fine";
+  predicted.textContent = !heading ? "no attitude" : own === null || own === undefined ? "—" : `${own.toFixed(2)}°`;
+  predicted.className = !heading ? "warn" : own === null || own === undefined ? "" : own < 0 ? "bad" : "good";
+  predicted.title = heading ? "" : `AQF ${f.aqf}: the heading is unknown, so the rover cannot predict its HGA margin`;
   const hga = $("hga-margin");
   if (f.earth_up && f.hga_margin_deg !== null) {
     hga.textContent = `${f.hga_margin_deg.toFixed(2)}° (error ${f.hga_error_deg.toFixed(2)}°)`;

@@ -421,12 +421,14 @@
     },
   };
 
-  // The Alarms lane (server.alarms): a bar per alarm from its raise to its clear (or the
-  // sol's end, moving on live), coloured by level, hatched for a truth-view channel. Placed
-  // by t_s, since an alarm may have been raised on an earlier sol (LMST hours repeat each
-  // sol). Alarm notices replace the sol's alarm by id and redraw this lane only.
+  // The Alarms lane (server.alarms): a bar per active span of each alarm, raised (or raised
+  // again) to cleared (or the sol's end, moving on live), so a span where the channel was
+  // normal shows no bar; coloured by level, hatched for a truth-view channel. Placed by t_s,
+  // since an alarm may have been raised on an earlier sol (LMST hours repeat each sol).
+  // Alarm notices replace the sol's alarm by id and redraw this lane only.
   const LMST_HOUR_S = 88775.244 / 24; // a mean solar sol, s
   const ALARM_ROW_PX = 14;
+  const spansOf = (a) => a.spans || [{ from_t_s: a.raised.t_s, to_t_s: a.cleared ? a.cleared.t_s : null }];
 
   const alarmLane = {
     id: "lane-alarms",
@@ -442,21 +444,28 @@
         return row;
       });
       lane.style.height = `${Math.max(2, ends.length) * ALARM_ROW_PX + 2}px`;
-      lane.replaceChildren(...alarms.map((a, i) => this.bar(a, rows[i], timeline)));
+      lane.replaceChildren(...alarms.flatMap((a, i) => spansOf(a)
+        .filter((s) => s.to_t_s === null || s.to_t_s >= timeline.start.t_s)
+        .map((s) => this.bar(a, s, rows[i], timeline))));
     },
-    bar(a, row, timeline) {
-      const end = a.cleared ? a.cleared.t_s : timeline.end.t_s;
-      const bar = placed(`tl-alarm level-${a.level}${a.truth ? " truth" : ""}`, this.at(a.raised.t_s), this.at(end));
+    bar(a, span, row, timeline) {
+      const open = span.to_t_s === null;
+      const end = open ? timeline.end.t_s : span.to_t_s;
+      const bar = placed(`tl-alarm level-${a.level}${a.truth ? " truth" : ""}`, this.at(span.from_t_s), this.at(end));
       bar.style.top = `${1 + ALARM_ROW_PX * row}px`;
       bar.style.height = `${ALARM_ROW_PX - 2}px`;
       bar.dataset.testid = "timeline-alarm";
+      bar.dataset.alarmId = a.id;
       bar.dataset.level = a.level;
       bar.dataset.channel = a.channel;
-      bar.dataset.open = a.cleared ? "" : "1";
-      const cleared = a.cleared ? `cleared ${hhmmss(a.cleared.lmst_h)} LMST` : "not cleared";
+      bar.dataset.open = open ? "1" : "";
+      bar.dataset.fromTs = span.from_t_s;
+      bar.dataset.toTs = open ? "" : span.to_t_s;
+      const cleared = open ? "not cleared" : `cleared ${hhmmss(this.at(span.to_t_s) % 24)} LMST`;
       const ack = a.acknowledged ? `acknowledged by ${a.acknowledged.by}` : "not acknowledged";
       bar.title = `${a.level.toUpperCase()}${a.truth ? " (truth view)" : ""}: ${a.message}\n` +
-        `raised sol ${a.raised.sol} ${hhmmss(a.raised.lmst_h)} LMST (${a.raised.utc} UTC)\n${cleared}; ${ack}`;
+        `raised sol ${a.raised.sol} ${hhmmss(a.raised.lmst_h)} LMST (${a.raised.utc} UTC)` +
+        `${a.violations > 1 ? `, ${a.violations} violations` : ""}\nthis span ${hhmmss(this.at(span.from_t_s) % 24)} LMST, ${cleared}; ${ack}`;
       return withLabel(bar, a.channel);
     },
     frame(f) { // an alarm not cleared reaches to the newest frame

@@ -1,5 +1,5 @@
 """Alarm limits per channel (``server.limits``) and the alarms they raise
-(``server.alarms``): list, change, reset, acknowledge."""
+(``server.alarms``): list, change, reset, acknowledge, shelve and unshelve."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ from typing import Annotated, Any
 from fastapi import HTTPException, Query, Request
 from pydantic import BaseModel, ConfigDict, Field
 
+from sequences.commands import MAX_WAIT_S
 from server.access.auth import Operator, Viewer
 from server.alarms import AlarmError
 from server.api.deps import (
@@ -37,6 +38,16 @@ class LimitsBody(BaseModel):
     warning: LimitLevel = Field(description="the warning level, or null")
     critical: LimitLevel = Field(description="the critical level, or null")
     hysteresis: float | None = Field(default=None, ge=0.0, allow_inf_nan=False)
+
+
+class ShelveBody(BaseModel):
+    """``POST /api/alarms/{id}/shelve``: for how long of the rover's clock (up to two sols,
+    the longest WAIT) and why."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
+    duration_s: float = Field(gt=0.0, le=MAX_WAIT_S, allow_inf_nan=False,
+                              description="seconds of the rover's clock")  # fmt: skip
+    reason: str = Field(default="", max_length=200, description="why, for the others")
 
 
 routes = router()
@@ -125,4 +136,49 @@ def acknowledge_alarm(
         raise HTTPException(refused.status, str(refused)) from None
     request.state.audit_rover = alarm["rover"]
     request.state.audit_action = f"acknowledge alarm #{alarm_id} ({alarm['channel']})"
+    return alarm
+
+
+@routes.post(
+    "/api/alarms/{alarm_id}/shelve",
+    responses={**AUTH_ERRORS, **NOT_FOUND, **TOO_LARGE, **BAD_REQUEST,
+               409: error_doc("done: acknowledged and cleared")},
+)  # fmt: skip
+def shelve_alarm(
+    server: ServerDep, alarm_id: AlarmId, body: ShelveBody, request: Request, who: Operator
+) -> dict[str, Any]:
+    """Shelve a listed alarm for a while of the rover's clock: neither raised again nor
+    escalated until then (its latest value and a clear still count)."""
+    request.state.audit_action = f"shelve alarm #{alarm_id} for {body.duration_s:g} s"
+    found = server.store.alarms(alarm_id=alarm_id)
+    runtime = server.rovers.get(found[0]["rover"]) if found else None
+    frame = runtime.last_frame if runtime is not None else None
+    now_t_s = float(frame["t_s"]) if frame else None
+    try:
+        alarm = server.alarms.shelve(alarm_id, body.duration_s, who.name, body.reason, now_t_s)
+    except AlarmError as refused:
+        raise HTTPException(refused.status, str(refused)) from None
+    request.state.audit_rover = alarm["rover"]
+    request.state.audit_action = (
+        f"shelve alarm #{alarm_id} ({alarm['channel']}) for {body.duration_s:g} s"
+        + (f": {body.reason}" if body.reason else "")
+    )
+    return alarm
+
+
+@routes.post(
+    "/api/alarms/{alarm_id}/unshelve",
+    responses={**AUTH_ERRORS, **NOT_FOUND, 409: error_doc("not shelved, or done")},
+)
+def unshelve_alarm(
+    server: ServerDep, alarm_id: AlarmId, request: Request, who: Operator
+) -> dict[str, Any]:
+    """End a shelf before its time: the alarm is judged again from the next frame."""
+    request.state.audit_action = f"unshelve alarm #{alarm_id}"
+    try:
+        alarm = server.alarms.unshelve(alarm_id, who.name)
+    except AlarmError as refused:
+        raise HTTPException(refused.status, str(refused)) from None
+    request.state.audit_rover = alarm["rover"]
+    request.state.audit_action = f"unshelve alarm #{alarm_id} ({alarm['channel']})"
     return alarm

@@ -217,6 +217,12 @@ alarms_table = Table(
     Column("cleared_lmst_h", Double, nullable=True),
     Column("acknowledged_by", String(64), nullable=True),
     Column("acknowledged_at", DateTime(timezone=True), nullable=True),  # wall-clock UTC
+    # issue 21 (null on older rows, server.alarms.alarm_json reads them): the latest value
+    # {value, t_s, utc, lmst_h, sol}; the active spans [[raised_t_s, cleared_t_s|null], ...];
+    # an operator's shelf {by, reason, until: {t_s, utc, lmst_h, sol}}
+    Column("latest", JSON, nullable=True),
+    Column("spans", JSON, nullable=True),
+    Column("shelved", JSON, nullable=True),
     Index("ix_alarms_rover_raised", "rover", "raised_t_s"),
 )
 

@@ -1,14 +1,19 @@
 """Alarms in two real browsers (Chromium, Playwright) on one server (TESTING.md): a new
-rover raises its alarms (attitude Unknown: AQF and both HGA margins, the true one marked as
-the truth view), a Fine attitude clears them and browser A acknowledges them while browser
-B follows without a reload; then an operator tightens the true HGA margin's limit in A's
-limits editor, a drive lets the attitude drift until the margin falls below it (a warning,
-truth view), A acknowledges it, B sees who did, the limit put back to its default clears it,
-and the sol timeline's Alarms lane shows it. Screenshots in test-artifacts/."""
+rover raises one alarm (attitude Unknown: the AQF; its predicted HGA margin reads "no
+attitude" and alarms nothing, issue 21), a Fine attitude clears it, a second acquisition
+raises nothing (shelved while it runs), a NADIR_UPDATE raises it again with its latest value
+beside the one that raised it, and the timeline draws its two active spans, no bar where the
+AQF was Fine; A shelves it and unshelves it, acknowledges it while browser B follows
+without a reload; then an operator sets a limit on the true HGA margin (a truth-view
+channel with no default levels) in A's limits editor, a drive lets the attitude drift
+until the margin falls below it (a warning, truth view), A acknowledges it, B sees who
+did, the limit put back to its default clears it, and the sol timeline's Alarms lane shows
+it. Screenshots in test-artifacts/."""
 
 from __future__ import annotations
 
 import contextlib
+import re
 from collections.abc import Iterator
 from typing import Any
 
@@ -37,6 +42,9 @@ def two_consoles(url: str) -> Iterator[tuple[Page, Page]]:
         pages = []
         for _ in range(2):
             page = browser.new_context(viewport={"width": 1280, "height": 800}).new_page()
+            # the alarms, not the 3D view: without a GPU its viser iframe can freeze the page
+            # (issue 21, another part of it), and two consoles here are two of them
+            page.route("**/viser/**", lambda route: route.abort())
             page.goto(url)
             pages.append(page)
         try:
@@ -66,17 +74,13 @@ def _run(base: str, command: str, **args: Any) -> None:
 
 
 def test_alarms_raise_acknowledge_clear_in_two_browsers(server: str) -> None:  # noqa: F811
-    # The new rover's attitude is Unknown: AQF and both margins alarm with the first frames
+    # The new rover's attitude is Unknown: the AQF alarms with the first frames, and only it
     # (a finite speed: at max an idle rover's clock stands still).
     r = httpx.post(f"{server}/api/rovers/spirit/clock", headers=AUTH, json={"speed": 100})
     assert r.status_code == 200
-    startup = _wait(lambda: len(_alarms(server)) >= 3 and _alarms(server))
+    startup = _wait(lambda: _alarms(server))
     httpx.post(f"{server}/api/rovers/spirit/clock", headers=AUTH, json={"speed": "max"})
-    assert {(a["channel"], a["level"], a["truth"]) for a in startup} >= {
-        ("aqf", "critical", False),
-        ("hga_margin_predicted_deg", "critical", False),
-        ("hga_margin_deg", "critical", True),
-    }
+    assert [(a["channel"], a["level"], a["truth"]) for a in startup] == [("aqf", "critical", False)]
     with two_consoles(f"{server}/?rover=spirit") as (a, b):
         sign_in(a)
         sign_in(b)
@@ -85,17 +89,62 @@ def test_alarms_raise_acknowledge_clear_in_two_browsers(server: str) -> None:  #
             expect(banner).to_be_visible()
             expect(banner).to_have_attribute("data-level", "critical")
             expect(banner.get_by_test_id("alarm-count")).to_contain_text("CRITICAL")
-            truth_row = page.locator("[data-testid=alarm-row][data-channel=hga_margin_deg]")
-            expect(truth_row.get_by_test_id("truth-tag")).to_be_visible()
+            expect(page.get_by_test_id("hga-margin-predicted")).to_have_text("no attitude")
         a.screenshot(path=str(ARTIFACTS / "alarms_startup.png"))
 
-        # A Fine attitude brings every value back inside: cleared, still listed until
-        # acknowledged. A acknowledges them; B follows without a reload.
+        # A Fine attitude clears it (listed until acknowledged); a second acquisition passes
+        # through Unknown again, expected: not raised again.
         _run(server, "GET_FINE_ATTITUDE")
-        cleared = b.locator("[data-testid=alarm-row][data-cleared=true]")
-        expect(cleared).to_have_count(len(startup))
-        for _ in range(len(startup)):
-            a.get_by_test_id("alarm-ack").first.click()
+        aqf_row = b.locator("[data-testid=alarm-row][data-channel=aqf]")
+        expect(aqf_row).to_have_attribute("data-cleared", "true")
+        expect(a.get_by_test_id("hga-margin-predicted")).to_have_text(re.compile(r"^\d\.\d\d°$"))
+        _run(server, "GET_FINE_ATTITUDE")
+        (aqf,) = _alarms(server)
+        assert (aqf["violations"], aqf["cleared"] is not None) == (1, True)
+
+        # A NADIR_UPDATE leaves TiltOnly: raised again, its worst value Unknown (critical)
+        # beside its latest, TiltOnly, with that value's time.
+        _run(server, "NADIR_UPDATE")
+        expect(aqf_row).to_have_attribute("data-cleared", "false")
+        expect(aqf_row.get_by_test_id("alarm-latest")).to_contain_text("TiltOnly")
+        (aqf,) = _alarms(server)
+        assert (aqf["level"], aqf["value"], aqf["latest"]["value"]) == (
+            "critical", "Unknown", "TiltOnly",
+        )  # fmt: skip
+
+        # The Alarms lane: two spans (Unknown to Coarse, and since the NADIR_UPDATE), none
+        # over the AQF's Fine bands.
+        b.click("#timeline-refresh")
+        bars = b.locator("[data-testid=timeline-alarm][data-channel=aqf]")
+        expect(bars).to_have_count(2)
+        fine = b.locator("[data-testid=timeline-aqf][data-value=Fine]")
+        expect(fine.first).to_be_visible()
+        edges = (
+            "els => els.map(e => [e.getBoundingClientRect().left, e.getBoundingClientRect().right])"
+        )
+        fine_x = fine.evaluate_all(edges)
+        bars_x = bars.evaluate_all(edges)
+        assert all(right > left for left, right in bars_x), bars_x
+        for f0, f1 in fine_x:
+            for x0, x1 in bars_x:
+                assert min(f1, x1) - max(f0, x0) <= 1.5, (fine_x, bars_x)
+        b.get_by_test_id("timeline-panel").screenshot(path=str(ARTIFACTS / "alarms_spans.png"))
+
+        # A shelves it for an hour: gone from the banner in both, back once unshelved.
+        a.locator("[data-testid=alarm-row][data-channel=aqf]").get_by_test_id(
+            "alarm-shelve"
+        ).click()
+        expect(aqf_row).to_have_attribute("data-shelved", "true")
+        expect(aqf_row.get_by_test_id("alarm-shelved")).to_contain_text("shelved by bootstrap")
+        expect(b.get_by_test_id("alarm-banner")).to_be_hidden()
+        a.locator("[data-testid=alarm-row][data-channel=aqf]").get_by_test_id(
+            "alarm-unshelve"
+        ).click()
+        expect(b.get_by_test_id("alarm-banner")).to_be_visible()
+
+        # A acknowledges it; a Fine attitude clears it; B follows without a reload.
+        a.get_by_test_id("alarm-ack").first.click()
+        _run(server, "GET_FINE_ATTITUDE")
         expect(b.locator("[data-testid=alarm-row][data-acknowledged=false]")).to_have_count(0)
         expect(b.get_by_test_id("alarm-banner")).to_be_hidden()
 

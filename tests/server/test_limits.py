@@ -12,6 +12,7 @@ from typing import Any
 
 import pytest
 
+from server.channels import is_truth
 from server.limits import DEFAULTS_FILE, LimitsError, check_levels, load_defaults, parse_defaults
 
 CHANNELS = {
@@ -60,7 +61,9 @@ def test_the_defaults_load_with_their_sources_and_truth_flags() -> None:
         ({"channels.imu_integration_s.warning": True}, "must be a finite number or null"),
         ({"channels.imu_integration_s.hysteresis": -1}, "hysteresis must be a finite number >= 0"),
         ({"channels.imu_integration_s.direction": "up"}, "direction: low or high"),
-        ({"channels.imu_integration_s.truth": "no"}, "truth: required, a bool"),
+        ({"channels.imu_integration_s.truth": False}, "unknown key(s) truth"),  # channels'
+        ({"channels.aqf.needs": "luck"}, "aqf.needs: one of"),
+        ({"channels.aqf.shelved_while_acquiring": 1}, "shelved_while_acquiring: a bool"),
         ({"channels.imu_integration_s.why": None}, "why: required"),
         ({"channels.imu_integration_s.colour": "red"}, "unknown key(s) colour"),
         ({"channels.nate_mode.warning": ["Flying"]}, "unknown state(s) 'Flying'"),
@@ -111,3 +114,23 @@ def test_check_levels_validates_an_operators_change() -> None:
             check_levels(margin, levels)
     with pytest.raises(LimitsError, match="numeric channels only"):
         check_levels(limits["aqf"], {"warning": "Coarse", "critical": None, "hysteresis": 1.0})
+
+
+def test_the_truth_flag_is_the_channels_rule_and_the_default_alarms_judge_rover_channels() -> None:
+    """Issue 21: every limit carries ``truth`` from ``server.channels`` (one rule, not a
+    second list in the file), and no default level is on a truth channel: the defaults
+    judge what the rover itself reports (the predicted HGA margin, not the true one)."""
+    limits = load_defaults()
+    assert all(c.truth == is_truth(name) for name, c in limits.items())
+    alarmed = {n for n, c in limits.items() if c.kind != "state" and
+               (c.warning is not None or c.critical is not None)}  # fmt: skip
+    assert alarmed == {"aqf", "imu_integration_s", "tilt_accel_deg", "vo_failures_in_row",
+                       "hga_margin_predicted_deg"}  # fmt: skip
+    assert not any(limits[n].truth for n in alarmed)
+    assert all(limits[n].as_json()["truth"] for n in TRUTH)
+    # the predicted margin means nothing without a heading; the true HGA figures nothing
+    # with Earth below the horizon
+    assert limits["hga_margin_predicted_deg"].needs == "heading"
+    assert limits["hga_margin_deg"].needs == limits["hga_error_deg"].needs == "earth_up"
+    assert {n for n, c in limits.items() if c.shelved_while_acquiring} == {
+        "aqf", "hga_margin_predicted_deg", "hga_margin_deg", "hga_error_deg"}  # fmt: skip

@@ -54,6 +54,8 @@ ROUTES: list[tuple[str, str, str, dict[str, Any]]] = [
     ("PUT", "/api/rovers/spirit/limits/tilt_accel_deg", "operator", {"json": TILT_LIMITS}),
     ("DELETE", "/api/rovers/spirit/limits/tilt_accel_deg", "operator", {}),
     ("POST", "/api/alarms/1/acknowledge", "operator", {}),  # none raised: 404 once allowed
+    ("POST", "/api/alarms/1/shelve", "operator", {"json": {"duration_s": 60}}),  # 404 once allowed
+    ("POST", "/api/alarms/1/unshelve", "operator", {}),
     ("GET", "/api/users", "admin", {}),
     ("POST", "/api/users", "admin", {"json": {"name": "newcomer", "role": "viewer"}}),
     ("PATCH", "/api/users/victim", "admin", {"json": {"role": "operator"}}),

@@ -39,18 +39,22 @@ def _alarms(client: TestClient, **params: Any) -> list[dict[str, Any]]:
 
 
 def test_a_new_rover_raises_its_alarms_and_the_timeline_shows_them(client: TestClient) -> None:
+    # issue 21: a fresh rover opens with its attitude Unknown and nothing else to alarm: not
+    # the predicted HGA margin (meaningless without a heading), nor the true one (truth)
     alarms = {a["channel"]: a for a in _alarms(client)}
-    assert set(alarms) == {"aqf", "hga_margin_predicted_deg", "hga_margin_deg"}
+    assert set(alarms) == {"aqf"}
     aqf = alarms["aqf"]
     assert (aqf["level"], aqf["value"], aqf["limit"], aqf["truth"]) == (
         "critical", "Unknown", "Unknown", False,
     )  # fmt: skip
-    assert alarms["hga_margin_deg"]["truth"] and not alarms["hga_margin_predicted_deg"]["truth"]
     raised = aqf["raised"]
     assert raised["sol"] == 100 and raised["utc"].startswith("2004-04-14T15:00")
     assert 8.5 < raised["lmst_h"] < 8.6
     assert set(aqf) == {"id", "rover", "channel", "level", "truth", "value", "limit", "units",
-                        "message", "violations", "raised", "acknowledged", "cleared"}  # fmt: skip
+                        "message", "violations", "raised", "acknowledged", "cleared", "latest",
+                        "spans", "shelved"}  # fmt: skip
+    assert aqf["latest"]["value"] == "Unknown" and aqf["latest"]["t_s"] >= raised["t_s"]
+    assert aqf["spans"] == [{"from_t_s": raised["t_s"], "to_t_s": None}]
     assert opportunity_is_quiet(client)
     timeline = client.get(f"/api/rovers/spirit/sols/{raised['sol']}/timeline").json()
     assert {a["channel"] for a in timeline["alarms"]} == set(alarms)
@@ -111,8 +115,6 @@ def test_a_bad_limit_is_refused_naming_the_problem_and_nothing_is_stored(
 
 
 def test_a_limit_is_changed_judged_at_once_stored_audited_and_reset(client: TestClient) -> None:
-    # the rover is still Unknown: a TiltOnly-at-warning AQF limit moved to "none" clears
-    # nothing (critical still Unknown); the predicted margin loosened below -178 clears it
     r = client.put("/api/rovers/spirit/limits/hga_margin_predicted_deg", headers=AUTH,
                    json={"warning": -179.0, "critical": -200.0, "hysteresis": 0.5})  # fmt: skip
     assert r.status_code == 200, r.text
@@ -121,17 +123,73 @@ def test_a_limit_is_changed_judged_at_once_stored_audited_and_reset(client: Test
         -179.0, -200.0, 0.5, "bootstrap",
     )  # fmt: skip
     assert body["default"] == {"warning": 0.1, "critical": 0.0, "hysteresis": 0.05}
-    predicted = next(a for a in _alarms(client) if a["channel"] == "hga_margin_predicted_deg")
-    assert predicted["cleared"] is not None  # -178 is 1 deg inside -179 (hysteresis 0.5)
     rows = client.get("/api/audit", headers=AUTH, params={"method": "PUT"}).json()
     assert rows[0]["action"].startswith("set limits of hga_margin_predicted_deg")
     reset = client.delete("/api/rovers/spirit/limits/hga_margin_predicted_deg", headers=AUTH)
     assert reset.status_code == 200 and reset.json()["warning"] == 0.1
     assert reset.json()["edited_by"] is None
     assert client.delete("/api/rovers/spirit/limits/nope", headers=AUTH).status_code == 404
-    # judged again at once under the default: raised again (a cleared, unacknowledged alarm)
-    again = next(a for a in _alarms(client) if a["id"] == predicted["id"])
-    assert again["cleared"] is None and again["violations"] == 2
+    # the rover is still Unknown: the AQF without levels clears its (acknowledged) alarm at
+    # once; back to the default, a new one is raised at once
+    aqf = next(a for a in _alarms(client) if a["channel"] == "aqf")
+    r = client.put("/api/rovers/spirit/limits/aqf", headers=AUTH,
+                   json={"warning": None, "critical": None})  # fmt: skip
+    assert r.status_code == 200, r.text
+    cleared = next(a for a in _alarms(client) if a["id"] == aqf["id"])
+    assert cleared["cleared"] is not None
+    assert client.delete("/api/rovers/spirit/limits/aqf", headers=AUTH).status_code == 200
+    (again,) = [a for a in _alarms(client, active=True) if a["channel"] == "aqf"]
+    assert again["cleared"] is None and again["value"] == "Unknown"
+
+
+@pytest.mark.parametrize(
+    ("body", "problem"),
+    [
+        ('{"duration_s": 0}', "greater than 0"),
+        ('{"duration_s": -60}', "greater than 0"),
+        ('{"duration_s": NaN}', "NaN is not a JSON number"),
+        ('{"duration_s": 1e999}', "out of range"),
+        ('{"duration_s": 200000}', "less than or equal to 177550"),
+        ('{"duration_s": "600"}', "valid number"),
+        ('{"duration_s": 600, "until": 1}', "until"),
+        ('{"reason": "no duration"}', "duration_s"),
+        ('{"duration_s": 600, "reason": "' + "x" * 300 + '"}', "at most 200 characters"),
+    ],
+)
+def test_a_bad_shelve_is_refused_naming_the_problem_and_nothing_is_stored(
+    client: TestClient, body: str, problem: str
+) -> None:
+    aqf = next(a for a in _alarms(client, active=True) if a["channel"] == "aqf")
+    r = client.post(f"/api/alarms/{aqf['id']}/shelve", content=body,
+                    headers={**AUTH, "Content-Type": "application/json"})  # fmt: skip
+    assert r.status_code == 422, r.text
+    assert problem in r.text
+    assert next(a for a in _alarms(client) if a["id"] == aqf["id"])["shelved"] is None
+
+
+def test_an_operator_shelves_and_unshelves_an_alarm_audited(client: TestClient) -> None:
+    aqf = next(a for a in _alarms(client, active=True) if a["channel"] == "aqf")
+    url = f"/api/alarms/{aqf['id']}/shelve"
+    assert client.post(url, json={"duration_s": 600}).status_code == 401  # operators only
+    now_t_s = client.get("/api/rovers/spirit/state").json()["frame"]["t_s"]
+    with client.websocket_connect("/ws/rovers/spirit/telemetry") as ws:
+        r = client.post(url, headers=AUTH, json={"duration_s": 600, "reason": "rehearsal"})
+        assert r.status_code == 200, r.text
+        notice = ws.receive_json()
+    shelved = r.json()["shelved"]
+    assert notice["alarm"]["shelved"] == shelved
+    assert (shelved["by"], shelved["reason"]) == ("bootstrap", "rehearsal")
+    assert shelved["until"]["t_s"] == pytest.approx(now_t_s + 600.0)
+    rows = client.get("/api/audit", headers=AUTH, params={"rover": "spirit"}).json()
+    assert any(
+        row["action"] == f"shelve alarm #{aqf['id']} (aqf) for 600 s: rehearsal" for row in rows
+    )
+    assert client.post("/api/alarms/99999/shelve", headers=AUTH,
+                       json={"duration_s": 60}).status_code == 404  # fmt: skip
+    off = client.post(f"/api/alarms/{aqf['id']}/unshelve", headers=AUTH)
+    assert off.status_code == 200 and off.json()["shelved"] is None
+    twice = client.post(f"/api/alarms/{aqf['id']}/unshelve", headers=AUTH)
+    assert twice.status_code == 409 and "not shelved" in twice.json()["detail"]
 
 
 def test_a_database_from_before_alarms_gains_their_tables_and_keeps_its_data(
@@ -150,5 +208,34 @@ def test_a_database_from_before_alarms_gains_their_tables_and_keeps_its_data(
         assert upgraded.alarms("spirit") == [] and upgraded.stored_limits("spirit") == {}
         upgraded.set_limits("spirit", "aqf", {"warning": None, "critical": "Unknown"}, "ada")
         assert upgraded.stored_limits("spirit")["aqf"]["updated_by"] == "ada"
+    finally:
+        upgraded.close()
+
+
+def test_a_database_from_before_latest_values_spans_and_shelves_gains_their_columns(
+    tmp_path: Path,
+) -> None:
+    from server.alarms import alarm_json
+
+    url = f"sqlite:///{tmp_path / 'old.db'}"
+    store = Store(url)
+    with store.engine.begin() as conn:  # the alarms table of the release before issue 21
+        for column in ("latest", "spans", "shelved"):
+            conn.execute(text(f"ALTER TABLE alarms DROP COLUMN {column}"))
+        conn.execute(text(
+            "INSERT INTO alarms (rover, channel, level, truth, value, limit_value, units, "
+            "message, violations, raised_t_s, raised_utc, raised_lmst_h, raised_sol, "
+            "cleared_t_s, cleared_utc, cleared_lmst_h) VALUES ('spirit', 'aqf', 'critical', "
+            "0, '\"Unknown\"', '\"Unknown\"', '', 'aqf Unknown', 1, 10.0, 'u10', 8.5, 100, "
+            "20.0, 'u20', 8.6)"
+        ))  # fmt: skip
+    store.close()
+    upgraded = Store(url)
+    try:
+        (old,) = [alarm_json(row) for row in upgraded.alarms("spirit")]
+        # what the old row knew: its raising value is its latest, one span
+        assert old["latest"] == {"value": "Unknown", "t_s": 10.0, "utc": "u10", "lmst_h": 8.5,
+                                 "sol": 100}  # fmt: skip
+        assert old["spans"] == [{"from_t_s": 10.0, "to_t_s": 20.0}] and old["shelved"] is None
     finally:
         upgraded.close()

@@ -15,7 +15,14 @@ from fastapi.testclient import TestClient
 
 from server.api.telemetry_csv import CSV_COLUMNS, CSV_VECTORS
 from server.app import ServerConfig, create_app, data_dir_url
-from server.channels import MAX_POINTS, MAX_SOLS, decimate, frame_channels, side_channels
+from server.channels import (
+    MAX_POINTS,
+    MAX_SOLS,
+    decimate,
+    frame_channels,
+    is_truth,
+    side_channels,
+)
 from tests.server.test_server_restart import _wait
 
 TOKEN = "channels-test-token"
@@ -61,6 +68,10 @@ def test_every_channel_is_a_numeric_csv_column_and_truth_is_marked() -> None:
     assert {"position_error_m", "attitude_error_deg", "hga_error_deg", "hga_margin_deg"} <= truth
     assert {"p_mission_true_0", "sun_ll_true_1"} <= truth
     assert not {"imu_integration_s", "tilt_est_deg", "p_mission_est_0", "site_index"} & truth
+    # issue 21: the true joint angles (the encoders' are the rover's) and earth_up are truth
+    joints = {"rocker_deg", "bogie_deg_0", "bogie_deg_1"} | {f"steer_deg_{i}" for i in range(4)}
+    assert joints <= truth
+    assert is_truth("earth_up") and is_truth("bogie_deg") and not is_truth("aqf")
     side = side_channels(["kinematic_ekf"])
     assert side["kinematic_ekf_position_error_m"].truth
     assert not side["kinematic_ekf_p_mission_1"].truth
