@@ -78,7 +78,7 @@ def put_limits(
     truth channel's only in the truth view."""
     runtime = server.rover(rover)
     if not truth and is_truth_channel(channel):
-        raise truth_refused(f"the channel {channel}")
+        raise truth_refused("this channel")
     levels = body.model_dump(exclude_none=False)
     if body.hysteresis is None:
         levels.pop("hysteresis")
@@ -107,7 +107,7 @@ def reset_limits(
     """Back to the default levels for a channel (a truth channel's: the truth view)."""
     runtime = server.rover(rover)
     if not truth and is_truth_channel(channel):
-        raise truth_refused(f"the channel {channel}")
+        raise truth_refused("this channel")
     request.state.audit_action = f"reset limits of {channel} to the defaults"
     try:
         return server.alarms.reset_limits(rover, channel, runtime.last_frame)

@@ -67,7 +67,7 @@ def channel_values(
     runtime = server.rover(rover)
     channels = known(server, rover)
     if channel in channels and channels[channel].truth and not truth:
-        raise truth_refused(f"the channel {channel}")
+        raise truth_refused("this channel")
     if not truth:
         channels = {name: c for name, c in channels.items() if not c.truth}
     if channel not in channels:
