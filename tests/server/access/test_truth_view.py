@@ -121,6 +121,7 @@ def _fill(path: str, values: dict[str, list[str]]) -> list[str]:
     return out
 
 
+@contextlib.contextmanager
 def _serve(config: ServerConfig) -> Iterator[tuple[str, Server]]:
     app = create_app(config)
     port = _free_port()
@@ -143,7 +144,7 @@ def crawl(tmp_path: Any, truth_view: str) -> Iterator[Crawl]:
         truth_view=truth_view,
         validation_processes=0,
     )
-    for host, server in _serve(config):
+    with _serve(config) as (host, server):
         base = f"http://{host}"
         tokens: dict[str, str | None] = {"anonymous": None}
         for role in ROLES[1:]:
