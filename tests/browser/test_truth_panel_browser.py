@@ -20,7 +20,7 @@ from tests.server.test_server_restart import serving
 if not Path(CHROMIUM).exists():
     pytest.skip("Chromium not installed (make test installs it)", allow_module_level=True)
 
-from playwright.sync_api import Page, expect  # noqa: E402
+from playwright.sync_api import Page, expect
 
 ADMIN = {"Authorization": f"Bearer {TOKEN}"}
 
