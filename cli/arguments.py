@@ -75,6 +75,19 @@ def estimator_names(text: str) -> tuple[str, ...]:
     return names
 
 
+def truth_view(text: str) -> str:
+    """An argparse type: who sees the simulator's truth, ``everyone`` or ``conductor``
+    (``server.access.truth_view``)."""
+    from server.access.truth_view import check_truth_view
+
+    try:
+        return check_truth_view(text.strip().lower())
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"--truth-view must be everyone or conductor, got {text!r}"
+        ) from None
+
+
 def on_off(name: str) -> Callable[[str], bool]:
     """An argparse type: on/off (true/false, 1/0, yes/no)."""
 

@@ -16,6 +16,7 @@ from cli.arguments import (
     finite_float,
     on_off,
     port_number,
+    truth_view,
 )
 from cli.output import print_result
 from sim.errors import InputError
@@ -48,6 +49,14 @@ def add_serve(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         default=env("PUBLIC_READ", "on"),  # a string default goes through type= too
         help="on (default): reading needs no token; off: every read, the WebSocket and the "
         "3D view included, needs a viewer token",
+    )
+    serve.add_argument(
+        "--truth-view",
+        type=truth_view,
+        default=env("TRUTH_VIEW", "everyone"),  # a string default goes through type= too
+        help="who sees the simulator's truth (true pose, errors, truth channels and alarms, "
+        "the 3D view's true rover): everyone (default, for learning alone) or conductor "
+        "(the conductor role and above; viewers and operators get the rover's downlink only)",
     )
     serve.add_argument(
         "--estimators",
@@ -101,6 +110,7 @@ def cmd_serve(args: argparse.Namespace) -> dict[str, Any]:
         database_url=url,
         operator_token=args.operator_token or None,
         public_read=args.public_read,
+        truth_view=args.truth_view,
         viewer_3d=not args.no_3d,
         estimators=args.estimators,
     )
@@ -129,6 +139,7 @@ def cmd_serve(args: argparse.Namespace) -> dict[str, Any]:
             flush=True,
         )
     print(f"reading without a token: {'on' if args.public_read else 'off'}", flush=True)
+    print(f"the simulator's truth shown to: {args.truth_view}", flush=True)
     print(f"database: {url}", flush=True)
     # uvicorn shuts down gracefully on SIGINT/SIGTERM, then raises the signal again under
     # the handler it found: with Python's it would die of it (make prints "Terminated") or

@@ -30,7 +30,9 @@ say ``shelved_while_acquiring`` are shelved, no alarm raised on them.
 
 Every raise, escalation, re-raise, clear, shelf and acknowledgement is stored (``alarms``
 table) and sent to the rover's WebSocket clients as ``{"type": "alarm", "alarm": {...}}``.
-Alarms of a truth-view channel carry ``truth`` (``server.channels.is_truth``).
+Alarms of a truth-view channel carry ``truth`` (``server.channels.is_truth``), and their
+messages end with ``TRUTH_MARK``: they, their events and their notices go only to those who
+may see the truth (``server.access.truth_view``).
 
 Changing a limit (``set_limits``) re-judges that channel at once against the latest
 frame: loosening a limit can clear an alarm while the rover stands still.
@@ -45,6 +47,7 @@ from datetime import UTC, datetime
 from typing import Any
 
 from sequences.commands import COMMANDS
+from server.access.truth_view import TRUTH_MARK
 from server.limits import ChannelLimits, LimitsError, check_levels, load_defaults
 from server.sinks import FrameBatch
 from server.storage import Store
@@ -122,7 +125,7 @@ def _message(limits: ChannelLimits, level: str, value: Any) -> str:
     else:
         side = "below" if limits.direction == "low" else "above"
         text = f"{limits.channel} {shown}, {side} the {level} limit {limit:g}{units}"
-    return text + (" (truth view)" if limits.truth else "")
+    return text + (TRUTH_MARK if limits.truth else "")
 
 
 class AlarmEngine:
@@ -395,6 +398,15 @@ class AlarmEngine:
                                   f"nothing to {verb}")  # fmt: skip
         return listed
 
-    def listed(self, rover: str, listed: bool | None, limit: int) -> list[dict[str, Any]]:
-        """A rover's alarms, newest first (``listed`` as ``Store.alarms``)."""
-        return [alarm_json(r) for r in self.store.alarms(rover, listed=listed, limit=limit)]
+    def listed(
+        self, rover: str, listed: bool | None, limit: int, truth: bool = True
+    ) -> list[dict[str, Any]]:
+        """A rover's alarms, newest first (``listed`` as ``Store.alarms``); those of truth
+        channels only if ``truth`` (the truth view: ``server.access.truth_view``)."""
+        rows = self.store.alarms(rover, listed=listed, limit=limit if truth else None)
+        return [alarm_json(r) for r in rows if truth or not r["truth"]][:limit]
+
+    def truth_alarm(self, alarm_id: int) -> bool:
+        """Whether alarm ``alarm_id`` is on a truth channel (False for no such alarm)."""
+        found = self.store.alarms(alarm_id=alarm_id)
+        return bool(found and found[0]["truth"])

@@ -10,6 +10,9 @@ severities or a minimum one, and a text the event contains (any case). The log i
 first; a page is ``limit`` events from ``offset``, and ``before_t_s`` starts it at a time
 (continue with ``offset``: several events often share one ``t_s``, so a page boundary at a
 time could split them).
+
+For a reader who may not see the simulator's truth (``server.access.truth_view``) the events
+of alarms on truth channels are left out, of the page and of its ``total``.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from estimation.events import KINDS, SEVERITIES
+from server.access.truth_view import ground_events
 from server.runtime import RoverRuntime
 from server.storage import LEGACY_KIND, Store
 from sim.world.marsclock import t_s_for_sol_lmst, t_s_to_utc
@@ -92,10 +96,12 @@ def rest_event(runtime: RoverRuntime, event: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def event_log(store: Store, runtime: RoverRuntime, flt: EventFilter) -> dict[str, Any]:
+def event_log(
+    store: Store, runtime: RoverRuntime, flt: EventFilter, truth: bool = True
+) -> dict[str, Any]:
     """The page of the rover's event log ``flt`` asks for: ``{"rover", "kinds", "total",
     "offset", "limit", "events"}``, ``total`` counting every event that matches and
-    ``kinds`` the kinds the filter accepts."""
+    ``kinds`` the kinds the filter accepts; without the truth's events unless ``truth``."""
     flt.check()
     mission = runtime.spec.mission
     first = flt.sol if flt.sol is not None else flt.sol_from
@@ -121,7 +127,12 @@ def event_log(store: Store, runtime: RoverRuntime, flt: EventFilter) -> dict[str
         severities=severities,
         text_contains=flt.text,
         before_t_s=None if math.isinf(before) else before,
-        limit=flt.limit,
-        offset=flt.offset,
+        # without the truth: every match read, so that the page and its total skip the
+        # truth's events (the storage cannot tell them apart; a log is thousands of events)
+        limit=flt.limit if truth else None,
+        offset=flt.offset if truth else 0,
     )
+    if not truth:
+        kept = ground_events(rows)
+        rows, total = kept[flt.offset : flt.offset + flt.limit], len(kept)
     return {**page, "total": total, "events": [rest_event(runtime, e) for e in rows]}

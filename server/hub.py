@@ -17,6 +17,11 @@ Besides frames, the hub carries *notices*: small messages with a ``type`` (``"co
 up to ``QUEUE_NOTICES`` of them (a client that falls further behind loses the oldest and
 is told how many in ``dropped_notices``, so it knows to re-read the REST API).
 
+Each client is in the truth view or not (``server.access.truth_view``), decided once when it
+subscribes, from its handshake's token: it receives the downlink records merged with their
+truth records, or the downlink records alone; the notices that tell the truth (an alarm on
+a truth channel and its event) go only to clients in the truth view.
+
 Every frame a client receives carries ``published_wall``: the wall-clock time
 (``time.time()``, Unix seconds) at which the hub handed it on, so a client can measure its
 latency (``roverops bench server``). The stamp is on the clients' copies only, never on the
@@ -32,6 +37,7 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
+from server.access.truth_view import is_truth_notice
 from server.sinks import FrameBatch
 from sim.scoring.truth import merged
 
@@ -44,9 +50,11 @@ QUEUE_EVENTS = 4096  # a sol of 8 Hz activity has a few hundred
 @dataclass(eq=False)
 class Client:
     """One WebSocket subscriber: its frames, the events of the frames not yet sent, its
-    notices, and how many of each it lost to a full queue."""
+    notices, how many of each it lost to a full queue, and whether it sees the truth
+    (module docstring)."""
 
     loop: asyncio.AbstractEventLoop
+    truth: bool = True
     queue: asyncio.Queue[dict[str, Any]] = field(
         default_factory=lambda: asyncio.Queue(maxsize=QUEUE_FRAMES)
     )
@@ -88,9 +96,9 @@ class TelemetryHub:
         self._clients: dict[str, set[Client]] = {}
         self._lock = threading.Lock()
 
-    def subscribe(self, rover: str) -> Client:
-        """A new client on the running loop."""
-        client = Client(asyncio.get_running_loop())
+    def subscribe(self, rover: str, truth: bool = True) -> Client:
+        """A new client on the running loop, in the truth view if ``truth``."""
+        client = Client(asyncio.get_running_loop(), truth)
         with self._lock:
             self._clients.setdefault(rover, set()).add(client)
         return client
@@ -107,30 +115,42 @@ class TelemetryHub:
 
     def publish(self, rover: str, batch: FrameBatch) -> None:
         """A frame sink (``server.sinks``): hand frames to every client of ``rover``
-        (thread-safe, never blocks), each a copy stamped with ``published_wall``."""
+        (thread-safe, never blocks), each a copy stamped with ``published_wall``: the
+        downlink merged with the truth for a client in the truth view, else the downlink."""
         with self._lock:
             clients = list(self._clients.get(rover, set()))
         if not clients:
             return
         now = time.time()
-        stamped = [
-            {**merged(d, t), "published_wall": now}
-            for d, t in zip(batch.downlink, batch.truth, strict=True)
-        ]
+        ground = [{**d, "published_wall": now} for d in batch.downlink]
+        truth = (
+            [
+                {**merged(d, t), "published_wall": now}
+                for d, t in zip(batch.downlink, batch.truth, strict=True)
+            ]
+            if any(c.truth for c in clients)
+            else []
+        )
         for client in clients:
             try:
-                client.loop.call_soon_threadsafe(client.put_frames, stamped)
+                client.loop.call_soon_threadsafe(
+                    client.put_frames, truth if client.truth else ground
+                )
             except RuntimeError:  # the client's loop has closed
                 self.unsubscribe(rover, client)
 
     def notify(self, rover: str, notice: dict[str, Any]) -> None:
         """Hand a notice (a dict with a ``type``) to every client of ``rover``
-        (thread-safe, never blocks)."""
+        (thread-safe, never blocks); one that tells the truth to those in the truth view
+        only."""
         if "type" not in notice:
             raise ValueError("a notice needs a type")
+        truth_only = is_truth_notice(notice)
         with self._lock:
             clients = list(self._clients.get(rover, set()))
         for client in clients:
+            if truth_only and not client.truth:
+                continue
             try:
                 client.loop.call_soon_threadsafe(client.put_notice, dict(notice))
             except RuntimeError:  # the client's loop has closed

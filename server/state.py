@@ -23,6 +23,7 @@ from fastapi import HTTPException
 from sequences.validate import ValidationContext, validate
 from server.access.accounts import Accounts
 from server.access.audit import AuditEntry, AuditLog
+from server.access.truth_view import check_truth_view
 from server.alarms import AlarmEngine
 from server.hub import TelemetryHub
 from server.queue_view import QueueNotices, queue_json
@@ -53,6 +54,9 @@ class ServerConfig:
     operator_token: str | None = None
     # reading (telemetry, sequences, timelines, the 3D view) needs no token while on
     public_read: bool = True
+    # who sees the simulator's truth (server.access.truth_view): everyone, or conductor
+    # (the conductor role and above; everyone else gets the rover's downlink alone)
+    truth_view: str = "everyone"
     max_upload_bytes: int = MAX_UPLOAD_BYTES  # every request body, uploads or not
     max_concurrent_validations: int = MAX_CONCURRENT_VALIDATIONS
     # uploads validate in these worker processes (server.validation.pool); 0: in the
@@ -64,6 +68,9 @@ class ServerConfig:
     # what runs beside SAPP on a new rover (sim.loop.side.kinematic); a rover restored from a
     # checkpoint keeps the estimators it was started with
     estimators: tuple[str, ...] = ("sapp",)
+
+    def __post_init__(self) -> None:
+        self.truth_view = check_truth_view(self.truth_view)
 
 
 class Server:
@@ -116,10 +123,21 @@ class Server:
             self.rovers[name] = runtime
         for name, why in refused.items():
             self._drop_stale_queue(name, why)
-        # the 3D views: a scene joins its rover's sinks when it starts (RoverScene.start)
+        # the 3D views: a scene joins its rover's sinks when it starts (RoverScene.start).
+        # With the truth for everyone, one scene per rover; with --truth-view conductor, a
+        # scene of the downlink alone for everyone and one with the truth for the truth view
+        # (viser sends a scene's nodes to all its clients: server.scene3d.scene).
         self.scenes: dict[str, RoverScene] = {}
+        self.truth_scenes: dict[str, RoverScene] = {}
         if config.viewer_3d:
-            self.scenes = {name: RoverScene(rt, self.store) for name, rt in self.rovers.items()}
+            everyone = config.truth_view == "everyone"
+            self.scenes = {
+                name: RoverScene(rt, self.store, truth=everyone) for name, rt in self.rovers.items()
+            }
+            if not everyone:
+                self.truth_scenes = {
+                    name: RoverScene(rt, self.store, truth=True) for name, rt in self.rovers.items()
+                }
 
     def _resume(self, runtime: RoverRuntime) -> None:
         """After a restart: no frame stored twice, and every accepted sequence the
@@ -231,7 +249,7 @@ class Server:
         self._record_start()
         self.queue_notices.start()
         self.validation.start(rover_site(next(iter(self.rovers.values()))))
-        for scene in self.scenes.values():
+        for scene in [*self.scenes.values(), *self.truth_scenes.values()]:
             scene.start()
         if self.config.start_clocks:
             for runtime in self.rovers.values():
@@ -243,7 +261,7 @@ class Server:
         for runtime in self.rovers.values():
             runtime.stop()
         self.queue_notices.stop()
-        for scene in self.scenes.values():
+        for scene in [*self.scenes.values(), *self.truth_scenes.values()]:
             scene.stop()
         self.validation.stop()
         self.writer.stop()
@@ -253,6 +271,13 @@ class Server:
         if name not in self.rovers:
             raise HTTPException(404, f"unknown rover {name!r}; known: {', '.join(self.rovers)}")
         return self.rovers[name]
+
+    def scene_for(self, rover: str, sees_truth: bool) -> RoverScene | None:
+        """The 3D view of ``rover`` for a viewer who sees the truth or not, ``None`` when
+        the 3D view is off."""
+        if sees_truth and rover in self.truth_scenes:
+            return self.truth_scenes[rover]
+        return self.scenes.get(rover)
 
     def context(self, runtime: RoverRuntime) -> ValidationContext:
         """What validation warnings need to know of a rover, from its state now."""

@@ -6,7 +6,9 @@ Alarms (``server.alarms``) listed are those active at some time of the sol.
 Intervals are built from the stored frames (a new interval wherever the mode or flag
 changes); times are given as TT seconds, UTC and LMST hours. The summary's distance driven is
 the length of the path the rover reports (its estimate, from the downlink); the true
-distance is in the ``truth`` part.
+distance is in the ``truth`` part, with the scored events (the truth records' own). For a
+reader who may not see the truth (``server.access.truth_view``) there is no ``truth`` part,
+and the alarms on truth channels and their events are left out.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from server.access.truth_view import ground_channels, ground_events
 from server.alarms import alarm_json
 from server.eventlog import rest_event
 from server.runtime import RoverRuntime
@@ -75,17 +78,23 @@ def _intervals(
     return out
 
 
-def sol_timeline(store: Store, runtime: RoverRuntime, sol: int) -> dict[str, Any] | None:
-    """The timeline of ``sol`` for ``runtime``'s rover, or ``None`` without telemetry."""
+def sol_timeline(
+    store: Store, runtime: RoverRuntime, sol: int, truth: bool = True
+) -> dict[str, Any] | None:
+    """The timeline of ``sol`` for ``runtime``'s rover, or ``None`` without telemetry;
+    without the truth unless ``truth`` (module docstring)."""
     rover = runtime.spec.name
     span = store.sol_range(rover, sol)
     if span is None:
         return None
     t0, t1 = span
     frames = store.frames(rover, t0, t1)
-    truths = list(store.truths(rover, t0, t1).values())
+    truths = list(store.truths(rover, t0, t1).values()) if truth else []
     commands = store.commands(rover, t0, t1)
     events = store.events(rover, t0, t1)
+    alarms = [alarm_json(a) for a in reversed(store.alarms(rover, span=(t0, t1)))]
+    if not truth:
+        events, alarms = ground_events(events), ground_channels(alarms)
     submitted_by = store.submitters(c["sequence_id"] for c in commands if c["sequence_id"])
     distance = path_length_m(frames, "p_mission_est")  # what the rover reports it drove
 
@@ -99,7 +108,7 @@ def sol_timeline(store: Store, runtime: RoverRuntime, sol: int) -> dict[str, Any
     margins = [float(f["hga_margin_deg"]) for f in truths if f.get("earth_up")]
     pos_err = finite(truths, "position_error_m")
     att_err = finite(truths, "attitude_error_deg")
-    return {
+    out: dict[str, Any] = {
         "rover": rover,
         "sol": sol,
         "start": _when(runtime, t0),
@@ -111,7 +120,7 @@ def sol_timeline(store: Store, runtime: RoverRuntime, sol: int) -> dict[str, Any
         "aqf": _intervals(runtime, frames, "aqf", t1),
         "events": [rest_event(runtime, e) for e in events],
         # alarms raised by the sol's end and not cleared before its start, oldest first
-        "alarms": [alarm_json(a) for a in reversed(store.alarms(rover, span=(t0, t1)))],
+        "alarms": alarms,
         "distance_m": distance,
         "summary": {
             "frames": len(frames),
@@ -120,14 +129,18 @@ def sol_timeline(store: Store, runtime: RoverRuntime, sol: int) -> dict[str, Any
             "distance_m": distance,
             "max_imu_integration_s": max(finite(frames, "imu_integration_s"), default=None),
         },
-        # the simulator's truth and the scores against it (the truth view's, labelled so)
-        "truth": {
+    }
+    if truth:  # the simulator's truth and the scores against it (the truth view's)
+        out["truth"] = {
             "distance_m": path_length_m(truths, "p_mission_true"),
             "max_position_error_m": max(pos_err) if pos_err else None,
             "max_attitude_error_deg": max(att_err) if att_err else None,
             "min_hga_margin_deg": min(margins) if margins else None,
-        },
-    }
+            "events": [
+                rest_event(runtime, {**e, "t_s": f["t_s"]}) for f in truths for e in f["events"]
+            ],
+        }
+    return out
 
 
 def path_length_m(records: list[dict[str, Any]], key: str) -> float:

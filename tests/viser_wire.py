@@ -50,6 +50,7 @@ class WireViewer:
     def __init__(self, url: str, headers: dict[str, str] | None = None) -> None:
         self.gui: dict[str, dict[str, Any]] = {}
         self.nodes: dict[tuple[str, str], dict[str, Any]] = {}  # (owner, name): its state
+        self.messages: list[dict[str, Any]] = []  # every message received, decoded
         self._lock = threading.Lock()
         self._ws: ClientConnection = connect(
             url,
@@ -75,6 +76,7 @@ class WireViewer:
 
     def _keep(self, m: dict[str, Any]) -> None:
         with self._lock:
+            self.messages.append(m)
             if m["type"].startswith("Gui") and "props" in m and "uuid" in m:
                 state = dict(m["props"])
                 if "value" in m:

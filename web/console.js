@@ -95,14 +95,6 @@ function showFrame(f) {
   predicted.textContent = !heading ? "no attitude" : own === null || own === undefined ? "—" : `${own.toFixed(2)}°`;
   predicted.className = !heading ? "warn" : own === null || own === undefined ? "" : own < 0 ? "bad" : "good";
   predicted.title = heading ? "" : `AQF ${f.aqf}: the heading is unknown, so the rover cannot predict its HGA margin`;
-  const hga = $("hga-margin");
-  if (f.earth_up && f.hga_margin_deg !== null) {
-    hga.textContent = `${f.hga_margin_deg.toFixed(2)}° (error ${f.hga_error_deg.toFixed(2)}°)`;
-    hga.className = f.hga_margin_deg < 0 ? "bad" : "good";
-  } else {
-    hga.textContent = "Earth below the horizon";
-    hga.className = "warn";
-  }
   showPosition(f);
   roverops.emit("frame", f);
   // Each event at its own time: a message at max speed carries the events of the frames
@@ -138,19 +130,12 @@ async function fillGap(rover, since) {
   }
 }
 
-// Two readouts, never one number for both: the rover's own estimate in its current Site
-// frame (a Site is planted where the rover believes it is, so the Site's own estimate and
-// truth agree right after PLANT_SITE), and the error accumulated over the whole mission,
-// scored against the simulator's truth (what no real ground system has: the truth view).
+// The rover's own estimate in its current Site frame (a Site is planted where the rover
+// believes it is). The error accumulated over the whole mission, scored against the
+// simulator's truth, is the Truth panel's (truth.js), never one number for both.
 const xy = (p) => `(${p[0].toFixed(2)}, ${p[1].toFixed(2)})`;
-const xyz = (p) => `(${p.map((v) => v.toFixed(2)).join(", ")})`;
 function showPosition(f) {
   $("position").textContent = `Site ${f.site_index}: est ${xy(f.p_s_est)} m`;
-  const e = f.p_mission_est, t = f.p_mission_true;
-  const error = typeof f.position_error_m === "number" ? f.position_error_m
-    : e && t ? Math.hypot(e[0] - t[0], e[1] - t[1], e[2] - t[2]) : null;
-  $("position-error").textContent = error === null ? "—"
-    : `${error.toFixed(2)} m` + (e && t ? ` (mission frame, 3D: est ${xyz(e)}, true ${xyz(t)} m)` : "");
 }
 
 // The clock as the server runs it: at max with nothing queued it runs in real time

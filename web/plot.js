@@ -11,6 +11,7 @@
   const MAX_POINTS = 2000;
   const HEIGHT_PX = 220;
   const DEFAULT_CHANNEL = "hga_margin_deg";
+  const GROUND_CHANNEL = "hga_margin_predicted_deg";
   // tick steps in sols: minutes of LMST, then whole sols
   const INCRS = [1, 2, 5, 10, 15, 30, 60, 120, 180, 360, 720].map((m) => Number((m / 1440).toFixed(12)))
     .concat([1, 2, 5, 10]);
@@ -82,7 +83,8 @@
         const unit = c.unit ? ` (${c.unit})` : "";
         return new Option(`${c.name}${unit}${c.truth ? " · truth" : ""}`, c.name);
       }));
-      select.value = view.channels.has(previous) ? previous : DEFAULT_CHANNEL;
+      // the default is a truth channel: outside the truth view the rover's predicted margin
+      select.value = [previous, DEFAULT_CHANNEL, GROUND_CHANNEL].find((n) => view.channels.has(n)) || "";
       if (!sols.length) { showEmpty(`No telemetry yet for ${rover}.`); return; }
       view.latestSol = sols.at(-1);
       for (const id of ["plot-sol-from", "plot-sol-to"]) {
@@ -214,6 +216,13 @@
     new ResizeObserver(resize).observe(byId("telemetry-panel"));
     roverops.on("frame", onFrame);
     roverops.on("rover", loadRover);
+    // the truth channels are listed only in the truth view: a sign-in may change it
+    let seesTruth = Boolean(roverops.state.me && roverops.state.me.sees_truth);
+    roverops.on("me", (me) => {
+      const sees = Boolean(me && me.sees_truth);
+      if (sees !== seesTruth && view.rover) loadRover(view.rover);
+      seesTruth = sees;
+    });
     if (roverops.state.rover) loadRover(roverops.state.rover);
   }
 

@@ -223,16 +223,8 @@
       [`max IMU time ${fixed(s.max_imu_integration_s, 0, " s")}`, ""],
       [`${s.frames} frames`, ""],
     ];
-    const t = timeline.truth;
-    if (t) {  // the simulator's truth: shown only where the truth view allows it
-      parts.push(
-        [`TRUTH ${fixed(t.distance_m, 2, " m")} driven`, "truth"],
-        [`TRUTH max position error ${fixed(t.max_position_error_m, 2, " m")}`, "truth"],
-        [`TRUTH max attitude error ${fixed(t.max_attitude_error_deg, 2, "°")}`, "truth"],
-        [`TRUTH min HGA margin ${fixed(t.min_hga_margin_deg, 2, "°")}`,
-          t.min_hga_margin_deg !== null && t.min_hga_margin_deg < 0 ? "truth bad" : "truth"],
-      );
-    }
+    // the sol's truth part (in the truth view only) is the Truth panel's (truth.js)
+    roverops.emit("sol-truth", { sol: timeline.sol, truth: timeline.truth || null });
     byId("timeline-summary").replaceChildren(...parts.map(([text, cls]) => {
       const span = document.createElement("span");
       span.textContent = text;
@@ -888,6 +880,14 @@
       if (n.type === "alarm") onAlarm(n.alarm);
     });
     roverops.on("state", onState);
+    // a sign-in or out may change whether the timeline has its truth part: read it again
+    let seesTruth = Boolean(roverops.state.me && roverops.state.me.sees_truth);
+    roverops.on("me", (me) => {
+      const sees = Boolean(me && me.sees_truth);
+      if (sees === seesTruth) return;
+      seesTruth = sees;
+      if (view.sol !== null) showSol(view.sol);
+    });
     roverops.on("focus", ({ sol, t_s }) => {
       view.focus = { sol, t_s };
       if (view.sol === sol && view.timeline) placeFocus();

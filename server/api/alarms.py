@@ -10,6 +10,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from sequences.commands import MAX_WAIT_S
 from server.access.auth import Operator, Viewer
+from server.access.truth_view import ground_channels, is_truth_channel, truth_refused
 from server.alarms import AlarmError
 from server.api.deps import (
     AUTH_ERRORS,
@@ -19,6 +20,7 @@ from server.api.deps import (
     AlarmId,
     Channel,
     RoverName,
+    SeesTruth,
     ServerDep,
     error_doc,
     router,
@@ -54,16 +56,25 @@ routes = router()
 
 
 @routes.get("/api/rovers/{rover}/limits", responses=NOT_FOUND)
-def get_limits(server: ServerDep, rover: RoverName, _: Viewer) -> list[dict[str, Any]]:
+def get_limits(
+    server: ServerDep, rover: RoverName, _: Viewer, truth: SeesTruth
+) -> list[dict[str, Any]]:
     """Every channel's alarm limits for the rover: kind, direction, units, truth view
-    or not, why, the levels now and by default, and who last changed them."""
+    or not, why, the levels now and by default, and who last changed them (those of
+    truth channels only in the truth view)."""
     server.rover(rover)
-    return server.alarms.limits(rover)
+    limits = server.alarms.limits(rover)
+    return limits if truth else ground_channels(limits)
+
+
+TRUTH_REFUSED: dict[int | str, dict[str, Any]] = {
+    403: error_doc("a truth channel's, and the caller is not in the truth view")
+}
 
 
 @routes.put(
     "/api/rovers/{rover}/limits/{channel}",
-    responses={**AUTH_ERRORS, **NOT_FOUND, **TOO_LARGE, **BAD_REQUEST},
+    responses={**AUTH_ERRORS, **NOT_FOUND, **TOO_LARGE, **BAD_REQUEST, **TRUTH_REFUSED},
 )
 def put_limits(
     server: ServerDep,
@@ -72,9 +83,13 @@ def put_limits(
     body: LimitsBody,
     request: Request,
     who: Operator,
+    truth: SeesTruth,
 ) -> dict[str, Any]:
-    """Change a channel's levels (stored; judged at once against the latest frame)."""
+    """Change a channel's levels (stored; judged at once against the latest frame); a
+    truth channel's only in the truth view."""
     runtime = server.rover(rover)
+    if not truth and is_truth_channel(channel):
+        raise truth_refused("this channel")
     levels = body.model_dump(exclude_none=False)
     if body.hysteresis is None:
         levels.pop("hysteresis")
@@ -89,12 +104,21 @@ def put_limits(
         raise request_error(("body",), str(bad), "limits") from None
 
 
-@routes.delete("/api/rovers/{rover}/limits/{channel}", responses={**AUTH_ERRORS, **NOT_FOUND})
+@routes.delete(
+    "/api/rovers/{rover}/limits/{channel}", responses={**AUTH_ERRORS, **NOT_FOUND, **TRUTH_REFUSED}
+)
 def reset_limits(
-    server: ServerDep, rover: RoverName, channel: Channel, request: Request, _: Operator
+    server: ServerDep,
+    rover: RoverName,
+    channel: Channel,
+    request: Request,
+    _: Operator,
+    truth: SeesTruth,
 ) -> dict[str, Any]:
-    """Back to the default levels for a channel."""
+    """Back to the default levels for a channel (a truth channel's: the truth view)."""
     runtime = server.rover(rover)
+    if not truth and is_truth_channel(channel):
+        raise truth_refused("this channel")
     request.state.audit_action = f"reset limits of {channel} to the defaults"
     try:
         return server.alarms.reset_limits(rover, channel, runtime.last_frame)
@@ -107,6 +131,7 @@ def list_alarms(
     server: ServerDep,
     rover: RoverName,
     _: Viewer,
+    truth: SeesTruth,
     active: Annotated[
         bool | None,
         Query(
@@ -116,20 +141,23 @@ def list_alarms(
     ] = None,
     limit: Annotated[int, Query(ge=1, le=10_000)] = 500,
 ) -> list[dict[str, Any]]:
-    """A rover's alarms, newest first."""
+    """A rover's alarms, newest first (those of truth channels in the truth view only)."""
     server.rover(rover)
-    return server.alarms.listed(rover, active, limit)
+    return server.alarms.listed(rover, active, limit, truth)
 
 
 @routes.post(
     "/api/alarms/{alarm_id}/acknowledge",
-    responses={**AUTH_ERRORS, **NOT_FOUND, 409: error_doc("acknowledged already")},
+    responses={**AUTH_ERRORS, **NOT_FOUND, **TRUTH_REFUSED, 409: error_doc("acknowledged already")},
 )
 def acknowledge_alarm(
-    server: ServerDep, alarm_id: AlarmId, request: Request, who: Operator
+    server: ServerDep, alarm_id: AlarmId, request: Request, who: Operator, truth: SeesTruth
 ) -> dict[str, Any]:
-    """Acknowledge an alarm (who and when are kept; it leaves the list once cleared)."""
+    """Acknowledge an alarm (who and when are kept; it leaves the list once cleared); an
+    alarm of a truth channel only in the truth view."""
     request.state.audit_action = f"acknowledge alarm #{alarm_id}"
+    if not truth and server.alarms.truth_alarm(alarm_id):
+        raise truth_refused(f"alarm #{alarm_id}")
     try:
         alarm = server.alarms.acknowledge(alarm_id, who.name)
     except AlarmError as refused:

@@ -8,7 +8,8 @@ from typing import Annotated, Any
 from fastapi import HTTPException, Query
 
 from server.access.auth import Viewer
-from server.api.deps import MAX_SOL, ServerDep, router
+from server.access.truth_view import ground_channels, truth_refused
+from server.api.deps import MAX_SOL, SeesTruth, ServerDep, error_doc, router
 from server.channels import (
     DEFAULT_POINTS,
     MAX_POINTS,
@@ -36,18 +37,25 @@ def known(server: ServerDep, rover: str) -> dict[str, Channel]:
 
 
 @routes.get("/api/rovers/{rover}/channels", responses=NOT_FOUND)
-def list_channels(server: ServerDep, rover: str, _: Viewer) -> list[dict[str, Any]]:
+def list_channels(
+    server: ServerDep, rover: str, _: Viewer, truth: SeesTruth
+) -> list[dict[str, Any]]:
     """The numeric telemetry channels: name, unit, and whether it is scored against
-    the simulator's truth (a view no real operator has)."""
-    return [c.describe() for c in known(server, rover).values()]
+    the simulator's truth (a view no real operator has; listed only in the truth view)."""
+    described = [c.describe() for c in known(server, rover).values()]
+    return described if truth else ground_channels(described)
 
 
-@routes.get("/api/rovers/{rover}/channels/{channel}", responses={**NOT_FOUND, **BAD_REQUEST})
+@routes.get(
+    "/api/rovers/{rover}/channels/{channel}",
+    responses={**NOT_FOUND, **BAD_REQUEST, 403: error_doc("a truth channel, not for this role")},
+)
 def channel_values(
     server: ServerDep,
     rover: str,
     channel: str,
     _: Viewer,
+    truth: SeesTruth,
     sol_from: Annotated[int | None, Query(ge=0, le=MAX_SOL)] = None,
     sol_to: Annotated[int | None, Query(ge=0, le=MAX_SOL)] = None,
     max_points: Annotated[int, Query(ge=MIN_POINTS, le=MAX_POINTS)] = DEFAULT_POINTS,
@@ -55,9 +63,13 @@ def channel_values(
     """One channel over sols ``sol_from``-``sol_to`` (default: the rover's sol now; at
     most MAX_SOLS sols), as ``t_s``, ``sol``, ``lmst_h`` and ``values`` arrays (null:
     no value), at most ``max_points`` long: decimated keeping each bucket's min and
-    max."""
+    max. A truth channel is the truth view's: 403 to anyone else."""
     runtime = server.rover(rover)
     channels = known(server, rover)
+    if channel in channels and channels[channel].truth and not truth:
+        raise truth_refused("this channel")
+    if not truth:
+        channels = {name: c for name, c in channels.items() if not c.truth}
     if channel not in channels:
         raise HTTPException(404, f"unknown channel {channel!r}; known: {', '.join(channels)}")
     now = runtime.sol(runtime.t_s)

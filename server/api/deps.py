@@ -3,6 +3,8 @@
 ``ServerDep`` is the app's ``server.state.Server`` (the runtimes, storage, hub ...), the
 role checks are ``server.access.auth``'s ``Viewer``, ``Operator``, ``Admin`` (run before
 the body is read: ``server.api.routing``); ``router()`` makes a router whose routes do so.
+``SeesTruth`` says whether the caller may see the simulator's truth (the truth view,
+``server.access.truth_view``): every route that could carry it asks.
 The error shapes: every error but a 422 is ``ErrorMessage``, a 422 is ``RequestErrors``.
 """
 
@@ -17,7 +19,9 @@ from pydantic import BaseModel, ConfigDict
 from starlette.concurrency import run_in_threadpool
 from starlette.requests import HTTPConnection
 
-from server.access.auth import websocket_principal
+from server.access.accounts import Principal
+from server.access.auth import Viewer, websocket_principal
+from server.access.truth_view import may_see_truth
 from server.api.origin import origin_allowed
 from server.api.routing import AuthFirstRoute
 from server.runtime import ROVERS
@@ -35,6 +39,20 @@ def get_server(connection: HTTPConnection) -> Server:
 
 
 ServerDep = Annotated[Server, Depends(get_server)]
+
+
+def sees_truth(server: ServerDep, who: Viewer) -> bool:
+    """Whether the caller may see the simulator's truth (``server.access.truth_view``)."""
+    return may_see_truth(server.config.truth_view, who)
+
+
+# A route's answer carries the truth only when this is true (server.access.truth_view).
+SeesTruth = Annotated[bool, Depends(sees_truth)]
+
+
+def connection_sees_truth(server: Server, who: Principal) -> bool:
+    """The same decision for a WebSocket, from its handshake's principal."""
+    return may_see_truth(server.config.truth_view, who)
 
 
 def router() -> APIRouter:

@@ -13,6 +13,7 @@ from server.api.deps import (
     MAX_SOL,
     NOT_FOUND,
     RoverName,
+    SeesTruth,
     ServerDep,
     router,
 )
@@ -27,6 +28,7 @@ def event_log_page(
     server: ServerDep,
     rover: RoverName,
     _: Viewer,
+    truth: SeesTruth,
     sol: Annotated[int | None, Query(ge=0, le=MAX_SOL, description="one sol")] = None,
     sol_from: Annotated[int | None, Query(ge=0, le=MAX_SOL, description="first sol")] = None,
     sol_to: Annotated[int | None, Query(ge=0, le=MAX_SOL, description="last sol")] = None,
@@ -44,7 +46,7 @@ def event_log_page(
 ) -> dict[str, Any]:
     """The rover's events, newest first, filtered (server.eventlog): ``{"rover",
     "kinds", "total", "offset", "limit", "events"}``; a filter that cannot be met is a
-    422 naming it."""
+    422 naming it. The events of alarms on truth channels only in the truth view."""
     runtime = server.rover(rover)
     server.writer.flush()
     flt = EventFilter(
@@ -60,6 +62,6 @@ def event_log_page(
         offset=offset,
     )
     try:
-        return event_log(server.store, runtime, flt)
+        return event_log(server.store, runtime, flt, truth)
     except FilterError as exc:
         raise request_error(("query", exc.param), str(exc), "value_error") from exc

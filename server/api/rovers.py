@@ -19,6 +19,7 @@ from server.api.deps import (
     NOT_FOUND,
     TOO_LARGE,
     RoverName,
+    SeesTruth,
     ServerDep,
     router,
 )
@@ -55,9 +56,15 @@ def list_rovers(server: ServerDep, _: Viewer) -> list[dict[str, Any]]:
 
 
 @routes.get("/api/rovers/{rover}/state", responses=NOT_FOUND)
-def rover_state(server: ServerDep, rover: RoverName, _: Viewer) -> dict[str, Any]:
-    """Clock, queue, the executing command and the latest telemetry frame."""
-    return server.rover(rover).state()
+def rover_state(server: ServerDep, rover: RoverName, _: Viewer, truth: SeesTruth) -> dict[str, Any]:
+    """Clock, queue, the executing command and the latest telemetry frame (the downlink
+    record, merged with its truth record in the truth view); ``truth`` says which."""
+    runtime = server.rover(rover)
+    with runtime.lock:  # the state and its downlink record of one moment
+        state = runtime.state()
+        if not truth:
+            state["frame"] = runtime.last_frame
+    return {**state, "truth": truth}
 
 
 @routes.get("/api/commands")

@@ -16,13 +16,17 @@ from fastapi.responses import Response
 from starlette.websockets import WebSocketDisconnect
 
 from server.access.auth import Viewer
+from server.access.truth_view import truth_refused
 from server.api.deps import (
     BAD_REQUEST,
     CSV_FILE,
     NOT_FOUND,
     RoverName,
+    SeesTruth,
     ServerDep,
     Sol,
+    connection_sees_truth,
+    error_doc,
     router,
     websocket_allowed,
 )
@@ -45,11 +49,14 @@ def sols(server: ServerDep, rover: RoverName, _: Viewer) -> list[int]:
 
 
 @routes.get("/api/rovers/{rover}/sols/{sol}/timeline", responses=NOT_FOUND)
-def timeline(server: ServerDep, rover: RoverName, sol: Sol, _: Viewer) -> dict[str, Any]:
-    """One sol: commands, NATE mode and AQF intervals, events, distance, summary."""
+def timeline(
+    server: ServerDep, rover: RoverName, sol: Sol, _: Viewer, truth: SeesTruth
+) -> dict[str, Any]:
+    """One sol: commands, NATE mode and AQF intervals, events, distance, summary, and in
+    the truth view its ``truth`` part (the true distance, the errors, the true margin)."""
     runtime = server.rover(rover)
     server.writer.flush()
-    found = sol_timeline(server.store, runtime, sol)
+    found = sol_timeline(server.store, runtime, sol, truth)
     if found is None:
         raise HTTPException(404, f"no telemetry on sol {sol}")
     return found
@@ -65,19 +72,23 @@ def sol_telemetry_csv(
     rover: RoverName,
     sol: Sol,
     _: Viewer,
+    truth: SeesTruth,
     every: Annotated[float, Query(ge=0.0, le=86400.0)] = 0.0,
 ) -> Response:
     """One sol's frames as a CSV file to download (one per ``every`` s; frames with
-    events are always kept), named ``{rover}_sol{sol}.csv``."""
+    events are always kept), named ``{rover}_sol{sol}.csv``; the truth's columns only in
+    the truth view."""
     server.rover(rover)
     server.writer.flush()
     span = server.store.sol_range(rover, sol)
     if span is None:
         raise HTTPException(404, f"no telemetry on sol {sol} for rover {rover!r}")
-    frames = server.store.frames(rover, span[0], span[1], every, with_truth=True)
+    frames = server.store.frames(rover, span[0], span[1], every, with_truth=truth)
     disposition = f'attachment; filename="{rover}_sol{sol}.csv"'
     return Response(
-        frames_csv(frames), media_type="text/csv", headers={"Content-Disposition": disposition}
+        frames_csv(frames, truth),
+        media_type="text/csv",
+        headers={"Content-Disposition": disposition},
     )
 
 
@@ -101,36 +112,42 @@ def telemetry(
     rover: RoverName,
     request: Request,
     _: Viewer,
+    truth: SeesTruth,
     t_from: Annotated[float | None, Query(alias="from")] = None,
     t_to: Annotated[float | None, Query(alias="to")] = None,
     every: Annotated[float, Query(ge=0.0, le=86400.0)] = 0.0,
     limit: Annotated[int, Query(ge=1, le=200_000)] = 20_000,
 ) -> Response | list[dict[str, Any]]:
-    """Frames over ``from``-``to`` (TT s), one per ``every`` s; CSV on Accept: text/csv."""
+    """Frames over ``from``-``to`` (TT s), one per ``every`` s; CSV on Accept: text/csv.
+    Each frame is the downlink record, merged with its truth record in the truth view."""
     runtime = server.rover(rover)
     server.writer.flush()
     lo = -math.inf if t_from is None else t_from
     hi = runtime.t_s if t_to is None else t_to
     if not (math.isfinite(hi) and lo <= hi):
         raise request_error(("query", "to"), "from/to: need from <= to, to finite", "range")
-    frames = server.store.frames(rover, lo, hi, every, limit, with_truth=True)
+    frames = server.store.frames(rover, lo, hi, every, limit, with_truth=truth)
     if "text/csv" in request.headers.get("accept", ""):
-        return Response(frames_csv(frames), media_type="text/csv")
+        return Response(frames_csv(frames, truth), media_type="text/csv")
     return frames
 
 
 @routes.websocket("/ws/rovers/{rover}/telemetry")
 async def live(server: ServerDep, websocket: WebSocket, rover: str) -> None:
     """Frames as they are played out, at most MAX_RATE_HZ per second of wall time, and
-    notices (``server.hub``) as they come."""
+    notices (``server.hub``) as they come: the downlink records, merged with their truth
+    records for a client in the truth view (``server.access.truth_view``)."""
     if not await websocket_allowed(websocket):
         return
     if rover not in server.rovers:
         await websocket.close(code=4404)
         return
     # Subscribed before the accept: a page that loads the stored events once its socket is
-    # open misses none published in between (web/eventlog.js).
-    client = server.hub.subscribe(rover)
+    # open misses none published in between (web/eventlog.js). The truth merged in or not,
+    # decided once, from the handshake's token.
+    client = server.hub.subscribe(
+        rover, truth=connection_sees_truth(server, websocket.state.principal)
+    )
     try:
         await websocket.accept()
     except BaseException:
@@ -174,8 +191,10 @@ def downlink_record_schema(_: Viewer) -> dict[str, Any]:
     return downlink_schema()
 
 
-@routes.get("/api/schema/truth")
-def truth_record_schema(_: Viewer) -> dict[str, Any]:
+@routes.get("/api/schema/truth", responses={403: error_doc("not in the truth view")})
+def truth_record_schema(_: Viewer, truth: SeesTruth) -> dict[str, Any]:
     """The JSON schema of the truth record beside each frame: what only the simulator knows,
-    and the scores against it (``sim.scoring.truth.Truth``)."""
+    and the scores against it (``sim.scoring.truth.Truth``); for the truth view only."""
+    if not truth:
+        raise truth_refused("the truth record's schema")
     return truth_schema()

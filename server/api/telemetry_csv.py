@@ -8,8 +8,9 @@ one cell. The columns that existed when a frame was one record keep the places t
 then (``COLUMNS_BEFORE_THE_SPLIT``: scripts read the columns by position too); a field added
 to either record since is a new column after them, without an edit here. A figure a frame
 lacks (NaN, an estimator that did not run, a field frames stored by an older version do not
-have, or the truth where the reader may not see it) is an empty cell, so every row is as long
-as the header.
+have) is an empty cell, so every row is as long as the header. For a reader who may not see
+the simulator's truth (``server.access.truth_view``) the truth's columns are absent, not
+empty: the truth record's fields and the side estimators' errors.
 """
 
 from __future__ import annotations
@@ -20,7 +21,8 @@ import typing
 from dataclasses import fields
 from typing import Any
 
-from server.channels import SIDE_FIELDS, vector_length
+from server.access.truth_view import TRUTH_FIGURES
+from server.channels import SIDE_FIELDS, SIDE_TRUTH, vector_length
 from sim.loop.downlink import ESTIMATORS, Downlink
 from sim.scoring.truth import Truth
 
@@ -64,36 +66,41 @@ CSV_SIDE_FIELDS = tuple(k for k, n in SIDE_FIELDS.items() if n is None)
 CSV_SIDE_VECTORS = {k: n for k, n in SIDE_FIELDS.items() if n is not None}
 
 
-def _side_cells(f: dict[str, Any]) -> list[Any]:
+def _side_cells(f: dict[str, Any], side_fields: tuple[str, ...]) -> list[Any]:
     cells: list[Any] = []
     for name in CSV_SIDE_ESTIMATORS:
         side = (f.get("estimators") or {}).get(name) or {}
-        cells += [side.get(c) for c in CSV_SIDE_FIELDS]
+        cells += [side.get(c) for c in side_fields]
         for v, n in CSV_SIDE_VECTORS.items():
             values = list(side.get(v) or [])
             cells += values + [None] * (n - len(values))
     return cells
 
 
-def frames_csv(frames: list[dict[str, Any]]) -> str:
-    """Frames as CSV (module docstring)."""
+def frames_csv(frames: list[dict[str, Any]], truth: bool = True) -> str:
+    """Frames as CSV (module docstring); without the truth's columns unless ``truth``."""
+    columns, vectors, side_fields = CSV_COLUMNS, CSV_VECTORS, CSV_SIDE_FIELDS
+    if not truth:
+        columns = tuple(c for c in columns if c not in TRUTH_FIGURES)
+        vectors = {v: n for v, n in vectors.items() if v not in TRUTH_FIGURES}
+        side_fields = tuple(c for c in side_fields if c not in SIDE_TRUTH)
     out = io.StringIO()
     writer = csv.writer(out)
-    header = list(CSV_COLUMNS)
-    for v, n in CSV_VECTORS.items():
+    header = list(columns)
+    for v, n in vectors.items():
         header += [f"{v}_{i}" for i in range(n)]
     for name in CSV_SIDE_ESTIMATORS:
-        header += [f"{name}_{c}" for c in CSV_SIDE_FIELDS]
+        header += [f"{name}_{c}" for c in side_fields]
         for v, n in CSV_SIDE_VECTORS.items():
             header += [f"{name}_{v}_{i}" for i in range(n)]
     header.append("events")
     writer.writerow(header)
     for f in frames:
-        row = [f.get(c) for c in CSV_COLUMNS]
-        for v, n in CSV_VECTORS.items():
+        row = [f.get(c) for c in columns]
+        for v, n in vectors.items():
             values = list(f.get(v) or [])
             row += values + [None] * (n - len(values))
-        row += _side_cells(f)
+        row += _side_cells(f, side_fields)
         row.append("; ".join(e["text"] for e in f.get("events", [])))
         writer.writerow(row)
     return out.getvalue()

@@ -19,6 +19,7 @@ from server.access.accounts import (
     UserExistsError,
 )
 from server.access.auth import COOKIE, Admin, Viewer
+from server.access.truth_view import may_see_truth
 from server.api.deps import (
     BAD_REQUEST,
     NOT_FOUND,
@@ -72,13 +73,17 @@ routes = router()
 
 def _principal_json(server: ServerDep, who: Principal) -> dict[str, Any]:
     return {"name": who.name, "role": who.role, "public_read": server.config.public_read,
-            "roles": list(ROLES)}  # fmt: skip
+            "roles": list(ROLES), "truth_view": server.config.truth_view,
+            # whether this user's answers carry the simulator's truth (the console's Truth
+            # panel shows then): server.access.truth_view
+            "sees_truth": may_see_truth(server.config.truth_view, who)}  # fmt: skip
 
 
 @routes.get("/api/me")
 def me(server: ServerDep, who: Viewer) -> dict[str, Any]:
     """Who this request acts as (``anonymous`` with no role when reading without a
-    token), and whether reading needs a token on this server."""
+    token), whether reading needs a token on this server, its truth view and whether
+    this caller sees the truth."""
     return _principal_json(server, who)
 
 

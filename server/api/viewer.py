@@ -13,7 +13,9 @@ from server.access.auth import Viewer
 from server.api.deps import (
     NOT_FOUND,
     RoverName,
+    SeesTruth,
     ServerDep,
+    connection_sees_truth,
     router,
     websocket_allowed,
 )
@@ -22,39 +24,48 @@ from server.scene3d.proxy import fetch, relay
 routes = router()
 
 
-def scene_port(server: ServerDep, rover: str) -> int:
+def scene_port(server: ServerDep, rover: str, truth: bool) -> int:
     server.rover(rover)
-    if rover not in server.scenes:
+    scene = server.scene_for(rover, truth)
+    if scene is None:
         raise HTTPException(404, "the 3D view is off (roverops serve starts it)")
-    return server.scenes[rover].port
+    return scene.port
 
 
 @routes.get("/viser/{rover}", include_in_schema=False)
-def viser_root(server: ServerDep, rover: str, _: Viewer) -> RedirectResponse:
-    scene_port(server, rover)
+def viser_root(server: ServerDep, rover: str, _: Viewer, truth: SeesTruth) -> RedirectResponse:
+    scene_port(server, rover, truth)
     return RedirectResponse(f"/viser/{rover}/")
 
 
 @routes.get("/viser/{rover}/{path:path}", include_in_schema=False)
-async def viser_page(server: ServerDep, rover: str, path: str, _: Viewer) -> Response:
+async def viser_page(
+    server: ServerDep, rover: str, path: str, _: Viewer, truth: SeesTruth
+) -> Response:
     """The rover's viser client (and anything else viser serves), proxied."""
-    got = await run_in_threadpool(fetch, scene_port(server, rover), path)
+    got = await run_in_threadpool(fetch, scene_port(server, rover, truth), path)
     return Response(got.body, status_code=got.status, media_type=got.content_type)
 
 
 @routes.websocket("/viser/{rover}")
 async def viser_socket(server: ServerDep, websocket: WebSocket, rover: str) -> None:
-    """The viser client's WebSocket, relayed to the rover's viser server."""
+    """The viser client's WebSocket, relayed to the rover's viser server: the scene with
+    the truth or the one of the downlink alone, as the handshake's token allows
+    (``server.scene3d.scene``)."""
     if not await websocket_allowed(websocket):
         return
-    if rover not in server.scenes:
+    scene = server.scene_for(rover, connection_sees_truth(server, websocket.state.principal))
+    if scene is None:
         await websocket.close(code=4404)
         return
-    await relay(websocket, server.scenes[rover].port)
+    await relay(websocket, scene.port)
 
 
 @routes.get("/api/rovers/{rover}/scene", responses=NOT_FOUND)
-def scene_state(server: ServerDep, rover: RoverName, _: Viewer) -> dict[str, Any]:
-    """The 3D view: its URL on this origin and how many frames it has drawn."""
-    scene_port(server, rover)
-    return {"url": f"/viser/{rover}/", "frames_drawn": server.scenes[rover].frames_drawn}
+def scene_state(server: ServerDep, rover: RoverName, _: Viewer, truth: SeesTruth) -> dict[str, Any]:
+    """The 3D view: its URL on this origin, how many frames it has drawn, and whether it
+    shows the truth (the truth view's scene)."""
+    port = scene_port(server, rover, truth)
+    scene = server.scene_for(rover, truth)
+    assert scene is not None and scene.port == port
+    return {"url": f"/viser/{rover}/", "frames_drawn": scene.frames_drawn, "truth": scene.truth}

@@ -84,15 +84,23 @@ class RoverPose:
 
     @staticmethod
     def from_frame(frame: dict[str, Any], which: str) -> RoverPose:
-        """The ``"true"`` or ``"est"`` pose of a telemetry frame (the estimate has no
-        suspension of its own: it borrows the true joint angles)."""
+        """The ``"true"`` or ``"est"`` pose of a telemetry frame: the true pose on the true
+        joint angles, the estimate on the angles the rover's encoders read (the downlink's)."""
         q_b_w = Rotation.from_quat(np.asarray(frame[f"q_b_ll_{which}"], dtype=float))
+        joint = "{}_deg" if which == "true" else "{}_enc_deg"
+
+        def angles(name: str, default: float | list[float]) -> FloatArray:
+            value = frame.get(joint.format(name))
+            value = default if value is None else value  # frames stored before encoders: 0
+            radians: FloatArray = np.radians(np.asarray(value, dtype=float))
+            return radians
+
         return RoverPose(
             p_w=np.asarray(frame[f"p_mission_{which}"], dtype=float),
             q_w_b=q_b_w.inv().as_quat(),
-            rocker_rad=math.radians(float(frame.get("rocker_deg") or 0.0)),
-            bogie_rad=np.radians(np.asarray(frame.get("bogie_deg") or [0.0, 0.0], float)),
-            steer_rad=np.radians(np.asarray(frame.get("steer_deg") or [0.0] * 4, float)),
+            rocker_rad=float(angles("rocker", 0.0)),
+            bogie_rad=angles("bogie", [0.0, 0.0]),
+            steer_rad=angles("steer", [0.0] * 4),
         )
 
 
@@ -261,11 +269,11 @@ def draw_vectors(scene: viser.SceneApi, frame: dict[str, Any], pose: RoverPose) 
 
 
 def status_text(frame: dict[str, Any], live: bool) -> str:
-    """The status line of a viewer: sol, LMST, live or replay, mode, AQF, error."""
+    """The status line of a viewer: sol, LMST, live or replay, mode, AQF, and the position
+    error where the frame carries the truth."""
     h = float(frame["lmst_h"])
     clock = f"{int(h):02d}:{int(h * 60) % 60:02d}"
     mode = "live" if live else "replay"
-    return (
-        f"Sol {frame['sol']} {clock} LMST ({mode}) · {frame['nate_mode']} · "
-        f"AQF {frame['aqf']} · position error {frame['position_error_m']:.2f} m"
-    )
+    text = f"Sol {frame['sol']} {clock} LMST ({mode}) · {frame['nate_mode']} · AQF {frame['aqf']}"
+    error = frame.get("position_error_m")
+    return text + (f" · position error {error:.2f} m" if error is not None else "")

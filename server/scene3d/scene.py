@@ -24,6 +24,16 @@ sends changes only its own elements (viser routes a GUI message to the sender's 
 its callbacks check the values they get, and ``server.scene3d.proxy`` lets through only a
 camera report or an input's new value.
 
+A scene is in the truth view or not (``truth``). In the truth view it shows all of the above;
+otherwise it is what a real ground system could draw from the downlink alone: the rover at
+its estimated pose (on its encoders' joint angles), the estimated traverses and the Sites,
+the terrain around the estimate; the true rover, its traverse, the true sun, Earth and
+boresight and the position error are never made, so no node or message of theirs exists
+for its viewers. With ``roverops serve --truth-view conductor`` each rover has both scenes,
+each a viser server of its own, and the relay connects each viewer to the one its token
+allows (``server.state.Server.scene_for``): viser broadcasts a scene's shared nodes to all
+its clients, so one scene cannot keep the truth from some of them.
+
 Coordinates are the mission frame of the frames' ``p_mission_*`` (the first Site: x North,
 y East, z Down, metres), drawn with -z up. Attitudes come from the frames' ``q_b_ll``: LL
 and Site orientations differ by the curvature of Mars over the traverse (1e-5 rad per
@@ -99,10 +109,11 @@ def guarded(
 
 @dataclass
 class Replay:
-    """A viewer's own rover and ghost while it replays (its own vectors go with them)."""
+    """A viewer's own rover and ghost while it replays (its own vectors go with them; no
+    ghost outside the truth view: the rover is drawn where it believes it is)."""
 
     model: RoverModel
-    ghost: RoverModel
+    ghost: RoverModel | None
 
 
 class Viewer:
@@ -178,7 +189,7 @@ class Viewer:
     def show_live(self, frame: dict[str, Any], span: tuple[float, float] | None) -> None:
         """The live frame's status and slider, the camera carried along (the shared rover
         is drawn for everyone); nothing while this viewer replays."""
-        p_w = np.asarray(frame["p_mission_true"], dtype=float)
+        p_w = np.asarray(frame[f"p_mission_{self.scene.pose}"], dtype=float)
         with self.lock:
             if not self.following:
                 return
@@ -200,7 +211,8 @@ class Viewer:
     def show_replay(self, frame: dict[str, Any]) -> None:
         """``frame`` for this viewer alone: its own rover, ghost and vectors shadow the
         shared ones; it stops following."""
-        true_pose = RoverPose.from_frame(frame, "true")
+        pose = RoverPose.from_frame(frame, self.scene.pose)
+        truth = self.scene.truth
         with self.lock:
             if self.following:
                 self.following = False
@@ -215,13 +227,15 @@ class Viewer:
             if self.replay is None:
                 self.replay = Replay(
                     RoverModel(scene, "/rover", TRUE_RGB, None),
-                    RoverModel(scene, "/ghost", GHOST_RGB, 0.35),
+                    RoverModel(scene, "/ghost", GHOST_RGB, 0.35) if truth else None,
                 )
             with self.client.atomic():
-                self._chase(true_pose.p_w)
-                self.replay.model.show(true_pose)
-                self.replay.ghost.show(RoverPose.from_frame(frame, "est"))
-                draw_vectors(scene, frame, true_pose)
+                self._chase(pose.p_w)
+                self.replay.model.show(pose)
+                if self.replay.ghost is not None:
+                    self.replay.ghost.show(RoverPose.from_frame(frame, "est"))
+                if truth:
+                    draw_vectors(scene, frame, pose)
                 self.status.content = status_text(frame, live=False)
             self.shown = frame
         self.client.flush()
@@ -234,7 +248,7 @@ class Viewer:
                 return
             self.following = True
             self.follow.value = True  # type: ignore[misc]  # as above
-            for name in REPLAY_NODES:
+            for name in REPLAY_NODES if self.scene.truth else ("/rover",):
                 self.client.scene.remove_by_name(name)
             self.replay = None
         frame, span = self.scene.live()
@@ -258,11 +272,14 @@ class Viewer:
 
 
 class RoverScene:
-    """One rover's 3D view (module docstring): listens to the runtime's played-out frames."""
+    """One rover's 3D view (module docstring): listens to the runtime's played-out frames;
+    with the truth, or from the downlink alone (``truth`` False)."""
 
-    def __init__(self, runtime: RoverRuntime, store: Store) -> None:
+    def __init__(self, runtime: RoverRuntime, store: Store, truth: bool = True) -> None:
         self.runtime = runtime
         self.store = store
+        self.truth = truth
+        self.pose = "true" if truth else "est"  # the pose the solid rover is drawn at
         self.rover = runtime.spec.name
         # The scene's own terrain (same site and seed: the same ground); the simulator's
         # tile cache belongs to the runtime thread.
@@ -274,7 +291,7 @@ class RoverScene:
         self._dirty = threading.Event()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        self._tracks = {"true": Track(), "est": Track()}
+        self._tracks = {"true": Track(), "est": Track()} if truth else {"est": Track()}
         self._sites: dict[int, FloatArray] = {}
         self._new_sites: list[int] = []
         self._terrain_centre: FloatArray | None = None
@@ -305,17 +322,19 @@ class RoverScene:
         # (and cost SwiftShader dearly); the sun arrow shows where the sun is.
         server.scene.configure_default_lights(enabled=True, cast_shadow=False)
         self.model = RoverModel(server.scene, "/rover", TRUE_RGB, None)
-        self.ghost = RoverModel(server.scene, "/ghost", GHOST_RGB, 0.35)
+        self.ghost = RoverModel(server.scene, "/ghost", GHOST_RGB, 0.35) if self.truth else None
         server.on_client_connect(self._connect)
         server.on_client_disconnect(self._disconnect)
         for frame in self._history():
             self._take(frame)
         if self._latest is not None:
             self._draw(self._latest)
-        else:  # no frame yet: the ground is cut now, not by the first live frame's draw
+        elif self.truth:  # no frame yet: the ground is cut now, not by the first live draw
             session = self.runtime.session
             p_w = np.asarray(session.sim.drive_state.p_s, dtype=float) - self.origin_world
             self._recut_terrain(p_w)
+        else:  # the rover knows it is where its mission frame begins
+            self._recut_terrain(np.zeros(3))
         self.runtime.sinks.append(self)
         self._thread = threading.Thread(target=self._run, name=f"scene-{self.rover}", daemon=True)
         self._thread.start()
@@ -334,9 +353,11 @@ class RoverScene:
         """Stored frames, decimated, for the traverses and the slider after a restart, and
         the last one stored (decimation may have passed it over)."""
         frames = self.store.frames(
-            self.rover, -math.inf, math.inf, HISTORY_EVERY_S, with_truth=True
+            self.rover, -math.inf, math.inf, HISTORY_EVERY_S, with_truth=self.truth
         )
-        last = with_truth(self.store.last_frame(self.rover), self.store.last_truth(self.rover))
+        last = self.store.last_frame(self.rover)
+        if self.truth:
+            last = with_truth(last, self.store.last_truth(self.rover))
         if last is not None and (not frames or last["t_s"] > frames[-1]["t_s"]):
             frames.append(last)
         return frames
@@ -381,12 +402,13 @@ class RoverScene:
         """A frame sink (``server.sinks``): keep the traverses and the newest frame."""
         with self._lock:
             for d, t in zip(batch.downlink, batch.truth, strict=True):
-                self._take(merged(d, t))
+                self._take(merged(d, t) if self.truth else d)
         self._dirty.set()
 
     def _take(self, f: dict[str, Any]) -> None:
         self._latest = f
-        self._tracks["true"].add(f["p_mission_true"])
+        if self.truth:
+            self._tracks["true"].add(f["p_mission_true"])
         self._tracks["est"].add(f["p_mission_est"])
         for name, side in (f.get("estimators") or {}).items():  # roverops serve --estimators
             self._tracks.setdefault(name, Track()).add(side["p_mission"])
@@ -426,19 +448,19 @@ class RoverScene:
         everyone, then each following viewer's status and slider."""
         server = self.server
         assert server is not None
-        true_pose = RoverPose.from_frame(frame, "true")
-        est_pose = RoverPose.from_frame(frame, "est")
+        pose = RoverPose.from_frame(frame, self.pose)
         with self._lock:
             tracks = {k: t.take_dirty() for k, t in self._tracks.items()}
             new_sites = [(i, self._sites[i]) for i in self._new_sites]
             self._new_sites = []
             slider_span = self._slider_span()
             viewers = list(self.viewers.values())
-        self._recut_terrain(true_pose.p_w)
+        self._recut_terrain(pose.p_w)
         with server.atomic():
-            self.model.show(true_pose)
-            self.ghost.show(est_pose)
-            draw_vectors(server.scene, frame, true_pose)
+            self.model.show(pose)
+            if self.ghost is not None:  # the truth view: the estimate beside the truth
+                self.ghost.show(RoverPose.from_frame(frame, "est"))
+                draw_vectors(server.scene, frame, pose)
             for which, chunks in tracks.items():
                 rgb = TRACK_RGB.get(which, SIDE_RGB)
                 for chunk, segs in chunks.items():
@@ -453,7 +475,7 @@ class RoverScene:
                     f"/site_{index}/label", f"Site {index}", position=(0.0, 0.0, -0.3)
                 )
         server.flush()  # send now rather than at viser's next 1/60 s window
-        self._shown_p = true_pose.p_w
+        self._shown_p = pose.p_w
         for viewer in viewers:
             try:
                 viewer.show_live(frame, slider_span)

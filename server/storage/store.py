@@ -44,7 +44,6 @@ from server.storage.schema import (
     truth_frames,
     upgrade_schema,
 )
-from sim.scoring.truth import merged
 
 
 def _finite(value: Any) -> Any:
@@ -385,6 +384,10 @@ class Store:
                     break
         if with_truth and out:
             truths = self.truths(rover, out[0]["t_s"], out[-1]["t_s"])
+            # imported here: the accounts' commands (roverops users) load storage without
+            # the simulator (tests/cli/test_cli_imports.py)
+            from sim.scoring.truth import merged
+
             out = [merged(d, truths[d["t_s"]]) if d["t_s"] in truths else d for d in out]
         return out
 

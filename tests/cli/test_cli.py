@@ -109,6 +109,7 @@ def test_console_script_reports_errors_without_traceback() -> None:
         (["serve", "--port", "0"], "--port must be in 1-65535"),
         (["serve", "--port", "http"], "--port must be an integer"),
         (["serve", "--operator-token", "short"], "--operator-token"),
+        (["serve", "--truth-view", "nobody"], "--truth-view must be everyone or conductor"),
     ],
 )
 def test_serve_refuses_bad_arguments_before_starting(
@@ -116,3 +117,16 @@ def test_serve_refuses_bad_arguments_before_starting(
 ) -> None:
     code, _, err = _run(capsys, *argv)
     assert code == 2 and needle in err and "Traceback" not in err
+
+
+def test_serve_refuses_a_wrong_truth_view_from_the_environment(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("ROVEROPS_TRUTH_VIEW", "operators")
+    code, _, err = _run(capsys, "serve")
+    error_lines = [line for line in err.splitlines() if "error" in line]
+    assert code == 2 and "Traceback" not in err
+    assert error_lines == [
+        "roverops serve: error: argument --truth-view: --truth-view must be everyone or "
+        "conductor, got 'operators'"
+    ]

@@ -158,3 +158,31 @@ def test_at_max_speed_every_event_of_every_frame_reaches_a_client_exactly_once()
     assert any(e["text"].startswith("VO step 1/") for e in sent)
     key = lambda e: (e["t_s"], e["text"], e["kind"], e["severity"], e["sol"], e["lmst_h"])  # noqa: E731
     assert sorted(map(key, received)) == sorted(map(key, sent))  # every one, exactly once
+
+
+def test_a_client_outside_the_truth_view_gets_the_downlink_and_no_truth_notice() -> None:
+    """Issue 21, item 3: the truth merged in only for a client in the truth view, decided
+    when it subscribes; an alarm on a truth channel (and its event) only to such clients."""
+    truth_alarm = {"type": "alarm", "alarm": {"id": 1, "channel": "hga_margin_deg", "truth": True}}
+    truth_event = {"type": "event", "event": {
+        "text": "alarm raised: hga_margin_deg -1 deg (truth view)", "kind": "alarm",
+        "severity": "error"}}  # fmt: skip
+    rover_alarm = {"type": "alarm", "alarm": {"id": 2, "channel": "aqf", "truth": False}}
+
+    async def scenario() -> tuple[list[dict], list[dict]]:  # type: ignore[type-arg]
+        hub = TelemetryHub()
+        ground, conductor = hub.subscribe("spirit", truth=False), hub.subscribe("spirit")
+        hub.publish("spirit", batch([{"t_s": 1.0, "aqf": "Fine", "position_error_m": 0.2}]))
+        for notice in (truth_alarm, truth_event, rover_alarm):
+            hub.notify("spirit", notice)
+        await asyncio.sleep(0)
+        got_ground = [await next_message(ground) for _ in range(2)]
+        got_conductor = [await next_message(conductor) for _ in range(4)]
+        return got_ground, got_conductor
+
+    ground, conductor = _run(scenario())
+    assert [m.get("type") for m in ground] == ["alarm", None]
+    assert ground[0]["alarm"]["id"] == 2
+    assert ground[1]["aqf"] == "Fine" and "position_error_m" not in ground[1]
+    assert [m.get("type") for m in conductor] == ["alarm", "event", "alarm", None]
+    assert conductor[3]["position_error_m"] == 0.2
