@@ -29,6 +29,7 @@ GROUND_KNOWLEDGE = frozenset({
 })  # fmt: skip
 TRUTH = "sim.scoring.truth"
 TRUTH_CARRIERS = frozenset({
+    "server.access.truth_view",  # who may see the truth, and stripping it for the others
     "server.sinks",  # hands each frame's two records on
     "server.storage.store",  # stores and reads them
     "server.hub",  # the WebSocket: the truth only to those the truth view allows
