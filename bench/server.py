@@ -46,6 +46,9 @@ an interpreter lock and the figures include the network stack.
   and ``event_loop_stall_samples`` how many polls it covered; ``event_loop_idle_p99_ms``
   the p99 of ``STALL_IDLE_POLLS`` polls just before, with nothing validating (on a shared
   machine, the part of the stall that is not the server's).
+- ``channel_query_7_sols_s``: one channel over 7 stored sols (about 621,000 frames) through
+  ``GET /api/rovers/spirit/channels/...`` of a server of its own, the median of 3
+  (``bench.server_channels``, which says what it stores).
 
 Output contract: ``bench.result``. The server runs as ``bench.server_process`` starts it.
 """
@@ -67,6 +70,7 @@ from typing import Any
 import numpy as np
 
 from bench.result import bench_result
+from bench.server_channels import measure_channel_query
 from bench.server_process import POLL_S, RunningServer, running_server, upload, wait_for
 from sequences.validate import validate
 
@@ -90,6 +94,7 @@ TARGETS: dict[str, dict[str, float]] = {
     "validate_10k_lines_s": {"le": 0.5},
     "validate_100k_blank_lines_s": {"le": 1.0},
     "event_loop_stall_ms_during_upload": {"le": 100.0},
+    "channel_query_7_sols_s": {"le": 0.5},  # issue 21
 }
 BLANK_LINES = 100_000
 UPLOAD_BYTES = 990_000  # under the server's 1,000,000-byte limit
@@ -462,11 +467,13 @@ def bench_server(
     blank_lines: int = BLANK_LINES,
     upload_bytes: int = UPLOAD_BYTES,
     sol_repeats: int = 3,
+    channel_every_s: float | None = None,
 ) -> dict[str, Any]:
     """The server bench (module docstring); the defaults are the issue's figures, smaller
     ones make a quick run (the targets stay the issue's). The sol is measured
     ``sol_repeats`` times, each on a new server after its in-process reference, and its
-    figures are medians (the overhead: the median of the pairs' differences)."""
+    figures are medians (the overhead: the median of the pairs' differences). The 7 sols of
+    the channel query hold a frame every ``channel_every_s`` (default: ``FRAME_EVERY_S``)."""
     if sol_repeats < 1:
         raise ValueError(f"sol_repeats: must be at least 1, got {sol_repeats}")
     sols: list[dict[str, Any]] = []
@@ -488,5 +495,8 @@ def bench_server(
             metrics.update(measure_ws(server, ws_clients, ws_window_s))
             metrics.update(measure_blank_lines(server, blank_lines))
             metrics.update(measure_stall(server, upload_bytes))
+        channels_dir = Path(tmp) / "channels"
+        channels_dir.mkdir()
+        metrics.update(measure_channel_query(channels_dir, channel_every_s))
     metrics.update(measure_validation(validate_lines, validate_repeats))
     return bench_result("server", metrics, TARGETS)
