@@ -11,13 +11,14 @@ any frame's JSON (issue 21).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 from sqlalchemy import Select, select
-from sqlalchemy.engine import Connection, Row
+from sqlalchemy.engine import Connection
 
 from server.storage.columns import DOWNLINK, TRUTH
 from server.storage.schema import RECORD_LAYOUT, frame_events, frames_table, truth_frames
@@ -41,13 +42,13 @@ def truth_row(rover: str, record: dict[str, Any]) -> dict[str, Any]:
     return {"rover": rover, "t_s": float(record["t_s"]), **TRUTH.encode(record)}
 
 
-def downlink_record(row: Row[Any]) -> dict[str, Any]:
+def downlink_record(row: Sequence[Any]) -> dict[str, Any]:
     """The downlink record of a row selected as ``DOWNLINK_ROW``."""
     head = {"t_s": float(row[0]), "sol": int(row[1])}
     return frame_events(DOWNLINK.decode(head, row[3:], row[2]))
 
 
-def truth_record(row: Row[Any]) -> dict[str, Any]:
+def truth_record(row: Sequence[Any]) -> dict[str, Any]:
     """The truth record of a row selected as ``TRUTH_ROW``."""
     return frame_events(TRUTH.decode({"t_s": float(row[0])}, row[2:], row[1]))
 

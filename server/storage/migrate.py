@@ -61,7 +61,7 @@ def split_merged_frames(engine: Engine, batch_rows: int = BATCH_ROWS) -> int:
         ).first():
             return 0
     f = frames_table.c
-    set_columns = {c: bindparam(c) for c in ("data", *DOWNLINK.columns)}
+    set_columns: dict[str, Any] = {c: bindparam(c) for c in ("data", *DOWNLINK.columns)}
     rewrite = (
         update(frames_table)
         .where(f.id == bindparam("row_id"))
