@@ -1,4 +1,5 @@
-"""Data migrations run when a database is opened (``server.storage.schema.upgrade_schema``).
+"""Data migrations, run when a database is opened (``upgrade_database``: after the schema is
+brought up to this version's tables, ``server.storage.schema.upgrade_schema``).
 
 ``split_merged_frames``: a database written before the two records were stored apart (one
 ``frames`` row per frame, its ``data`` the whole frame as JSON: the downlink's fields and the
@@ -23,7 +24,13 @@ from sqlalchemy import bindparam, insert, select, update
 from sqlalchemy.engine import Engine
 
 from server.storage.columns import DOWNLINK, TRUTH
-from server.storage.schema import RECORD_LAYOUT, frames_table, storage_steps, truth_frames
+from server.storage.schema import (
+    RECORD_LAYOUT,
+    frames_table,
+    storage_steps,
+    truth_frames,
+    upgrade_schema,
+)
 from sim.loop.downlink import downlink_fields
 from sim.scoring.truth import truth_fields
 
@@ -34,6 +41,13 @@ BATCH_ROWS = 2000
 # the truth's own fields (t_s is both records', events and estimators are split below)
 TRUTH_ONLY = frozenset(truth_fields()) - frozenset(downlink_fields())
 SIDE_SCORES = frozenset({"position_error_m", "attitude_error_deg"})  # a side estimator's errors
+
+
+def upgrade_database(engine: Engine) -> None:
+    """This version's tables, columns and indexes (``upgrade_schema``), then the data
+    migrations: the old merged frames split (``split_merged_frames``)."""
+    upgrade_schema(engine)
+    split_merged_frames(engine)
 
 
 def split_merged(frame: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:

@@ -4,7 +4,7 @@
 users, tokens, the audit log, alarms and their limits); ``upgrade_schema`` adds, when a
 database is opened, the columns and indexes this version declares and an older database
 lacks, so it keeps working (a column added this way must be nullable or have a
-``server_default``), and migrates the data of an older layout (``server.storage.migrate``).
+``server_default``), and ``server.storage.migrate`` then moves the data of an older layout.
 Events stored before events had a kind and severity read back as ``LEGACY_KIND`` /
 ``LEGACY_SEVERITY`` (``event_dict``).
 """
@@ -263,17 +263,13 @@ def sqlite_pragmas(dbapi_connection: Any, _record: Any) -> None:
 def upgrade_schema(engine: Engine) -> None:
     """Bring an existing database up to ``metadata``: missing columns, then missing indexes
     (``create_all`` only creates missing tables, with their indexes). A unique index added
-    to an existing table would fail on rows that break it: migrate those by hand. Then the
-    data migrations (``server.storage.migrate``): the frames of a database written before
-    the two records were stored apart are split into them."""
-    from server.storage.migrate import split_merged_frames  # it builds on these tables
-
+    to an existing table would fail on rows that break it: migrate those by hand. The data
+    migrations come after it (``server.storage.migrate.upgrade_database``)."""
     add_missing_columns(engine)
     with engine.begin() as conn:
         for table in metadata.sorted_tables:
             for index in table.indexes:
                 index.create(conn, checkfirst=True)
-    split_merged_frames(engine)
 
 
 def add_missing_columns(engine: Engine, meta: MetaData = metadata) -> list[str]:

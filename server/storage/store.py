@@ -39,6 +39,7 @@ from server.storage.channels import (
     truth_record,
     truth_row,
 )
+from server.storage.migrate import upgrade_database
 from server.storage.schema import (
     alarm_limits,
     alarms_table,
@@ -52,7 +53,6 @@ from server.storage.schema import (
     sequences,
     sqlite_pragmas,
     truth_frames,
-    upgrade_schema,
 )
 from sim.scoring.truth import merged
 
@@ -179,7 +179,7 @@ class Store:
         if self.is_sqlite:
             event.listen(self.engine, "connect", sqlite_pragmas)
         metadata.create_all(self.engine)
-        upgrade_schema(self.engine)
+        upgrade_database(self.engine)
 
     def close(self) -> None:
         """Close every pooled connection (the store is not usable afterwards)."""
