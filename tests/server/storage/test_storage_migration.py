@@ -163,3 +163,15 @@ def test_a_migration_stopped_half_way_carries_on(
         check_every_field(store, old_frames)
     finally:
         store.close()
+
+
+def test_a_row_that_is_no_frame_is_refused_saying_what_to_do(
+    store_url: str, old_frames: list[dict[str, Any]]
+) -> None:
+    old_database(store_url, old_frames[:3])
+    engine = create_engine(store_url)
+    with engine.begin() as conn:
+        conn.execute(insert(OLD_FRAMES).values(rover="spirit", t_s=1.0, sol=1, data=[1, 2]))
+    engine.dispose()
+    with pytest.raises(RuntimeError, match=r"frames row 7 is not a frame .* delete the row"):
+        Store(store_url)
