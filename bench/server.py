@@ -46,6 +46,16 @@ an interpreter lock and the figures include the network stack.
   and ``event_loop_stall_samples`` how many polls it covered; ``event_loop_idle_p99_ms``
   the p99 of ``STALL_IDLE_POLLS`` polls just before, with nothing validating (on a shared
   machine, the part of the stall that is not the server's).
+- ``channel_query_7_sols_s``: ``GET /api/rovers/spirit/channels/tilt_est_deg`` over 7 sols
+  stored (``FIRST_SOL`` on, before Spirit's start, so its own frames do not mix in) on a
+  server of its own without its 3D view (whose start reads the whole stored history), the
+  median of ``repeats``; ``channel_query_7_sols_truth_s`` the same of a truth channel, without
+  a target. The sols are stored straight through ``Store`` and its ``BatchWriter`` before the
+  server starts: the real records of a session made as Spirit's (``TEMPLATE_SEQUENCE``),
+  repeated one every ``every_s`` (default ``FRAME_EVERY_S``: every simulated second of 7
+  sols, the most the server keeps, about 621,000 frames), each copy's ``t_s``, ``sol`` and
+  ``lmst_h`` anew on Spirit's clock, its events dropped (``channel_rows_stored``,
+  ``channel_store_wall_s``).
 
 Output contract: ``bench.result``. The server runs as ``bench.server_process`` starts it.
 """
@@ -90,6 +100,7 @@ TARGETS: dict[str, dict[str, float]] = {
     "validate_10k_lines_s": {"le": 0.5},
     "validate_100k_blank_lines_s": {"le": 1.0},
     "event_loop_stall_ms_during_upload": {"le": 100.0},
+    "channel_query_7_sols_s": {"le": 0.5},  # issue 21
 }
 BLANK_LINES = 100_000
 UPLOAD_BYTES = 990_000  # under the server's 1,000,000-byte limit
@@ -160,21 +171,28 @@ def _sequence_end(server: RunningServer, ws: Any, sequence_id: int, timeout_s: f
     raise RuntimeError(f"timed out after {timeout_s:g} s waiting for the sol's sequence")
 
 
-def measure_sol_in_process(drive_m: float = 100.0, hga_min: float = 15.0) -> dict[str, Any]:
-    """The sol's commands in a ``RoverSession`` made as the server makes Spirit's: the wall
-    time of their execution (module docstring)."""
+def spirit_session(text: str) -> tuple[Any, list[Any]]:
+    """A ``RoverSession`` made as the server makes Spirit's (its site, seed, start and
+    ``frame_every_s``), and the commands of sequence ``text``."""
     from server.runtime import FRAME_EVERY_S, ROVERS
     from sim.loop.session import RoverSession
 
-    result = validate(SOL_SEQUENCE.format(drive_m=drive_m, hga_min=hga_min))
+    result = validate(text)
     assert result.sequence is not None, result.errors
     spec = ROVERS[ROVER]
     session = RoverSession(
         spec.site, spec.seed, spec.start_utc, frame_every_s=FRAME_EVERY_S, estimators=("sapp",)
     )
+    return session, [step.command for step in result.sequence.steps]
+
+
+def measure_sol_in_process(drive_m: float = 100.0, hga_min: float = 15.0) -> dict[str, Any]:
+    """The sol's commands in Spirit's session (``spirit_session``): the wall time of their
+    execution (module docstring)."""
+    session, commands = spirit_session(SOL_SEQUENCE.format(drive_m=drive_m, hga_min=hga_min))
     start = time.perf_counter()
-    for step in result.sequence.steps:
-        session.execute(step.command, label=step.command.describe())
+    for command in commands:
+        session.execute(command, label=command.describe())
     return {"sol_in_process_wall_s": time.perf_counter() - start}
 
 
@@ -449,6 +467,91 @@ def measure_stall(server: RunningServer, size_bytes: int = UPLOAD_BYTES) -> dict
     }
 
 
+FIRST_SOL = 90  # before Spirit's start (sol 101): the rover's own frames do not mix in
+SOLS = 7
+DOWNLINK_CHANNEL = "tilt_est_deg"
+TRUTH_CHANNEL = "attitude_error_deg"
+TEMPLATE_SEQUENCE = (
+    "SEQUENCE bench_channels\nARTICULATE_START\nWAIT duration_s=60\nARTICULATE_STOP\n"
+    "DRIVE_STRAIGHT distance_m=3\n"
+)
+WRITE_BATCH = 5000
+NO_3D = {"ROVEROPS_NO_3D": "1"}  # its start reads every stored frame (module docstring)
+QUERY_TIMEOUT_S = 300.0  # the JSON path of before took about 30 s
+
+
+def store_sols(url: str, every_s: float, sols: int = SOLS) -> int:
+    """Store ``sols`` sols of the records of ``TEMPLATE_SEQUENCE`` from ``FIRST_SOL``, one
+    every ``every_s`` (module docstring); how many."""
+    from server.runtime import ROVERS
+    from server.storage import BatchWriter, Store
+    from sim.world.marsclock import MISSIONS, lmst_h_from_t_s, sol_number_t_s, t_s_for_sol_lmst
+
+    mission = ROVERS[ROVER].mission
+    t0 = t_s_for_sol_lmst(mission, FIRST_SOL, 0.0)
+    t1 = t_s_for_sol_lmst(mission, FIRST_SOL + sols, 0.0)
+    t_s = np.arange(t0, t1, every_s)
+    t_s = t_s[(sol_number_t_s(mission, t_s) >= FIRST_SOL)]  # t0 may round to the sol before
+    sol = sol_number_t_s(mission, t_s)
+    lmst_h = lmst_h_from_t_s(t_s, MISSIONS[mission].lon_west_deg)
+    session, commands = spirit_session(TEMPLATE_SEQUENCE)
+    for command in commands:
+        session.execute(command, label=command.describe())
+    template = session.take_frames()
+    store = Store(url)
+    writer = BatchWriter(store)
+    try:
+        for start in range(0, len(t_s), WRITE_BATCH):
+            downlinks, truths = [], []
+            for i in range(start, min(start + WRITE_BATCH, len(t_s))):
+                downlink, truth = template[i % len(template)]
+                t = float(t_s[i])
+                clock = {"t_s": t, "sol": int(sol[i]), "lmst_h": float(lmst_h[i])}
+                downlinks.append({**downlink, **clock, "events": []})
+                truths.append({**truth, "t_s": t, "events": []})
+            writer.frames(ROVER, downlinks, truths)
+            writer.flush()
+    finally:
+        writer.stop()
+        store.close()
+    return len(t_s)
+
+
+def measure_channel_query(
+    data_dir: Path, every_s: float | None = None, repeats: int = 3
+) -> dict[str, Any]:
+    """7 sols stored, then a channel of them queried through the server (module docstring)."""
+    from server.app import data_dir_url
+    from server.runtime import FRAME_EVERY_S
+
+    started = time.perf_counter()
+    rows = store_sols(data_dir_url(data_dir), FRAME_EVERY_S if every_s is None else every_s)
+    store_s = time.perf_counter() - started
+    walls: dict[str, list[float]] = {DOWNLINK_CHANNEL: [], TRUTH_CHANNEL: []}
+    points = 0
+    with running_server(data_dir, env=NO_3D) as server:
+        for _ in range(repeats):
+            for channel, wall in walls.items():
+                path = f"/api/rovers/{ROVER}/channels/{channel}?sol_from={FIRST_SOL}"
+                path += f"&sol_to={FIRST_SOL + SOLS - 1}"
+                start = time.perf_counter()
+                status, answer = server.request("GET", path, timeout_s=QUERY_TIMEOUT_S)
+                wall.append(time.perf_counter() - start)
+                if status != 200:
+                    raise RuntimeError(f"GET {path}: HTTP {status}: {str(answer)[:300]}")
+                if answer["frames"] != rows:
+                    raise RuntimeError(f"{channel}: {answer['frames']} frames, {rows} stored")
+                points = len(answer["values"])
+    return {
+        "channel_query_7_sols_s": statistics.median(walls[DOWNLINK_CHANNEL]),
+        "channel_query_7_sols_truth_s": statistics.median(walls[TRUTH_CHANNEL]),
+        "channel_rows_stored": rows,
+        "channel_store_wall_s": store_s,
+        "channel_points": points,
+        "channel_repeats": repeats,
+    }
+
+
 # ---- the bench ------------------------------------------------------------------------------
 
 
@@ -462,11 +565,13 @@ def bench_server(
     blank_lines: int = BLANK_LINES,
     upload_bytes: int = UPLOAD_BYTES,
     sol_repeats: int = 3,
+    channel_every_s: float | None = None,
 ) -> dict[str, Any]:
     """The server bench (module docstring); the defaults are the issue's figures, smaller
     ones make a quick run (the targets stay the issue's). The sol is measured
     ``sol_repeats`` times, each on a new server after its in-process reference, and its
-    figures are medians (the overhead: the median of the pairs' differences)."""
+    figures are medians (the overhead: the median of the pairs' differences). The 7 sols of
+    the channel query hold a frame every ``channel_every_s`` (default: ``FRAME_EVERY_S``)."""
     if sol_repeats < 1:
         raise ValueError(f"sol_repeats: must be at least 1, got {sol_repeats}")
     sols: list[dict[str, Any]] = []
@@ -488,5 +593,8 @@ def bench_server(
             metrics.update(measure_ws(server, ws_clients, ws_window_s))
             metrics.update(measure_blank_lines(server, blank_lines))
             metrics.update(measure_stall(server, upload_bytes))
+        channels_dir = Path(tmp) / "channels"
+        channels_dir.mkdir()
+        metrics.update(measure_channel_query(channels_dir, channel_every_s))
     metrics.update(measure_validation(validate_lines, validate_repeats))
     return bench_result("server", metrics, TARGETS)

@@ -22,6 +22,9 @@ from collections.abc import Callable
 from dataclasses import dataclass, fields
 from typing import Any
 
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
 from estimation.geometry import STEERED_INDEX
 from sim.loop.downlink import ESTIMATORS, Downlink
 from sim.scoring.truth import TRUTH_FIELDS, Truth
@@ -145,58 +148,70 @@ def channels_of(last_frame: dict[str, Any] | None) -> dict[str, Channel]:
     return frame_channels() | side_channels(running)
 
 
-def _number(value: Any) -> float | None:
+def _number(value: Any) -> float:
     if value is None or isinstance(value, bool):
-        return None
-    x = float(value)
-    return x if math.isfinite(x) else None
+        return math.nan
+    return float(value)
 
 
-def decimate(t: list[float], values: list[float | None], max_points: int) -> list[int]:
-    """The indices to keep of a time series (``t`` ascending) so that at most
-    ``max_points`` remain: per time bucket, the first gap and the smallest and largest
-    value, in time order. Every index when there are few enough."""
+def decimate(t: ArrayLike, values: ArrayLike, max_points: int) -> NDArray[np.intp]:
+    """The indices to keep of a time series (``t`` ascending; a missing value is NaN or
+    ``None``) so that at most ``max_points`` remain: per time bucket, the first gap and the
+    first smallest and first largest value, in time order. Every index when there are few
+    enough. Arrays in, arrays out: a bucket is a slice of the sorted times."""
+    t = np.asarray(t, dtype=np.float64)
+    v = np.asarray(values, dtype=np.float64)
     n = len(t)
     if n <= max_points:
-        return list(range(n))
+        return np.arange(n)
     buckets = max(1, max_points // 3)  # up to a gap, a min and a max each
     t0, span = t[0], (t[-1] - t[0]) or 1.0
-    keep: list[int] = []
-    start = 0
-    for b in range(buckets):
-        end = n if b == buckets - 1 else start
-        edge = t0 + span * (b + 1) / buckets
-        while end < n and t[end] < edge:
-            end += 1
-        if end > start:
-            lo = hi = gap = None
-            for i in range(start, end):
-                v = values[i]
-                if v is None:
-                    gap = i if gap is None else gap
-                    continue
-                if lo is None or v < values[lo]:  # type: ignore[operator]
-                    lo = i
-                if hi is None or v > values[hi]:  # type: ignore[operator]
-                    hi = i
-            keep.extend(sorted({i for i in (lo, hi, gap) if i is not None}))
-        start = end
-    return keep
+    edges = t0 + span * np.arange(1, buckets + 1) / buckets
+    bucket = np.minimum(np.searchsorted(edges, t, side="right"), buckets - 1)
+    starts = np.flatnonzero(np.r_[True, bucket[1:] != bucket[:-1]])  # non-empty buckets
+    of = np.repeat(np.arange(len(starts)), np.diff(np.r_[starts, n]))
+    gap = np.isnan(v)
+    lo = np.minimum.reduceat(np.where(gap, np.inf, v), starts)
+    hi = np.maximum.reduceat(np.where(gap, -np.inf, v), starts)
+    keep = np.zeros(n, dtype=bool)
+    for hits in (gap, ~gap & (v == lo[of]), ~gap & (v == hi[of])):
+        at = np.flatnonzero(hits)
+        keep[at[np.r_[True, of[at][1:] != of[at][:-1]]] if len(at) else at] = True
+    return np.flatnonzero(keep)
+
+
+def series(
+    t_s: NDArray[np.float64],
+    sol: NDArray[np.int64],
+    lmst_h: NDArray[np.float64],
+    values: NDArray[np.float64],
+    channel: Channel,
+    max_points: int,
+) -> dict[str, Any]:
+    """A channel's ``values`` at the frames' times (arrays, ascending; NaN: no value),
+    decimated to ``max_points``; lists for JSON (null: no value)."""
+    keep = decimate(t_s, values, max_points)
+    return {
+        **channel.describe(),
+        "frames": len(t_s),
+        "decimated": len(keep) < len(t_s),
+        "t_s": t_s[keep].tolist(),
+        "sol": sol[keep].astype(int).tolist(),
+        "lmst_h": lmst_h[keep].tolist(),
+        "values": [None if math.isnan(x) else x for x in values[keep].tolist()],
+    }
 
 
 def channel_series(
     frames: list[dict[str, Any]], channel: Channel, max_points: int
 ) -> dict[str, Any]:
-    """The channel's values over ``frames`` (ascending), decimated to ``max_points``."""
-    t = [float(f["t_s"]) for f in frames]
-    values = [_number(channel.read(f)) for f in frames]
-    keep = decimate(t, values, max_points)
-    return {
-        **channel.describe(),
-        "frames": len(frames),
-        "decimated": len(keep) < len(frames),
-        "t_s": [t[i] for i in keep],
-        "sol": [int(frames[i]["sol"]) for i in keep],
-        "lmst_h": [float(frames[i]["lmst_h"]) for i in keep],
-        "values": [values[i] for i in keep],
-    }
+    """The channel's values over ``frames`` (ascending), decimated to ``max_points``: for
+    the figures no column holds (a side estimator's), read from each frame."""
+    return series(
+        np.array([float(f["t_s"]) for f in frames], dtype=np.float64),
+        np.array([int(f["sol"]) for f in frames], dtype=np.int64),
+        np.array([_number(f.get("lmst_h")) for f in frames], dtype=np.float64),
+        np.array([_number(channel.read(f)) for f in frames], dtype=np.float64),
+        channel,
+        max_points,
+    )

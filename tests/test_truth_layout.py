@@ -32,6 +32,8 @@ TRUTH_CARRIERS = frozenset({
     "server.access.truth_view",  # who may see the truth, and stripping it for the others
     "server.sinks",  # hands each frame's two records on
     "server.storage.store",  # stores and reads them
+    "server.storage.columns",  # their columns, from the records' fields
+    "server.storage.migrate",  # splits frames stored as one record into the two
     "server.hub",  # the WebSocket: the truth only to those the truth view allows
     "server.alarms",  # alarms on truth channels (the truth view's)
     "server.channels",  # which channels are truth

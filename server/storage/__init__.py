@@ -12,8 +12,14 @@ Choices worth knowing:
 - SQLite runs in WAL mode (readers never block the writer thread and the writer never
   blocks the request threads), with foreign keys on and ``synchronous=NORMAL``: a committed
   transaction survives the process being killed; only a power cut may lose the last ones.
-- A telemetry frame is stored whole as JSON beside its ``t_s`` and ``sol`` (the columns the
-  queries select on), so the frame's fields can grow without a schema change.
+- A telemetry frame is two rows: its downlink record in ``frames`` and its truth record in
+  ``truth_frames`` (docs/DESIGN.md, "Two records"), each number of the record in a column of
+  its own, generated from the record's type (``server.storage.columns``: a list field one
+  column per component, named as the CSV names it), the rest (events, the side estimators,
+  the command, the modes) as JSON beside it. A channel query reads its column alone over the
+  index on time (``Store.channel``); a field added to a record gets its column when a
+  database is opened. A database of the release before (whole merged frames as JSON) is
+  split into the two records in place when it is opened (``server.storage.migrate``).
 - JSON has no NaN or infinity (PostgreSQL's ``json`` rejects them) while frames carry NaN
   for "no value" (a tilt before the first estimate), so non-finite floats are stored as
   ``null`` on every database and read back as ``None``.

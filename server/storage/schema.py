@@ -4,8 +4,9 @@
 users, tokens, the audit log, alarms and their limits); ``upgrade_schema`` adds, when a
 database is opened, the columns and indexes this version declares and an older database
 lacks, so it keeps working (a column added this way must be nullable or have a
-``server_default``). Events stored before events had a kind and severity read back as
-``LEGACY_KIND`` / ``LEGACY_SEVERITY`` (``event_dict``).
+``server_default``), and ``server.storage.migrate`` then moves the data of an older layout.
+Events stored before events had a kind and severity read back as ``LEGACY_KIND`` /
+``LEGACY_SEVERITY`` (``event_dict``).
 """
 
 from __future__ import annotations
@@ -34,6 +35,8 @@ from sqlalchemy import (
 )
 from sqlalchemy.engine import Engine
 from sqlalchemy.schema import CreateColumn
+
+from server.storage.columns import DOWNLINK, TRUTH
 
 log = logging.getLogger(__name__)
 metadata = MetaData()
@@ -96,6 +99,13 @@ events = Table(
     Index("ix_events_rover_t", "rover", "t_s"),
 )
 
+# The rover's downlink records (sim.loop.downlink), one row each: ``t_s`` and ``sol`` (what the
+# queries select on), a Double column per numeric figure (``server.storage.columns``: a
+# channel query reads one of them) and the rest as JSON in ``data``. ``layout`` is
+# ``RECORD_LAYOUT`` for a row stored so; null on a row of a database written before
+# (``data`` then holds the whole frame, truth and all), which opening it migrates
+# (``server.storage.migrate``).
+RECORD_LAYOUT = 2
 frames_table = Table(
     "frames",
     metadata,
@@ -104,13 +114,15 @@ frames_table = Table(
     Column("t_s", Double, nullable=False),
     Column("sol", Integer, nullable=False),
     Column("data", JSON, nullable=False),
+    Column("layout", Integer, nullable=True),
+    *DOWNLINK.table_columns(),
     Index("ix_frames_rover_t", "rover", "t_s"),
     Index("ix_frames_rover_sol", "rover", "sol"),
 )
 
 # What only the simulator knows, beside each frame of the downlink (``frames``): the truth
 # records (sim.scoring.truth), in a table of their own so that the ground's queries never read
-# them (docs/DESIGN.md, "Two records").
+# them (docs/DESIGN.md, "Two records"), with their numbers in columns as the downlink's.
 truth_frames = Table(
     "truth_frames",
     metadata,
@@ -118,7 +130,16 @@ truth_frames = Table(
     Column("rover", String(64), nullable=False),
     Column("t_s", Double, nullable=False),
     Column("data", JSON, nullable=False),
+    *TRUTH.table_columns(),
     Index("ix_truth_frames_rover_t", "rover", "t_s"),
+)
+
+# The data migrations done on this database (``server.storage.migrate``), by name.
+storage_steps = Table(
+    "storage_steps",
+    metadata,
+    Column("name", String(64), primary_key=True),
+    Column("done_at", DateTime(timezone=True), nullable=False, default=now_utc),
 )
 
 checkpoints = Table(
@@ -248,7 +269,8 @@ def sqlite_pragmas(dbapi_connection: Any, _record: Any) -> None:
 def upgrade_schema(engine: Engine) -> None:
     """Bring an existing database up to ``metadata``: missing columns, then missing indexes
     (``create_all`` only creates missing tables, with their indexes). A unique index added
-    to an existing table would fail on rows that break it: migrate those by hand."""
+    to an existing table would fail on rows that break it: migrate those by hand. The data
+    migrations come after it (``server.storage.migrate.upgrade_database``)."""
     add_missing_columns(engine)
     with engine.begin() as conn:
         for table in metadata.sorted_tables:

@@ -28,6 +28,19 @@ from sqlalchemy import (
 from sqlalchemy.engine import Connection, Engine, RowMapping, make_url
 from sqlalchemy.pool import StaticPool
 
+from server.storage.channels import (
+    DOWNLINK_ROW,
+    FRAMES,
+    TRUTH_ROW,
+    TRUTHS,
+    ChannelArrays,
+    downlink_record,
+    downlink_row,
+    read_channel,
+    truth_record,
+    truth_row,
+)
+from server.storage.migrate import upgrade_database
 from server.storage.schema import (
     alarm_limits,
     alarms_table,
@@ -35,14 +48,12 @@ from server.storage.schema import (
     commands,
     event_dict,
     events,
-    frame_events,
     frames_table,
     metadata,
     now_utc,
     sequences,
     sqlite_pragmas,
     truth_frames,
-    upgrade_schema,
 )
 
 
@@ -174,7 +185,7 @@ class Store:
         if self.is_sqlite:
             event.listen(self.engine, "connect", sqlite_pragmas)
         metadata.create_all(self.engine)
-        upgrade_schema(self.engine)
+        upgrade_database(self.engine)
 
     def close(self) -> None:
         """Close every pooled connection (the store is not usable afterwards)."""
@@ -363,11 +374,10 @@ class Store:
         ``every_s`` after the last kept frame, and a frame with events is always kept (and
         then counts as the last kept one), so decimation never hides an event.
         """
-        f = frames_table.c
         query = (
-            select(f.t_s, f.data)
-            .where(f.rover == rover, f.t_s >= t_from, f.t_s <= t_to)
-            .order_by(f.t_s, f.id)
+            select(*DOWNLINK_ROW)
+            .where(FRAMES.rover == rover, FRAMES.t_s >= t_from, FRAMES.t_s <= t_to)
+            .order_by(FRAMES.t_s, FRAMES.id)
         )
         out: list[dict[str, Any]] = []
         if limit is not None and limit <= 0:
@@ -375,11 +385,11 @@ class Store:
         last = -math.inf
         with self.engine.connect() as conn:
             for row in conn.execution_options(yield_per=2000).execute(query):
-                data: dict[str, Any] = row.data
-                if every_s > 0.0 and row.t_s - last < every_s and not data.get("events"):
+                t_s, data = row[0], row[2]
+                if every_s > 0.0 and t_s - last < every_s and not data.get("events"):
                     continue
-                last = row.t_s
-                out.append(frame_events(data))
+                last = t_s
+                out.append(downlink_record(row))
                 if limit is not None and len(out) >= limit:
                     break
         if with_truth and out:
@@ -390,6 +400,14 @@ class Store:
 
             out = [merged(d, truths[d["t_s"]]) if d["t_s"] in truths else d for d in out]
         return out
+
+    def channel(self, rover: str, name: str, t_from: float, t_to: float) -> ChannelArrays | None:
+        """One stored channel (a numeric column of the downlink or of the truth record,
+        ``server.storage.columns``) over t_from <= t_s <= t_to, as arrays beside the frames'
+        ``t_s``, ``sol`` and ``lmst_h`` (``server.storage.channels``); ``None`` if no column
+        holds it (a side estimator's figure: read it from ``frames``)."""
+        with self.engine.connect() as conn:
+            return read_channel(conn, rover, name, t_from, t_to)
 
     def sols(self, rover: str) -> list[int]:
         """The sols that have telemetry, ascending."""
@@ -408,31 +426,38 @@ class Store:
 
     def last_frame(self, rover: str) -> dict[str, Any] | None:
         """The latest downlink record of a rover, or ``None``."""
-        f = frames_table.c
-        query = select(f.data).where(f.rover == rover).order_by(f.t_s.desc(), f.id.desc()).limit(1)
+        query = (
+            select(*DOWNLINK_ROW)
+            .where(FRAMES.rover == rover)
+            .order_by(FRAMES.t_s.desc(), FRAMES.id.desc())
+            .limit(1)
+        )
         with self.engine.connect() as conn:
-            data: dict[str, Any] | None = conn.execute(query).scalar()
-        return None if data is None else frame_events(data)
+            row = conn.execute(query).first()
+        return None if row is None else downlink_record(row)
 
     def last_truth(self, rover: str) -> dict[str, Any] | None:
         """The latest truth record of a rover, or ``None``."""
-        f = truth_frames.c
-        query = select(f.data).where(f.rover == rover).order_by(f.t_s.desc(), f.id.desc()).limit(1)
+        query = (
+            select(*TRUTH_ROW)
+            .where(TRUTHS.rover == rover)
+            .order_by(TRUTHS.t_s.desc(), TRUTHS.id.desc())
+            .limit(1)
+        )
         with self.engine.connect() as conn:
-            data: dict[str, Any] | None = conn.execute(query).scalar()
-        return None if data is None else frame_events(data)
+            row = conn.execute(query).first()
+        return None if row is None else truth_record(row)
 
     def truths(self, rover: str, t_from: float, t_to: float) -> dict[float, dict[str, Any]]:
         """The truth records with t_from <= t_s <= t_to, by their time."""
-        f = truth_frames.c
         query = (
-            select(f.t_s, f.data)
-            .where(f.rover == rover, f.t_s >= t_from, f.t_s <= t_to)
-            .order_by(f.t_s, f.id)
+            select(*TRUTH_ROW)
+            .where(TRUTHS.rover == rover, TRUTHS.t_s >= t_from, TRUTHS.t_s <= t_to)
+            .order_by(TRUTHS.t_s, TRUTHS.id)
         )
         with self.engine.connect() as conn:
             rows = conn.execution_options(yield_per=2000).execute(query)
-            return {float(row.t_s): frame_events(row.data) for row in rows}
+            return {float(row[0]): truth_record(row) for row in rows}
 
     # ---- alarms (server.alarms) and operators' limits (server.limits) ---------------
 
@@ -519,15 +544,8 @@ class Store:
         self, conn: Connection, rows: list[tuple[str, dict[str, Any], dict[str, Any]]]
     ) -> None:
         if rows:
-            conn.execute(
-                insert(frames_table),
-                [{"rover": r, "t_s": float(d["t_s"]), "sol": int(d["sol"]), "data": d}
-                 for r, d, _ in rows],
-            )  # fmt: skip
-            conn.execute(
-                insert(truth_frames),
-                [{"rover": r, "t_s": float(t["t_s"]), "data": t} for r, _, t in rows],
-            )
+            conn.execute(insert(frames_table), [downlink_row(r, d) for r, d, _ in rows])
+            conn.execute(insert(truth_frames), [truth_row(r, t) for r, _, t in rows])
 
     def _insert_events(
         self, conn: Connection, rows: list[tuple[str, float, Mapping[str, Any]]]

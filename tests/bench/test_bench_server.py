@@ -28,6 +28,7 @@ def quick() -> dict[str, Any]:
         hga_min=1.0,
         blank_lines=10_000,
         upload_bytes=100_000,
+        channel_every_s=600.0,  # 7 sols of a frame every 10 min
     )
 
 
@@ -43,6 +44,7 @@ def test_the_output_contract(quick: dict[str, Any]) -> None:
         "validate_10k_lines_s",
         "validate_100k_blank_lines_s",
         "event_loop_stall_ms_during_upload",
+        "channel_query_7_sols_s",
     }
     assert set(quick["targets"]) <= set(quick["metrics"])
     assert isinstance(quick["ok"], bool)
@@ -86,6 +88,15 @@ def test_the_blank_lines_and_the_stall_figures(quick: dict[str, Any]) -> None:
     assert 90_000 < m["upload_1mb_bytes"] <= 100_000 and m["upload_1mb_validate_s"] > 0.0
     if m["event_loop_stall_samples"]:  # a fast machine may validate 100 kB within one poll
         assert 0.0 < m["event_loop_stall_ms_during_upload"] <= m["event_loop_stall_max_ms"]
+
+
+def test_the_channel_query_read_the_7_sols_stored(quick: dict[str, Any]) -> None:
+    m = quick["metrics"]
+    sols_s = 7 * 88775.244  # 7 Mars solar days
+    assert m["channel_rows_stored"] == pytest.approx(sols_s / 600.0, abs=2)
+    assert m["channel_repeats"] == 3 and m["channel_store_wall_s"] > 0.0
+    assert m["channel_query_7_sols_s"] > 0.0 and m["channel_query_7_sols_truth_s"] > 0.0
+    assert 0 < m["channel_points"] <= m["channel_rows_stored"]
 
 
 def test_the_validation_text_is_the_examples_and_valid() -> None:

@@ -10,6 +10,7 @@ import math
 from collections.abc import Iterator
 from typing import Any
 
+import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
@@ -127,9 +128,55 @@ def test_a_one_frame_spike_survives_decimation() -> None:
     values[4321] = 50.0
     values[7000] = None  # a gap stays a gap
     keep = decimate(t, values, 60)
-    assert len(keep) <= 60 and keep == sorted(keep)
+    assert len(keep) <= 60 and list(keep) == sorted(keep)
     assert 4321 in keep and 7000 in keep
     assert min(values[i] for i in keep if values[i] is not None) == pytest.approx(-1.0, abs=1e-3)
+
+
+def reference_decimate(t: list[float], values: list[float | None], max_points: int) -> list[int]:
+    """The decimation as it was written first, one bucket at a time in Python: the
+    reference the array version must agree with, index for index."""
+    n = len(t)
+    if n <= max_points:
+        return list(range(n))
+    buckets = max(1, max_points // 3)
+    t0, span = t[0], (t[-1] - t[0]) or 1.0
+    keep: list[int] = []
+    start = 0
+    for b in range(buckets):
+        end = n if b == buckets - 1 else start
+        edge = t0 + span * (b + 1) / buckets
+        while end < n and t[end] < edge:
+            end += 1
+        lo = hi = gap = None
+        for i in range(start, end):
+            v = values[i]
+            if v is None:
+                gap = i if gap is None else gap
+                continue
+            if lo is None or v < values[lo]:  # type: ignore[operator]
+                lo = i
+            if hi is None or v > values[hi]:  # type: ignore[operator]
+                hi = i
+        keep.extend(sorted({i for i in (lo, hi, gap) if i is not None}))
+        start = end
+    return keep
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_array_decimation_keeps_what_the_loop_kept(seed: int) -> None:
+    """Uneven times (bursts, jumps, repeated times), gaps, runs of ties and buckets of
+    nothing but gaps: the same indices as the per-bucket loop."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(500, 5000))
+    t = np.cumsum(rng.choice([0.0, 0.125, 1.0, 600.0], size=n, p=[0.05, 0.6, 0.3, 0.05]))
+    values: list[float | None] = [float(v) for v in rng.integers(-3, 4, size=n)]
+    for i in rng.choice(n, size=n // 10, replace=False):
+        values[i] = None
+    values[n // 2 : n // 2 + n // 20] = [None] * (n // 20)
+    for max_points in (4, 30, 301, n - 1, n):
+        expected = reference_decimate(list(t), values, max_points)
+        assert decimate(t, values, max_points).tolist() == expected, max_points
 
 
 @pytest.mark.parametrize(
