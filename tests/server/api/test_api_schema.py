@@ -117,6 +117,6 @@ def test_every_frame_field_the_console_reads_is_in_the_schema(
 def test_a_renamed_field_would_be_caught() -> None:
     console = (WEB / "console.js").read_text(encoding="utf-8")
     fields = set(downlink_schema()["properties"]) | set(truth_schema()["properties"])
-    assert "hga_margin_deg" in frame_fields_read(console, "f")
-    renamed = fields - {"hga_margin_deg"} | {"hga_margin_now_deg"}
-    assert frame_fields_read(console, "f") - renamed == {"hga_margin_deg"}
+    assert "hga_margin_predicted_deg" in frame_fields_read(console, "f")
+    renamed = fields - {"hga_margin_predicted_deg"} | {"hga_margin_now_deg"}
+    assert frame_fields_read(console, "f") - renamed == {"hga_margin_predicted_deg"}
