@@ -40,6 +40,14 @@ by calling ``_draw`` directly, so a timing is the scene thread's work for one fr
   ``view_sol_frames_drawn``: how many frames the server's scene had drawn when the sol
   completed (median).
 
+- ``signin_with_view_s``, ``command_round_trip_with_view_s``: the console in Chromium with
+  software WebGL (SwiftShader, as on a machine without a GPU; the browser tests' flags)
+  against a ``roverops serve`` with the 3D view on, the view shown and drawing (its scene
+  loaded in the frame): from the click on "Sign in" until the header names who signed in,
+  and from a click on Pause (or Resume) until the header's clock says so; medians over
+  ``console_repeats`` fresh pages (two round trips each). What the operator waits for,
+  clicks included (issue 21: the view shared the page's thread and a sign-in took 9-110 s).
+
 Output contract: ``bench.result``.
 """
 
@@ -49,6 +57,7 @@ import bisect
 import contextlib
 import io
 import math
+import re
 import statistics
 import tempfile
 import threading
@@ -87,7 +96,17 @@ WINDOW_HEADER_BYTES = 16  # viser's window: two little-endian uint64 lengths fir
 TARGETS: dict[str, dict[str, float]] = {
     # a draw must fit the live telemetry rate (10 frames a second)
     "view_draw_ms_p95_1_client": {"le": 1000.0 / VIEW_RATE_HZ},
+    # the console answers an operator within a second with the view drawing beside it
+    "signin_with_view_s": {"le": 1.0},
+    "command_round_trip_with_view_s": {"le": 1.0},
 }
+CHROMIUM_ARGS = [
+    "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+    "--disable-background-networking", "--disable-component-update", "--disable-sync",
+    "--no-first-run",
+]  # fmt: skip  # WebGL in software, as without a GPU
+CONSOLE_TIMEOUT_MS = 180_000  # a console that takes this long is broken, not slow
+SCENE_LOADED = "() => !!window.__viserMutable?.nodeRefFromName?.['/terrain/band_0']"
 
 
 # ---- a viewer without a browser -------------------------------------------------------------
@@ -409,14 +428,76 @@ def measure_sol_walls(drive_m: float, hga_min: float, repeats: int) -> dict[str,
     }
 
 
+# ---- the console in a browser with the view shown -------------------------------------------
+
+
+def measure_console(repeats: int) -> dict[str, Any]:
+    """Sign-in and clock round trips in Chromium with software WebGL, the 3D view shown and
+    drawing (module docstring). RuntimeError when playwright or Chromium is missing."""
+    import shutil
+
+    try:
+        from playwright.sync_api import expect, sync_playwright
+    except ImportError:
+        raise RuntimeError("bench view3d needs playwright: pip install -e '.[dev]'") from None
+    chromium = shutil.which("chromium") or "/usr/bin/chromium"
+    if not Path(chromium).exists():
+        raise RuntimeError("bench view3d needs Chromium (Debian: apt-get install chromium)")
+    signin_s: list[float] = []
+    round_trip_s: list[float] = []
+    with (
+        tempfile.TemporaryDirectory(prefix="roverops-bench-console-") as tmp,
+        running_server(Path(tmp), env={"ROVEROPS_NO_3D": "0"}) as server,
+        sync_playwright() as p,
+    ):
+        _check_view(server, True)
+        browser = p.chromium.launch(executable_path=chromium, args=CHROMIUM_ARGS)
+        try:
+            for _ in range(repeats):
+                page = browser.new_page(viewport={"width": 1280, "height": 800})
+                page.set_default_timeout(CONSOLE_TIMEOUT_MS)
+                expect.set_options(timeout=CONSOLE_TIMEOUT_MS)
+                page.add_init_script("localStorage.setItem('roverops-view3d', 'shown')")
+                page.goto(f"{server.base_url}/?rover={ROVER}")
+                view = page.get_by_test_id("view3d")
+                expect(view).to_have_attribute("src", re.compile(f"/viser/{ROVER}/$"))
+                handle = view.element_handle()
+                frame = handle.content_frame() if handle else None
+                if frame is None:
+                    raise RuntimeError("the 3D view's frame did not load")
+                frame.wait_for_function(SCENE_LOADED)
+                page.fill("[data-testid=token]", server.token)
+                start = time.perf_counter()
+                page.click("[data-testid=sign-in]")
+                expect(page.get_by_test_id("signed-in")).to_have_text("bootstrap · admin")
+                signin_s.append(time.perf_counter() - start)
+                clock = page.get_by_test_id("clock-speed")
+                for button, now in (("#pause", "paused"), ("#resume", "running")) * 2:
+                    start = time.perf_counter()
+                    page.click(button)
+                    expect(clock).to_contain_text(now)
+                    round_trip_s.append(time.perf_counter() - start)
+                page.close()
+        finally:
+            browser.close()
+    return {
+        "signin_with_view_s": statistics.median(signin_s),
+        "command_round_trip_with_view_s": statistics.median(round_trip_s),
+        "console_repeats": repeats,
+    }
+
+
 # ---- the bench ------------------------------------------------------------------------------
 
 
-def _check_inputs(drive_m: float, recuts: int, sol_drive_m: float, sol_repeats: int) -> None:
+def _check_inputs(
+    drive_m: float, recuts: int, sol_drive_m: float, sol_repeats: int, console_repeats: int
+) -> None:
     for name, value in (("drive_m", drive_m), ("sol_drive_m", sol_drive_m)):
         if not (math.isfinite(value) and value > 0.0):
             raise InputError(name, f"must be a positive distance in metres, got {value!r}")
-    for name, count in (("recuts", recuts), ("sol_repeats", sol_repeats)):
+    for name, count in (("recuts", recuts), ("sol_repeats", sol_repeats),
+                        ("console_repeats", console_repeats)):  # fmt: skip
         if count < 1:
             raise InputError(name, f"must be at least 1, got {count!r}")
 
@@ -427,10 +508,12 @@ def bench_view3d(
     sol_drive_m: float = 100.0,
     sol_hga_min: float = 15.0,
     sol_repeats: int = 2,
+    console_repeats: int = 5,
 ) -> dict[str, Any]:
     """The 3D view bench (module docstring); smaller arguments make a quick run (the
     target stays the one of the live rate)."""
-    _check_inputs(drive_m, recuts, sol_drive_m, sol_repeats)
+    _check_inputs(drive_m, recuts, sol_drive_m, sol_repeats, console_repeats)
     metrics = measure_scene(drive_m, recuts)
     metrics.update(measure_sol_walls(sol_drive_m, sol_hga_min, sol_repeats))
+    metrics.update(measure_console(console_repeats))
     return bench_result("view3d", metrics, TARGETS)

@@ -22,7 +22,7 @@ from fastapi import HTTPException
 
 from sequences.validate import ValidationContext, validate
 from server.access.accounts import Accounts
-from server.access.audit import AuditLog
+from server.access.audit import AuditEntry, AuditLog
 from server.access.truth_view import check_truth_view
 from server.alarms import AlarmEngine
 from server.hub import TelemetryHub
@@ -97,6 +97,7 @@ class Server:
         # (and drawn in the 3D view, below: a RoverScene is the sink of its own rover)
         self.sinks: list[FrameSink] = [StorageSink(self.writer), self.alarms, self.hub]
         refused: dict[str, str] = {}  # rover -> why its checkpoint was refused
+        self.resumed: set[str] = set()  # rovers this start found a checkpoint of
         for name, spec in ROVERS.items():
             saved = self.store.load_checkpoint(name)
             try:
@@ -111,6 +112,7 @@ class Server:
             if saved is None:
                 runtime.set_clock(speed=config.initial_speed)
             if saved is not None:
+                self.resumed.add(name)
                 self._resume(runtime)
             runtime.sinks.extend(self.sinks)
             runtime.on_command = self._command
@@ -224,8 +226,27 @@ class Server:
             "queue": queue_json(self.rovers[rover], self.store),
         }
 
+    def _record_start(self) -> None:
+        """The server's own start on every rover's event log, at the rover's clock now, and
+        in the audit log: after a crash or a stop the console's operators see when the
+        server came back (and the timeline marks it), not only that the readouts move again.
+        A rover found with a checkpoint is a restart (one refused for its format too)."""
+        for name in self.rovers:
+            if name in self.resumed:
+                text, severity = (
+                    "server restarted: the rover resumed from its last checkpoint",
+                    "warning",
+                )
+            else:
+                text, severity = "server started", "info"
+            self._server_event(name, None, {"text": text, "kind": "server", "severity": severity})
+        action = "server restarted" if self.resumed else "server started"
+        self.audit.add(AuditEntry(username="server", method="START", path="roverops serve",
+                                  status=200, action=action))  # fmt: skip
+
     def start(self) -> None:
         self.writer.start()
+        self._record_start()
         self.queue_notices.start()
         self.validation.start(rover_site(next(iter(self.rovers.values()))))
         for scene in [*self.scenes.values(), *self.truth_scenes.values()]:

@@ -162,6 +162,8 @@ function showClock(c, effective) {
 async function refreshState() {
   if (!state.rover) return;
   const r = await api(`/api/rovers/${state.rover}/state`);
+  if (r.status === 0 || r.status >= 502) linkLost("the server does not answer");
+  else heard();
   if (!r.ok) return;
   const s = r.body;
   roverops.emit("state", s);
@@ -206,9 +208,57 @@ function connect() {
     if (message.type) roverops.emit("notice", message);
     else showFrame(message);
   };
-  ws.onclose = () => { if (state.ws === ws) setTimeout(connect, 1000); };
+  ws.onclose = () => {
+    if (state.ws !== ws) return;
+    refreshState(); // at once: the poll tells a dead server from a socket that just closed
+    setTimeout(connect, 1000);
+  };
   state.ws = ws;
 }
+
+// ---- the link to the server: a dead server must not look alive ---------------------------
+// The /state poll not answered (the socket closing asks it at once), or nothing heard for
+// LINK_SILENT_S (a server that hangs): the link is lost. A banner says since when and why,
+// and the readouts are greyed with their age. When a poll is answered again the banner
+// goes, and the rover's panels reload from storage as a rover pick does: the server may
+// have restarted (it lists its restart in the event log and on the timeline).
+const LINK_SILENT_S = 4;
+const STALE_WHEN_LOST = ["readouts", "sol-clock", "speed-now"];
+const link = { heardMs: Date.now(), lostMs: null, why: "" };
+
+function heard() {
+  link.heardMs = Date.now();
+  if (link.lostMs === null) return;
+  link.lostMs = null;
+  showLink();
+  $("rover").dispatchEvent(new Event("change")); // everything again, from the server
+}
+
+function linkLost(why) {
+  if (link.lostMs !== null) return;
+  link.lostMs = Date.now();
+  link.why = why;
+  showLink();
+}
+
+function showLink() {
+  const lost = link.lostMs !== null;
+  for (const id of STALE_WHEN_LOST) $(id).classList.toggle("stale", lost);
+  $("link-banner").hidden = !lost;
+  $("readouts-age").hidden = !lost;
+  if (!lost) return;
+  const ageS = Math.max(0, Math.round((Date.now() - link.heardMs) / 1000));
+  const since = new Date(link.lostMs).toLocaleTimeString();
+  $("readouts-age").textContent = `${ageS} s old`;
+  $("link-banner").textContent = `Link to the server lost at ${since} (${link.why}): `
+    + `the readouts are as last received, ${ageS} s ago. Reconnecting…`;
+}
+
+setInterval(() => {
+  if (!state.started) return;
+  if (Date.now() - link.heardMs > LINK_SILENT_S * 1000) linkLost(`nothing heard for ${LINK_SILENT_S} s`);
+  showLink();
+}, 1000);
 
 function showDiagnostics(result) {
   const list = $("validation");

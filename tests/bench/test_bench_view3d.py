@@ -26,16 +26,30 @@ MAY_BE_ZERO = {"view_sol_frames_drawn", "view_draw_recuts"}
 
 @pytest.fixture(scope="module")
 def quick() -> dict[str, Any]:
-    return bench_view3d(drive_m=2.0, recuts=2, sol_drive_m=2.0, sol_hga_min=1.0, sol_repeats=1)
+    return bench_view3d(
+        drive_m=2.0, recuts=2, sol_drive_m=2.0, sol_hga_min=1.0, sol_repeats=1, console_repeats=1
+    )
 
 
 def test_the_output_contract(quick: dict[str, Any]) -> None:
     assert json.loads(json.dumps(quick, allow_nan=False)) == quick  # plain JSON
     assert set(quick) == {"bench", "metrics", "targets", "ok", "machine"}
     assert quick["bench"] == "view3d"
-    assert quick["targets"] == TARGETS == {"view_draw_ms_p95_1_client": {"le": 100.0}}
+    assert (
+        quick["targets"]
+        == TARGETS
+        == {
+            "view_draw_ms_p95_1_client": {"le": 100.0},
+            "signin_with_view_s": {"le": 1.0},
+            "command_round_trip_with_view_s": {"le": 1.0},
+        }
+    )
     metrics = quick["metrics"]
-    assert quick["ok"] is (metrics["view_draw_ms_p95_1_client"] <= 100.0)
+    assert quick["ok"] is (
+        metrics["view_draw_ms_p95_1_client"] <= 100.0
+        and metrics["signin_with_view_s"] <= 1.0
+        and metrics["command_round_trip_with_view_s"] <= 1.0
+    )
     for key, value in metrics.items():
         assert isinstance(value, (int, float)) and not isinstance(value, bool), key
         assert math.isfinite(value) and value >= 0, f"{key} = {value}"
@@ -74,6 +88,12 @@ def test_the_sol_ran_with_the_view_on_and_off(quick: dict[str, Any]) -> None:
     assert m["view_sol_wall_ratio"] == pytest.approx(
         m["sol_sim_wall_s_3d"] / m["sol_sim_wall_s_no_3d"]
     )
+
+
+def test_the_console_was_measured_with_the_view_shown(quick: dict[str, Any]) -> None:
+    m = quick["metrics"]
+    assert m["console_repeats"] == 1
+    assert m["signin_with_view_s"] > 0 and m["command_round_trip_with_view_s"] > 0
 
 
 def test_a_window_that_is_not_vipers_wire_format_is_refused() -> None:

@@ -17,7 +17,7 @@ import pytest
 from tests.browser.test_console_browser import ARTIFACTS, CHROMIUM, LAUNCH_ARGS
 from tests.server.test_server_restart import serving
 
-from playwright.sync_api import Locator, Page, expect, sync_playwright  # isort: skip
+from playwright.sync_api import Frame, Locator, Page, expect, sync_playwright  # isort: skip
 
 TOKEN = "view3d-browser-token"
 DRIVE = "SEQUENCE two_viewers\nDRIVE_STRAIGHT distance_m=100\n"  # 2,667 s at 3.75 cm/s
@@ -122,6 +122,84 @@ def test_one_viewer_scrubs_while_the_other_keeps_following(server: str) -> None:
         except Exception:
             a.screenshot(path=str(ARTIFACTS / "view3d_viewer_a_failed.png"))
             b.screenshot(path=str(ARTIFACTS / "view3d_viewer_b_failed.png"))
+            raise
+        finally:
+            browser.close()
+
+
+SCENE_LOADED = "() => !!window.__viserMutable?.nodeRefFromName?.['/terrain/band_0']"
+
+
+def _view_frame(page: Page) -> Frame:
+    handle = page.get_by_test_id("view3d").element_handle()
+    frame = handle.content_frame() if handle else None
+    assert frame is not None
+    return frame
+
+
+def _viser_targets(page: Page) -> list[str]:
+    """The URLs of the browser's out-of-process frames showing a 3D view (Chromium's CDP
+    lists a frame that renders in a process of its own as a target of type iframe)."""
+    cdp = page.context.browser.new_browser_cdp_session()  # type: ignore[union-attr]
+    targets = cdp.send("Target.getTargets")["targetInfos"]
+    return [t["url"] for t in targets if t["type"] == "iframe" and "/viser/" in t["url"]]
+
+
+def test_the_console_answers_with_the_view_running_and_collapsing_unloads_it(server: str) -> None:
+    """Issue 21, the 3D view freezes the console without a GPU: in this browser WebGL is
+    software (SwiftShader). With the view shown and drawing, sign-in and a clock command
+    complete; the view renders in a process of its own, not on the console's thread; its
+    toggle collapses it, which unloads the frame, and this browser remembers that over a
+    reload; shown again, the view loads again."""
+    ARTIFACTS.mkdir(exist_ok=True)
+    expect.set_options(timeout=TIMEOUT_MS)
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=LAUNCH_ARGS)
+        page = browser.new_page(viewport={"width": 1280, "height": 800})
+        page.set_default_timeout(TIMEOUT_MS)
+        try:
+            page.goto(f"{server}/?rover=spirit")
+            toggle = page.get_by_test_id("view3d-toggle")
+            expect(toggle).to_have_attribute("aria-expanded", "true")  # shown: a fresh browser
+            frame = _view_frame(page)
+            frame.wait_for_function(SCENE_LOADED)  # the view is loaded and drawing
+            assert any(u.startswith(frame.url) for u in _viser_targets(page)), frame.url
+
+            page.fill("[data-testid=token]", TOKEN)
+            page.click("[data-testid=sign-in]")
+            expect(page.get_by_test_id("signed-in")).to_have_text("bootstrap · admin")
+            speed = page.get_by_test_id("clock-speed")
+            expect(speed).to_contain_text("running")
+            page.click("#pause")
+            expect(speed).to_contain_text("paused")
+            page.click("#resume")
+            expect(speed).to_contain_text("running")
+            page.screenshot(path=str(ARTIFACTS / "view3d_shown.png"))
+
+            toggle.click()  # collapse
+            expect(toggle).to_have_attribute("aria-expanded", "false")
+            view = page.get_by_test_id("view3d")
+            expect(view).to_be_hidden()
+            expect(view).to_have_attribute("src", "about:blank")
+            page.wait_for_function(
+                "() => document.getElementById('view3d').contentWindow.location.href"
+                " === 'about:blank'"
+            )
+            assert _view_frame(page).evaluate("() => window.__viserMutable") is None
+            assert _viser_targets(page) == []  # no process draws it any more
+            page.screenshot(path=str(ARTIFACTS / "view3d_collapsed.png"))
+
+            page.reload()  # remembered by this browser
+            expect(toggle).to_have_attribute("aria-expanded", "false")
+            expect(page.get_by_test_id("sol-clock")).to_contain_text("LMST")
+            expect(view).to_have_attribute("src", "about:blank")
+
+            toggle.click()  # shown again: loaded again
+            expect(toggle).to_have_attribute("aria-expanded", "true")
+            expect(view).to_be_visible()
+            _view_frame(page).wait_for_function(SCENE_LOADED)
+        except Exception:
+            page.screenshot(path=str(ARTIFACTS / "view3d_toggle_failed.png"))
             raise
         finally:
             browser.close()

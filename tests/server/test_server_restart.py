@@ -287,3 +287,41 @@ def test_a_server_that_exits_is_reported_at_once_with_its_log(tmp_path: Path) ->
 def test_the_readiness_deadline_grows_with_the_machines_load() -> None:
     idle, busy = ready_deadline_s(load=0.0, cores=2), ready_deadline_s(load=8.0, cores=2)
     assert idle >= 120.0 and busy == pytest.approx(4 * idle)
+
+
+def _server_events(c: httpx.Client, rover: str) -> list[dict[str, Any]]:
+    r = c.get(f"/api/rovers/{rover}/events", params={"kind": "server"})
+    assert r.status_code == 200, r.text
+    events: list[dict[str, Any]] = r.json()["events"]
+    return events
+
+
+def test_each_start_is_recorded_as_an_event_on_every_rover_and_an_audit_row(
+    tmp_path: Path, servers: list[subprocess.Popen[bytes]]
+) -> None:
+    """Issue 21, a dead server looks alive: when it comes back, the operators learn that it
+    went away. Each start of the server is an event of kind ``server`` on every rover's log,
+    at that rover's clock then, and a row of the audit log; after SIGKILL as after a first
+    start."""
+    port = _free_port()
+    c = _up(tmp_path, port, servers)
+    first = {rover: _server_events(c, rover) for rover in ROVERS}
+    assert all(len(events) == 1 for events in first.values()), first
+    _clock(c, {"speed": 100})
+    _wait(lambda: c.get("/api/rovers/spirit/state").json()["t_s"] > first["spirit"][0]["t_s"] + 300)
+    time.sleep(1.5)  # a checkpoint a wall second: one is past those 300 s
+    _end(servers, signal.SIGKILL)
+
+    c = _up(tmp_path, port, servers)
+    for rover in ROVERS:
+        events = _server_events(c, rover)
+        assert len(events) == 2, events
+        restart = max(events, key=lambda e: e["t_s"])
+        assert "restarted" in restart["text"] and restart["kind"] == "server"
+        now = c.get(f"/api/rovers/{rover}/state").json()["t_s"]
+        assert first[rover][0]["t_s"] <= restart["t_s"] <= now
+    spirit = max(_server_events(c, "spirit"), key=lambda e: e["t_s"])
+    assert spirit["t_s"] > first["spirit"][0]["t_s"] + 300  # at the rover's resumed clock
+    rows = c.get("/api/audit", params={"user": "server"}, headers=AUTH).json()
+    assert [r["action"] for r in rows] == ["server restarted", "server started"], rows
+    assert all(r["result"] == "accepted" for r in rows)
