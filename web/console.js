@@ -260,8 +260,7 @@ setInterval(() => {
   showLink();
 }, 1000);
 
-function showDiagnostics(result) {
-  const list = $("validation");
+function showDiagnostics(result, list = $("validation")) {
   const items = [...(result.errors || []).map((d) => ["error", d]), ...(result.warnings || []).map((d) => ["warning", d])];
   list.replaceChildren(...items.map(([kind, d]) => {
     const li = document.createElement("li");
@@ -271,8 +270,18 @@ function showDiagnostics(result) {
   }));
 }
 
-// The list shows the latest answer: an editor check that returns after an upload (or a
-// newer check) was asked for is not shown over it.
+// A text the server did not check (413 over the upload limit, 429, no network) is not known
+// to be valid: the editor's list says why, rather than an empty list that reads as valid.
+function showNotChecked(r) {
+  const li = document.createElement("li");
+  li.className = r.status === 413 ? "error" : "warning";
+  li.textContent = `not checked (${r.status || "not sent"}): ${detailText(r)}`;
+  $("validation").replaceChildren(li);
+}
+
+// The editor's list describes the editor's text (its live check, or its upload); it shows
+// the latest answer: a check that returns after an upload of the text (or a newer check)
+// was asked for is not shown over it.
 async function validateEditor() {
   const turn = ++state.diagnosticsTurn;
   const text = $("editor").value;
@@ -280,7 +289,9 @@ async function validateEditor() {
   const r = await api(`/api/sequences/validate?rover=${state.rover}`, {
     method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify({ text }),
   });
-  if (r.body && turn === state.diagnosticsTurn) showDiagnostics(r.body);
+  if (turn !== state.diagnosticsTurn) return;
+  if (r.ok && r.body) showDiagnostics(r.body);
+  else showNotChecked(r);
 }
 
 function uploadStarts() {
@@ -288,20 +299,24 @@ function uploadStarts() {
   state.diagnosticsTurn++;
 }
 
-// The upload's answer replaces what the list showed: its diagnostics, or none when the
-// upload never reached validation (401/403, 413, 429, a body that is not a sequence).
-function uploaded(r) {
-  const status = $("sequence-status");
-  if (r.body && r.body.status === "queued") {
-    status.textContent = `Sequence #${r.body.id} queued`;
-    showDiagnostics(r.body);
-  } else if (r.body && r.body.errors) {
-    status.textContent = `Rejected: ${r.body.errors.length} error(s), nothing queued`;
-    showDiagnostics(r.body);
+// An upload's outcome goes to the status line, and its diagnostics to the list of what was
+// sent: the editor's list for the editor's text, the file's own list (under its name) for a
+// file, so that no list describes a text other than the one beside it.
+function uploaded(r, fileName) {
+  const validated = Boolean(r.body && r.body.errors);
+  const outcome = r.body && r.body.status === "queued" ? `Sequence #${r.body.id} queued`
+    : validated ? `Rejected: ${r.body.errors.length} error(s), nothing queued`
+    : r.status === 401 || r.status === 403 ? `Not uploaded: ${detailText(r)}`
+    : `Upload failed (${r.status}): ${detailText(r)}`;
+  $("sequence-status").textContent = outcome;
+  if (fileName !== undefined) {
+    $("file-result-head").textContent = `${fileName}: ${outcome}`;
+    showDiagnostics(validated ? r.body : {}, $("file-diagnostics"));
+    $("file-result").hidden = false;
   } else {
-    $("validation").replaceChildren();
-    status.textContent = r.status === 401 || r.status === 403
-      ? `Not uploaded: ${detailText(r)}` : `Upload failed (${r.status}): ${detailText(r)}`;
+    $("file-result").hidden = true; // the latest upload is the editor's text
+    if (validated) showDiagnostics(r.body);
+    else if (r.status === 413) showNotChecked(r); // the text itself is over the limit
   }
   refreshSequences();
 }
@@ -315,13 +330,13 @@ async function uploadText() {
   uploaded(r);
 }
 
+// A file is not the editor's text: its upload leaves the editor's check alone.
 async function uploadFile() {
   const file = $("file").files[0];
   if (!file) return;
-  uploadStarts();
   const form = new FormData();
   form.append("file", file);
-  uploaded(await api(`/api/rovers/${state.rover}/sequences`, { method: "POST", headers: authHeaders(), body: form }));
+  uploaded(await api(`/api/rovers/${state.rover}/sequences`, { method: "POST", headers: authHeaders(), body: form }), file.name);
 }
 
 async function clock(body) {
@@ -497,10 +512,18 @@ async function whoAmI(t) {
   return api("/api/me", { headers: t ? { Authorization: `Bearer ${t}` } : {} });
 }
 
+// A refused sign-in is said at the form, where the operator is looking (and in the status
+// line, the console's record of the last thing done); typing again puts it away.
+function signInError(text) {
+  $("sign-in-error").textContent = text;
+  $("sign-in-error").hidden = !text;
+  $("token").setAttribute("aria-invalid", String(Boolean(text)));
+}
+
 async function signIn() {
   const t = $("token").value.trim();
   const status = $("sequence-status");
-  if (!t) { status.textContent = "Paste your API token, then Sign in."; return; }
+  if (!t) { signInError("Paste your API token, then Sign in."); return; }
   // The token goes in the body (any character a token may hold; a header takes Latin-1
   // only), is checked, and sets the reading cookie; 403 says why it is refused.
   const r = await api("/api/session", {
@@ -508,8 +531,10 @@ async function signIn() {
   });
   if (!r.ok) {
     status.textContent = `Not signed in: ${detailText(r)}`;
+    signInError(status.textContent);
     return;
   }
+  signInError("");
   sessionStorage.setItem("roverops-token", t);
   $("token").value = "";
   state.me = r.body;
@@ -530,6 +555,7 @@ async function signOut() {
 async function init() {
   $("sign-in").addEventListener("click", signIn);
   $("token").addEventListener("keydown", (e) => { if (e.key === "Enter") signIn(); });
+  $("token").addEventListener("input", () => signInError(""));
   $("sign-out").addEventListener("click", signOut);
   const kept = sessionStorage.getItem("roverops-token") || "";
   const signedOut = sessionStorage.getItem("roverops-signed-out");
@@ -580,6 +606,7 @@ async function start() {
   });
   $("upload-text").addEventListener("click", uploadText);
   $("upload-file").addEventListener("click", uploadFile);
+  $("file").addEventListener("change", () => { $("file-result").hidden = true; }); // another file
   connect();
   refreshState();
   refreshSequences();
