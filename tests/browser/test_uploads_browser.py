@@ -28,7 +28,7 @@ from tests.server.test_server_restart import serving
 if not Path(CHROMIUM).exists():
     pytest.skip("Chromium not installed (make test installs it)", allow_module_level=True)
 
-from playwright.sync_api import Page, expect  # noqa: E402
+from playwright.sync_api import Page, expect
 
 AUTH = {"Authorization": f"Bearer {TOKEN}"}
 DRAFT = "SEQUENCE draft\nDRIVE_STRAIGHT distance_m=500\n"  # the editor's text: one error
