@@ -168,9 +168,11 @@ def hga_pass(ctx: LoopContext, c: cmd.HgaPass) -> Details:
     )
     severity: Severity = "error" if margin < 0.0 else "warning" if earth_set else "info"
     recorder.truths[-1].events.append(Event(text, "hga", severity))
+    # the figures are scores (the report's details stay in the simulator); what the ground
+    # learns of a failed pass is that the link was lost, not by how far the HGA was off
     out: Details = {"hga_worst_error_deg": worst, "hga_min_margin_deg": margin}
     if margin < 0.0:
-        out["failure"] = f"HGA margin gone: worst error {worst:.2f} deg > 2 deg"
+        out["failure"] = "HGA link lost during the pass: the pointing left the 2 deg beam"
     return out
 
 

@@ -196,3 +196,22 @@ def test_every_telemetry_field_says_what_it_is_in_the_schema() -> None:
     for schema, names in ((downlink_schema(), downlink_fields()), (truth_schema(), truth_fields())):
         assert list(schema["properties"]) == names
         assert all(p.get("description") for p in schema["properties"].values())
+
+
+def test_a_lost_hga_link_is_reported_without_the_true_pointing_error() -> None:
+    """The rover cannot know its true pointing error (Ali et al. 2005 sec. 1: the 2 deg HGA
+    budget is a world outcome): a pass off by 4 deg in heading fails, its report says the link
+    was lost, and the true worst error is a score (the truth record's event), not the
+    reason the ground reads."""
+    s = RoverSession("gusev", SEED, DAY)
+    q_off_b_ll = Rotation.from_euler("z", 4.0, degrees=True) * Rotation.from_quat(
+        s.q_b_ll_true(), scalar_first=True
+    )
+    s.nate.load_attitude(q_off_b_ll.as_quat(scalar_first=True), Aqf.FINE)
+    hga = s.execute(cmd.HgaPass(duration_min=2))
+    worst = hga.details["hga_worst_error_deg"]
+    assert hga.status == "failed" and worst > 2.0
+    assert hga.reason is not None and "link" in hga.reason
+    assert f"{worst:.2f}" not in hga.reason and f"{worst:.1f}" not in hga.reason
+    assert any(f"{worst:.2f}" in e.text for e in hga.scores)
+    assert not any(f"{worst:.2f}" in e.text for e in hga.events)
