@@ -12,6 +12,7 @@ from sequences.commands import MAX_WAIT_S
 from server.access.auth import Operator, Viewer
 from server.access.truth_view import ground_channels, is_truth_channel, truth_refused
 from server.alarms import AlarmError
+from server.api.answers import Alarm, Limits
 from server.api.deps import (
     AUTH_ERRORS,
     BAD_REQUEST,
@@ -55,7 +56,7 @@ class ShelveBody(BaseModel):
 routes = router()
 
 
-@routes.get("/api/rovers/{rover}/limits", responses=NOT_FOUND)
+@routes.get("/api/rovers/{rover}/limits", response_model=list[Limits], responses=NOT_FOUND)
 def get_limits(
     server: ServerDep, rover: RoverName, _: Viewer, truth: SeesTruth
 ) -> list[dict[str, Any]]:
@@ -74,6 +75,7 @@ TRUTH_REFUSED: dict[int | str, dict[str, Any]] = {
 
 @routes.put(
     "/api/rovers/{rover}/limits/{channel}",
+    response_model=Limits,
     responses={**AUTH_ERRORS, **NOT_FOUND, **TOO_LARGE, **BAD_REQUEST, **TRUTH_REFUSED},
 )
 def put_limits(
@@ -105,7 +107,9 @@ def put_limits(
 
 
 @routes.delete(
-    "/api/rovers/{rover}/limits/{channel}", responses={**AUTH_ERRORS, **NOT_FOUND, **TRUTH_REFUSED}
+    "/api/rovers/{rover}/limits/{channel}",
+    response_model=Limits,
+    responses={**AUTH_ERRORS, **NOT_FOUND, **TRUTH_REFUSED},
 )
 def reset_limits(
     server: ServerDep,
@@ -126,7 +130,9 @@ def reset_limits(
         raise HTTPException(404, str(unknown.args[0])) from None
 
 
-@routes.get("/api/rovers/{rover}/alarms", responses={**NOT_FOUND, **BAD_REQUEST})
+@routes.get(
+    "/api/rovers/{rover}/alarms", response_model=list[Alarm], responses={**NOT_FOUND, **BAD_REQUEST}
+)
 def list_alarms(
     server: ServerDep,
     rover: RoverName,
@@ -148,6 +154,7 @@ def list_alarms(
 
 @routes.post(
     "/api/alarms/{alarm_id}/acknowledge",
+    response_model=Alarm,
     responses={**AUTH_ERRORS, **NOT_FOUND, **TRUTH_REFUSED, 409: error_doc("acknowledged already")},
 )
 def acknowledge_alarm(
@@ -168,7 +175,7 @@ def acknowledge_alarm(
 
 
 @routes.post(
-    "/api/alarms/{alarm_id}/shelve",
+    "/api/alarms/{alarm_id}/shelve", response_model=Alarm,
     responses={**AUTH_ERRORS, **NOT_FOUND, **TOO_LARGE, **BAD_REQUEST,
                409: error_doc("done: acknowledged and cleared")},
 )  # fmt: skip
@@ -196,6 +203,7 @@ def shelve_alarm(
 
 @routes.post(
     "/api/alarms/{alarm_id}/unshelve",
+    response_model=Alarm,
     responses={**AUTH_ERRORS, **NOT_FOUND, 409: error_doc("not shelved, or done")},
 )
 def unshelve_alarm(

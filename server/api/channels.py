@@ -9,6 +9,7 @@ from fastapi import HTTPException, Query
 
 from server.access.auth import Viewer
 from server.access.truth_view import ground_channels, truth_refused
+from server.api.answers import ChannelInfo, ChannelSeries
 from server.api.deps import MAX_SOL, SeesTruth, ServerDep, error_doc, router
 from server.channels import (
     DEFAULT_POINTS,
@@ -37,7 +38,7 @@ def known(server: ServerDep, rover: str) -> dict[str, Channel]:
     return channels_of(runtime.last_frame)
 
 
-@routes.get("/api/rovers/{rover}/channels", responses=NOT_FOUND)
+@routes.get("/api/rovers/{rover}/channels", response_model=list[ChannelInfo], responses=NOT_FOUND)
 def list_channels(
     server: ServerDep, rover: str, _: Viewer, truth: SeesTruth
 ) -> list[dict[str, Any]]:
@@ -49,6 +50,7 @@ def list_channels(
 
 @routes.get(
     "/api/rovers/{rover}/channels/{channel}",
+    response_model=ChannelSeries,
     responses={**NOT_FOUND, **BAD_REQUEST, 403: error_doc("a truth channel, not for this role")},
 )
 def channel_values(

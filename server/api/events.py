@@ -7,6 +7,7 @@ from typing import Annotated, Any
 from fastapi import Query
 
 from server.access.auth import Viewer
+from server.api.answers import EventPage
 from server.api.deps import (
     BAD_REQUEST,
     MAX_ID,
@@ -23,7 +24,9 @@ from server.validation.uploads import request_error
 routes = router()
 
 
-@routes.get("/api/rovers/{rover}/events", responses={**NOT_FOUND, **BAD_REQUEST})
+@routes.get(
+    "/api/rovers/{rover}/events", response_model=EventPage, responses={**NOT_FOUND, **BAD_REQUEST}
+)
 def event_log_page(
     server: ServerDep,
     rover: RoverName,

@@ -8,6 +8,7 @@ from fastapi import HTTPException, Request
 from pydantic import BaseModel, ConfigDict, Field
 
 from server.access.auth import Operator, Viewer
+from server.api.answers import Queue
 from server.api.deps import (
     AUTH_ERRORS,
     BAD_REQUEST,
@@ -35,7 +36,7 @@ class MoveBody(BaseModel):
 routes = router()
 
 
-@routes.get("/api/rovers/{rover}/queue", responses=NOT_FOUND)
+@routes.get("/api/rovers/{rover}/queue", response_model=Queue, responses=NOT_FOUND)
 def rover_queue(server: ServerDep, rover: RoverName, _: Viewer) -> dict[str, Any]:
     """The queue in order (``position`` 0 runs next), each sequence with every step's
     status (pending, running, completed, failed, refused, skipped) and times, whether
@@ -53,6 +54,7 @@ def rover_queue(server: ServerDep, rover: RoverName, _: Viewer) -> dict[str, Any
 
 @routes.post(
     "/api/rovers/{rover}/queue/{sequence_id:int}/move",
+    response_model=Queue,
     responses={
         **AUTH_ERRORS,
         **NOT_FOUND,

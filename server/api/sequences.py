@@ -13,6 +13,7 @@ from starlette.concurrency import run_in_threadpool
 from sequences.language import Sequence, SequenceStep
 from sequences.validate import ValidationResult
 from server.access.auth import Operator, Viewer
+from server.api.answers import CancelledSequence, Diagnostic, SequenceRecord, StoredSequence
 from server.api.deps import (
     AUTH_ERRORS,
     BAD_REQUEST,
@@ -31,15 +32,6 @@ from server.state import Server
 from server.validation.context import rover_site
 from server.validation.pool import Checked
 from server.validation.uploads import read_body
-
-
-class Diagnostic(BaseModel):
-    """One problem in a sequence (``sequences.language.Diagnostic``)."""
-
-    line: int
-    column: int
-    code: str
-    message: str
 
 
 class ValidationReport(BaseModel):
@@ -238,14 +230,16 @@ async def validate_only(
     return {"valid": not checked.result.errors, **diagnostics_json(checked.result)}
 
 
-@routes.get("/api/rovers/{rover}/sequences", responses=NOT_FOUND)
+@routes.get(
+    "/api/rovers/{rover}/sequences", response_model=list[StoredSequence], responses=NOT_FOUND
+)
 def list_sequences(server: ServerDep, rover: RoverName, _: Viewer) -> list[dict[str, Any]]:
     """Sequences of a rover, newest first, each with who submitted it."""
     server.rover(rover)
     return server.store.list_sequences(rover)
 
 
-@routes.get("/api/sequences/{sequence_id:int}", responses=NOT_FOUND)
+@routes.get("/api/sequences/{sequence_id:int}", response_model=SequenceRecord, responses=NOT_FOUND)
 def get_sequence(server: ServerDep, sequence_id: SequenceId, _: Viewer) -> dict[str, Any]:
     """One sequence with its source, steps, status, errors and warnings."""
     found = server.store.get_sequence(sequence_id)
@@ -256,6 +250,7 @@ def get_sequence(server: ServerDep, sequence_id: SequenceId, _: Viewer) -> dict[
 
 @routes.delete(
     "/api/sequences/{sequence_id:int}",
+    response_model=CancelledSequence,
     responses={**AUTH_ERRORS, **NOT_FOUND, 409: error_doc("the sequence is not queued")},
 )
 def cancel_sequence(

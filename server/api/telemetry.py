@@ -17,6 +17,7 @@ from starlette.websockets import WebSocketDisconnect
 
 from server.access.auth import Viewer
 from server.access.truth_view import truth_refused
+from server.api.answers import Frame, RecordSchema, Timeline
 from server.api.deps import (
     BAD_REQUEST,
     CSV_FILE,
@@ -48,7 +49,7 @@ def sols(server: ServerDep, rover: RoverName, _: Viewer) -> list[int]:
     return server.store.sols(rover)
 
 
-@routes.get("/api/rovers/{rover}/sols/{sol}/timeline", responses=NOT_FOUND)
+@routes.get("/api/rovers/{rover}/sols/{sol}/timeline", response_model=Timeline, responses=NOT_FOUND)
 def timeline(
     server: ServerDep, rover: RoverName, sol: Sol, _: Viewer, truth: SeesTruth
 ) -> dict[str, Any]:
@@ -99,9 +100,9 @@ def sol_telemetry_csv(
         200: {
             "description": "frames (JSON), or CSV on Accept: text/csv",
             "content": {
-                "application/json": {"schema": {"type": "array", "items": {"type": "object"}}},
                 **CSV_FILE["content"],
             },
+            "model": list[Frame],  # type: ignore[valid-type]
         },
         **NOT_FOUND,
         **BAD_REQUEST,
@@ -184,14 +185,18 @@ async def live(server: ServerDep, websocket: WebSocket, rover: str) -> None:
         server.hub.unsubscribe(rover, client)
 
 
-@routes.get("/api/schema/downlink")
+@routes.get("/api/schema/downlink", response_model=RecordSchema)
 def downlink_record_schema(_: Viewer) -> dict[str, Any]:
     """The JSON schema of the rover's downlink record, what the rover itself reports in a
     frame (``sim.loop.downlink.Downlink``, the one definition of its fields)."""
     return downlink_schema()
 
 
-@routes.get("/api/schema/truth", responses={403: error_doc("not in the truth view")})
+@routes.get(
+    "/api/schema/truth",
+    response_model=RecordSchema,
+    responses={403: error_doc("not in the truth view")},
+)
 def truth_record_schema(_: Viewer, truth: SeesTruth) -> dict[str, Any]:
     """The JSON schema of the truth record beside each frame: what only the simulator knows,
     and the scores against it (``sim.scoring.truth.Truth``); for the truth view only."""

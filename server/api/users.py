@@ -20,6 +20,7 @@ from server.access.accounts import (
 )
 from server.access.auth import COOKIE, Admin, Viewer
 from server.access.truth_view import may_see_truth
+from server.api.answers import Identity, IssuedToken, RoleChanged, SignedOut, TokensRevoked, User
 from server.api.deps import (
     BAD_REQUEST,
     NOT_FOUND,
@@ -79,7 +80,7 @@ def _principal_json(server: ServerDep, who: Principal) -> dict[str, Any]:
             "sees_truth": may_see_truth(server.config.truth_view, who)}  # fmt: skip
 
 
-@routes.get("/api/me")
+@routes.get("/api/me", response_model=Identity)
 def me(server: ServerDep, who: Viewer) -> dict[str, Any]:
     """Who this request acts as (``anonymous`` with no role when reading without a
     token), whether reading needs a token on this server, its truth view and whether
@@ -87,7 +88,7 @@ def me(server: ServerDep, who: Viewer) -> dict[str, Any]:
     return _principal_json(server, who)
 
 
-@routes.post("/api/session", responses=BAD_REQUEST)
+@routes.post("/api/session", response_model=Identity, responses=BAD_REQUEST)
 def sign_in(server: ServerDep, body: SessionBody, request: Request) -> JSONResponse:
     """Sign this browser in: the token is checked and kept in an HttpOnly cookie that
     the 3D view and the telemetry WebSocket send (it counts for reading only)."""
@@ -103,7 +104,7 @@ def sign_in(server: ServerDep, body: SessionBody, request: Request) -> JSONRespo
     return response
 
 
-@routes.delete("/api/session")
+@routes.delete("/api/session", response_model=SignedOut)
 def sign_out(request: Request) -> JSONResponse:
     """Sign this browser out (forget the cookie)."""
     request.state.audit_action = "sign out"
@@ -112,13 +113,18 @@ def sign_out(request: Request) -> JSONResponse:
     return response
 
 
-@routes.get("/api/users")
+@routes.get("/api/users", response_model=list[User])
 def list_users(server: ServerDep, _: Admin) -> list[dict[str, Any]]:
     """Every user: name, role, creation time and how many live tokens it holds."""
     return server.accounts.list_users()
 
 
-@routes.post("/api/users", status_code=201, responses={409: error_doc("the user exists")})
+@routes.post(
+    "/api/users",
+    response_model=IssuedToken,
+    status_code=201,
+    responses={409: error_doc("the user exists")},
+)
 def add_user(server: ServerDep, body: NewUserBody, request: Request, _: Admin) -> dict[str, Any]:
     """A new user and its first token (shown in this answer only; stored hashed)."""
     request.state.audit_action = f"add user {body.name} as {body.role}"
@@ -130,7 +136,7 @@ def add_user(server: ServerDep, body: NewUserBody, request: Request, _: Admin) -
             "expires_at": issued.expires_at.isoformat()}  # fmt: skip
 
 
-@routes.patch("/api/users/{name}", responses=NOT_FOUND)
+@routes.patch("/api/users/{name}", response_model=RoleChanged, responses=NOT_FOUND)
 def change_role(
     server: ServerDep, name: str, body: RoleBody, request: Request, _: Admin
 ) -> dict[str, Any]:
@@ -143,7 +149,9 @@ def change_role(
     return {"name": name, "role": body.role}
 
 
-@routes.post("/api/users/{name}/tokens", status_code=201, responses=NOT_FOUND)
+@routes.post(
+    "/api/users/{name}/tokens", response_model=IssuedToken, status_code=201, responses=NOT_FOUND
+)
 def new_token(
     server: ServerDep, name: str, body: TokenBody, request: Request, _: Admin
 ) -> dict[str, Any]:
@@ -157,7 +165,7 @@ def new_token(
             "expires_at": issued.expires_at.isoformat()}  # fmt: skip
 
 
-@routes.delete("/api/users/{name}/tokens", responses=NOT_FOUND)
+@routes.delete("/api/users/{name}/tokens", response_model=TokensRevoked, responses=NOT_FOUND)
 def revoke_tokens(server: ServerDep, name: str, request: Request, _: Admin) -> dict[str, Any]:
     """Revoke every live token of a user."""
     request.state.audit_action = f"revoke the tokens of {name}"

@@ -10,6 +10,7 @@ from fastapi.responses import RedirectResponse, Response
 from starlette.concurrency import run_in_threadpool
 
 from server.access.auth import Viewer
+from server.api.answers import Scene
 from server.api.deps import (
     NOT_FOUND,
     RoverName,
@@ -61,7 +62,7 @@ async def viser_socket(server: ServerDep, websocket: WebSocket, rover: str) -> N
     await relay(websocket, scene.port)
 
 
-@routes.get("/api/rovers/{rover}/scene", responses=NOT_FOUND)
+@routes.get("/api/rovers/{rover}/scene", response_model=Scene, responses=NOT_FOUND)
 def scene_state(server: ServerDep, rover: RoverName, _: Viewer, truth: SeesTruth) -> dict[str, Any]:
     """The 3D view: its URL on this origin, how many frames it has drawn, and whether it
     shows the truth (the truth view's scene)."""
