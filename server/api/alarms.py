@@ -5,13 +5,12 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import HTTPException, Query, Request
+from fastapi import Query, Request
 from pydantic import BaseModel, ConfigDict, Field
 
 from sequences.commands import MAX_WAIT_S
 from server.access.auth import Operator, Viewer
 from server.access.truth_view import ground_channels, is_truth_channel, truth_refused
-from server.alarms import AlarmError
 from server.api.answers import Alarm, Limits
 from server.api.deps import (
     AUTH_ERRORS,
@@ -26,8 +25,6 @@ from server.api.deps import (
     error_doc,
     router,
 )
-from server.limits import LimitsError
-from server.validation.uploads import request_error
 
 LimitLevel = float | str | list[str] | None
 
@@ -98,12 +95,7 @@ def put_limits(
     request.state.audit_action = f"set limits of {channel}: " + ", ".join(
         f"{k}={v}" for k, v in levels.items()
     )
-    try:
-        return server.alarms.set_limits(rover, channel, levels, who.name, runtime.last_frame)
-    except KeyError as unknown:
-        raise HTTPException(404, str(unknown.args[0])) from None
-    except LimitsError as bad:
-        raise request_error(("body",), str(bad), "limits") from None
+    return server.alarms.set_limits(rover, channel, levels, who.name, runtime.last_frame)
 
 
 @routes.delete(
@@ -124,10 +116,7 @@ def reset_limits(
     if not truth and is_truth_channel(channel):
         raise truth_refused("this channel")
     request.state.audit_action = f"reset limits of {channel} to the defaults"
-    try:
-        return server.alarms.reset_limits(rover, channel, runtime.last_frame)
-    except KeyError as unknown:
-        raise HTTPException(404, str(unknown.args[0])) from None
+    return server.alarms.reset_limits(rover, channel, runtime.last_frame)
 
 
 @routes.get(
@@ -165,10 +154,7 @@ def acknowledge_alarm(
     request.state.audit_action = f"acknowledge alarm #{alarm_id}"
     if not truth and server.alarms.truth_alarm(alarm_id):
         raise truth_refused(f"alarm #{alarm_id}")
-    try:
-        alarm = server.alarms.acknowledge(alarm_id, who.name)
-    except AlarmError as refused:
-        raise HTTPException(refused.status, str(refused)) from None
+    alarm = server.alarms.acknowledge(alarm_id, who.name)
     request.state.audit_rover = alarm["rover"]
     request.state.audit_action = f"acknowledge alarm #{alarm_id} ({alarm['channel']})"
     return alarm
@@ -189,10 +175,7 @@ def shelve_alarm(
     runtime = server.rovers.get(found[0]["rover"]) if found else None
     frame = runtime.last_frame if runtime is not None else None
     now_t_s = float(frame["t_s"]) if frame else None
-    try:
-        alarm = server.alarms.shelve(alarm_id, body.duration_s, who.name, body.reason, now_t_s)
-    except AlarmError as refused:
-        raise HTTPException(refused.status, str(refused)) from None
+    alarm = server.alarms.shelve(alarm_id, body.duration_s, who.name, body.reason, now_t_s)
     request.state.audit_rover = alarm["rover"]
     request.state.audit_action = (
         f"shelve alarm #{alarm_id} ({alarm['channel']}) for {body.duration_s:g} s"
@@ -211,10 +194,7 @@ def unshelve_alarm(
 ) -> dict[str, Any]:
     """End a shelf before its time: the alarm is judged again from the next frame."""
     request.state.audit_action = f"unshelve alarm #{alarm_id}"
-    try:
-        alarm = server.alarms.unshelve(alarm_id, who.name)
-    except AlarmError as refused:
-        raise HTTPException(refused.status, str(refused)) from None
+    alarm = server.alarms.unshelve(alarm_id, who.name)
     request.state.audit_rover = alarm["rover"]
     request.state.audit_action = f"unshelve alarm #{alarm_id} ({alarm['channel']})"
     return alarm

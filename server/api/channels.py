@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import HTTPException, Query
+from fastapi import Query
 
 from server.access.auth import Viewer
 from server.access.truth_view import ground_channels, truth_refused
@@ -21,6 +21,7 @@ from server.channels import (
     channels_of,
     series,
 )
+from server.errors import NotFoundError
 from server.validation.uploads import request_error
 from sim.world.marsclock import t_s_for_sol_lmst
 
@@ -74,7 +75,7 @@ def channel_values(
     if not truth:
         channels = {name: c for name, c in channels.items() if not c.truth}
     if channel not in channels:
-        raise HTTPException(404, f"unknown channel {channel!r}; known: {', '.join(channels)}")
+        raise NotFoundError(f"unknown channel {channel!r}; known: {', '.join(channels)}")
     now = runtime.sol(runtime.t_s)
     lo = now if sol_from is None else sol_from
     hi = lo if sol_to is None else sol_to

@@ -18,8 +18,7 @@ from server.api.deps import (
     ServerDep,
     router,
 )
-from server.eventlog import LOG_KINDS, MAX_LIMIT, EventFilter, FilterError, event_log
-from server.validation.uploads import request_error
+from server.eventlog import LOG_KINDS, MAX_LIMIT, EventFilter, event_log
 
 routes = router()
 
@@ -64,7 +63,4 @@ def event_log_page(
         limit=limit,
         offset=offset,
     )
-    try:
-        return event_log(server.store, runtime, flt, truth)
-    except FilterError as exc:
-        raise request_error(("query", exc.param), str(exc), "value_error") from exc
+    return event_log(server.store, runtime, flt, truth)

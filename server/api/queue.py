@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from fastapi import HTTPException, Request
+from fastapi import Request
 from pydantic import BaseModel, ConfigDict, Field
 
 from server.access.auth import Operator, Viewer
@@ -21,8 +21,9 @@ from server.api.deps import (
     error_doc,
     router,
 )
+from server.errors import ConflictError, NotFoundError
 from server.queue_view import queue_json, recent_json
-from server.runtime import NotQueuedError, QueueError
+from server.runtime import NotQueuedError
 
 
 class MoveBody(BaseModel):
@@ -82,8 +83,6 @@ def move_in_queue(
     except NotQueuedError as error:
         found = server.store.get_sequence(sequence_id)
         if found is None or found["rover"] != rover:
-            raise HTTPException(404, f"no sequence {sequence_id} for rover {rover!r}") from None
-        raise HTTPException(409, f"{error}: it is {found['status']}") from None
-    except QueueError as error:
-        raise HTTPException(409, str(error)) from None
+            raise NotFoundError(f"no sequence {sequence_id} for rover {rover!r}") from None
+        raise ConflictError(f"{error}: it is {found['status']}") from None
     return {"rover": rover, "queue": queue_json(runtime, server.store)}

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from fastapi import HTTPException, Query, Request
+from fastapi import Query, Request
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel
 from starlette.concurrency import run_in_threadpool
@@ -27,6 +27,7 @@ from server.api.deps import (
     error_doc,
     router,
 )
+from server.errors import ConflictError, NotFoundError
 from server.runtime import Cancelled, RoverRuntime
 from server.state import Server
 from server.validation.context import rover_site
@@ -244,7 +245,7 @@ def get_sequence(server: ServerDep, sequence_id: SequenceId, _: Viewer) -> dict[
     """One sequence with its source, steps, status, errors and warnings."""
     found = server.store.get_sequence(sequence_id)
     if found is None:
-        raise HTTPException(404, f"no sequence {sequence_id}")
+        raise NotFoundError(f"no sequence {sequence_id}")
     return found
 
 
@@ -261,12 +262,12 @@ def cancel_sequence(
     request.state.audit_action = f"cancel sequence #{sequence_id}"
     found = server.store.get_sequence(sequence_id)
     if found is None:
-        raise HTTPException(404, f"no sequence {sequence_id}")
+        raise NotFoundError(f"no sequence {sequence_id}")
     request.state.audit_rover = found["rover"]
     runtime = server.rover(found["rover"])
     stopped = runtime.cancel(sequence_id)
     if stopped is None:
-        raise HTTPException(409, f"sequence {sequence_id} is {found['status']}, not queued")
+        raise ConflictError(f"sequence {sequence_id} is {found['status']}, not queued")
     detail = f"cancelled by {who.name} {cancelled_where(stopped)}"
     server.store.set_sequence_status(sequence_id, "cancelled", detail)
     return {"id": sequence_id, "status": "cancelled", "detail": detail}

@@ -11,7 +11,7 @@ import time
 from typing import Annotated, Any
 
 import anyio
-from fastapi import HTTPException, Query, Request, WebSocket
+from fastapi import Query, Request, WebSocket
 from fastapi.responses import Response
 from starlette.websockets import WebSocketDisconnect
 
@@ -32,6 +32,7 @@ from server.api.deps import (
     websocket_allowed,
 )
 from server.api.telemetry_csv import frames_csv
+from server.errors import NotFoundError
 from server.hub import MAX_RATE_HZ, next_message
 from server.timeline import sol_timeline
 from server.validation.uploads import request_error
@@ -59,7 +60,7 @@ def timeline(
     server.writer.flush()
     found = sol_timeline(server.store, runtime, sol, truth)
     if found is None:
-        raise HTTPException(404, f"no telemetry on sol {sol}")
+        raise NotFoundError(f"no telemetry on sol {sol}")
     return found
 
 
@@ -83,7 +84,7 @@ def sol_telemetry_csv(
     server.writer.flush()
     span = server.store.sol_range(rover, sol)
     if span is None:
-        raise HTTPException(404, f"no telemetry on sol {sol} for rover {rover!r}")
+        raise NotFoundError(f"no telemetry on sol {sol} for rover {rover!r}")
     frames = server.store.frames(rover, span[0], span[1], every, with_truth=truth)
     disposition = f'attachment; filename="{rover}_sol{sol}.csv"'
     return Response(

@@ -12,11 +12,8 @@ from pydantic import BaseModel, ConfigDict, Field
 from server.access.accounts import (
     DEFAULT_EXPIRY_DAYS,
     ROLES,
-    AccountError,
     Principal,
     TokenRefusedError,
-    UnknownUserError,
-    UserExistsError,
 )
 from server.access.auth import COOKIE, Admin, Viewer
 from server.access.truth_view import may_see_truth
@@ -28,7 +25,6 @@ from server.api.deps import (
     error_doc,
     router,
 )
-from server.validation.uploads import request_error
 
 
 class SessionBody(BaseModel):
@@ -59,14 +55,6 @@ class TokenBody(BaseModel):
 
     model_config = ConfigDict(extra="forbid", strict=True)
     expires_days: float = Field(default=DEFAULT_EXPIRY_DAYS, gt=0, le=3650)
-
-
-def _account_error(error: AccountError) -> HTTPException:
-    if isinstance(error, UnknownUserError):
-        return HTTPException(404, str(error))
-    if isinstance(error, UserExistsError):
-        return HTTPException(409, str(error))
-    return request_error(("body",), str(error), "account")
 
 
 routes = router()
@@ -128,10 +116,7 @@ def list_users(server: ServerDep, _: Admin) -> list[dict[str, Any]]:
 def add_user(server: ServerDep, body: NewUserBody, request: Request, _: Admin) -> dict[str, Any]:
     """A new user and its first token (shown in this answer only; stored hashed)."""
     request.state.audit_action = f"add user {body.name} as {body.role}"
-    try:
-        issued = server.accounts.add_user(body.name, body.role, body.expires_days)
-    except AccountError as error:
-        raise _account_error(error) from None
+    issued = server.accounts.add_user(body.name, body.role, body.expires_days)
     return {"name": issued.name, "role": issued.role, "token": issued.token,
             "expires_at": issued.expires_at.isoformat()}  # fmt: skip
 
@@ -142,10 +127,7 @@ def change_role(
 ) -> dict[str, Any]:
     """Give a user another role."""
     request.state.audit_action = f"set the role of {name} to {body.role}"
-    try:
-        server.accounts.set_role(name, body.role)
-    except AccountError as error:
-        raise _account_error(error) from None
+    server.accounts.set_role(name, body.role)
     return {"name": name, "role": body.role}
 
 
@@ -157,10 +139,7 @@ def new_token(
 ) -> dict[str, Any]:
     """Another token for a user (shown in this answer only)."""
     request.state.audit_action = f"issue a token to {name}"
-    try:
-        issued = server.accounts.issue_token(name, body.expires_days)
-    except AccountError as error:
-        raise _account_error(error) from None
+    issued = server.accounts.issue_token(name, body.expires_days)
     return {"name": issued.name, "role": issued.role, "token": issued.token,
             "expires_at": issued.expires_at.isoformat()}  # fmt: skip
 
@@ -169,8 +148,5 @@ def new_token(
 def revoke_tokens(server: ServerDep, name: str, request: Request, _: Admin) -> dict[str, Any]:
     """Revoke every live token of a user."""
     request.state.audit_action = f"revoke the tokens of {name}"
-    try:
-        revoked = server.accounts.revoke(name)
-    except AccountError as error:
-        raise _account_error(error) from None
+    revoked = server.accounts.revoke(name)
     return {"name": name, "revoked": revoked}

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from fastapi import HTTPException, WebSocket
+from fastapi import WebSocket
 from fastapi.responses import RedirectResponse, Response
 from starlette.concurrency import run_in_threadpool
 
@@ -20,6 +20,7 @@ from server.api.deps import (
     router,
     websocket_allowed,
 )
+from server.errors import NotFoundError
 from server.scene3d.proxy import fetch, relay
 
 routes = router()
@@ -29,7 +30,7 @@ def scene_port(server: ServerDep, rover: str, truth: bool) -> int:
     server.rover(rover)
     scene = server.scene_for(rover, truth)
     if scene is None:
-        raise HTTPException(404, "the 3D view is off (roverops serve starts it)")
+        raise NotFoundError("the 3D view is off (roverops serve starts it)")
     return scene.port
 
 
