@@ -173,8 +173,7 @@ class Server:
 
     def _command(self, rover: str, report: dict[str, Any]) -> None:
         self.writer.command(rover, **report)
-        if self.hub.count(rover):  # a live timeline shows it: written now, read back as listed
-            self.writer.flush()
+        if self.hub.count(rover):  # a live timeline shows it: read back (so written) as listed
             entry = stored_command(self.store, self.rovers[rover], report)
             if entry is not None:
                 self.hub.notify(rover, {"type": "command", "command": entry})

@@ -86,7 +86,6 @@ def channel_values(
             ("query", "sol_to"), f"at most {MAX_SOLS} sols at once, asked {hi - lo + 1}",
             "range",
         )  # fmt: skip
-    server.writer.flush()
     mission = runtime.spec.mission
     t0 = t_s_for_sol_lmst(mission, lo, 0.0)
     t1 = t_s_for_sol_lmst(mission, hi + 1, 0.0)

@@ -50,7 +50,6 @@ def event_log_page(
     "kinds", "total", "offset", "limit", "events"}``; a filter that cannot be met is a
     422 naming it. The events of alarms on truth channels only in the truth view."""
     runtime = server.rover(rover)
-    server.writer.flush()
     flt = EventFilter(
         sol=sol,
         sol_from=sol_from,

@@ -45,7 +45,6 @@ def rover_queue(server: ServerDep, rover: RoverName, _: Viewer) -> dict[str, Any
     sequences that left the queue (completed, failed or cancelled), newest first. The
     telemetry WebSocket sends ``{"type": "queue", "queue": [...]}`` on every change."""
     runtime = server.rover(rover)
-    server.writer.flush()
     return {
         "rover": rover,
         "queue": queue_json(runtime, server.store),

@@ -46,7 +46,6 @@ routes = router()
 def sols(server: ServerDep, rover: RoverName, _: Viewer) -> list[int]:
     """Sols with telemetry."""
     server.rover(rover)
-    server.writer.flush()
     return server.store.sols(rover)
 
 
@@ -57,7 +56,6 @@ def timeline(
     """One sol: commands, NATE mode and AQF intervals, events, distance, summary, and in
     the truth view its ``truth`` part (the true distance, the errors, the true margin)."""
     runtime = server.rover(rover)
-    server.writer.flush()
     found = sol_timeline(server.store, runtime, sol, truth)
     if found is None:
         raise NotFoundError(f"no telemetry on sol {sol}")
@@ -81,7 +79,6 @@ def sol_telemetry_csv(
     events are always kept), named ``{rover}_sol{sol}.csv``; the truth's columns only in
     the truth view."""
     server.rover(rover)
-    server.writer.flush()
     span = server.store.sol_range(rover, sol)
     if span is None:
         raise NotFoundError(f"no telemetry on sol {sol} for rover {rover!r}")
@@ -123,7 +120,6 @@ def telemetry(
     """Frames over ``from``-``to`` (TT s), one per ``every`` s; CSV on Accept: text/csv.
     Each frame is the downlink record, merged with its truth record in the truth view."""
     runtime = server.rover(rover)
-    server.writer.flush()
     lo = -math.inf if t_from is None else t_from
     hi = runtime.t_s if t_to is None else t_to
     if not (math.isfinite(hi) and lo <= hi):
