@@ -48,6 +48,7 @@ from typing import Any
 
 from sequences.commands import COMMANDS
 from server.access.truth_view import TRUTH_MARK
+from server.errors import ConflictError, DomainError, NotFoundError, UnknownChannelError
 from server.limits import ChannelLimits, LimitsError, check_levels, load_defaults
 from server.sinks import FrameBatch
 from server.storage import Store
@@ -62,12 +63,16 @@ Notify = Callable[[str, dict[str, Any]], None]
 OnEvent = Callable[[str, float | None, dict[str, str]], None]
 
 
-class AlarmError(Exception):
-    """An acknowledgement or a shelf that cannot be (``status`` 404 or 409)."""
+class AlarmError(DomainError):
+    """An acknowledgement or a shelf that cannot be."""
 
-    def __init__(self, status: int, message: str) -> None:
-        super().__init__(message)
-        self.status = status
+
+class UnknownAlarmError(AlarmError, NotFoundError):
+    """No alarm of that id."""
+
+
+class AlarmConflictError(AlarmError, ConflictError):
+    """Acknowledged already, not shelved, or done."""
 
 
 def acquiring(frame: dict[str, Any]) -> bool:
@@ -174,7 +179,9 @@ class AlarmEngine:
         with self._lock:
             self._load(rover)
             if channel not in self.defaults:
-                raise KeyError(f"unknown channel {channel!r}; known: {', '.join(self.defaults)}")
+                raise UnknownChannelError(
+                    f"unknown channel {channel!r}; known: {', '.join(self.defaults)}"
+                )
             new = check_levels(self.defaults[channel], levels)
             stored = {k: new.limit_for(k) for k in ("warning", "critical")}
             if new.kind == "numeric":
@@ -192,7 +199,9 @@ class AlarmEngine:
         with self._lock:
             self._load(rover)
             if channel not in self.defaults:
-                raise KeyError(f"unknown channel {channel!r}; known: {', '.join(self.defaults)}")
+                raise UnknownChannelError(
+                    f"unknown channel {channel!r}; known: {', '.join(self.defaults)}"
+                )
             self.store.reset_limits(rover, channel)
             self._apply(rover, channel, self.defaults[channel])
             if last_frame is not None:
@@ -351,14 +360,14 @@ class AlarmEngine:
         with self._lock:
             found = self.store.alarms(alarm_id=alarm_id)
             if not found:
-                raise AlarmError(404, f"no alarm {alarm_id}")
+                raise UnknownAlarmError(f"no alarm {alarm_id}")
             rover = found[0]["rover"]
             self._load(rover)
             listed = self._listed[rover].get(found[0]["channel"])
             row = listed if listed is not None and listed["id"] == alarm_id else found[0]
             if row["acknowledged_by"] is not None:
                 by_at = f"{row['acknowledged_by']} at {row['acknowledged_at']}"
-                raise AlarmError(409, f"alarm {alarm_id} was acknowledged by {by_at}")
+                raise AlarmConflictError(f"alarm {alarm_id} was acknowledged by {by_at}")
             self._change(rover, row, {"acknowledged_by": by, "acknowledged_at": datetime.now(UTC)})
             return alarm_json(row)
 
@@ -382,19 +391,19 @@ class AlarmEngine:
         with self._lock:
             row = self._listed_row(alarm_id, "unshelve")
             if not row.get("shelved"):
-                raise AlarmError(409, f"alarm {alarm_id} is not shelved")
+                raise AlarmConflictError(f"alarm {alarm_id} is not shelved")
             self._change(row["rover"], row, {"shelved": None}, None, what=f"unshelved by {by}")
             return alarm_json(row)
 
     def _listed_row(self, alarm_id: int, verb: str) -> dict[str, Any]:
         found = self.store.alarms(alarm_id=alarm_id)
         if not found:
-            raise AlarmError(404, f"no alarm {alarm_id}")
+            raise UnknownAlarmError(f"no alarm {alarm_id}")
         rover = found[0]["rover"]
         self._load(rover)
         listed = self._listed[rover].get(found[0]["channel"])
         if listed is None or listed["id"] != alarm_id:
-            raise AlarmError(409, f"alarm {alarm_id} is done (acknowledged and cleared): "
+            raise AlarmConflictError(f"alarm {alarm_id} is done (acknowledged and cleared): "
                                   f"nothing to {verb}")  # fmt: skip
         return listed
 

@@ -41,7 +41,7 @@ from server.api import (
     users,
     viewer,
 )
-from server.api.deps import AUTH_ERRORS
+from server.api.deps import AUTH_ERRORS, install_error_handlers
 from server.api.routing import AuthFirstRoute, allow_every_method, document_public_reads
 from server.state import Server, ServerConfig
 from server.storage import data_dir_url
@@ -71,6 +71,7 @@ def create_app(config: ServerConfig) -> FastAPI:
     )
     app.router.route_class = AuthFirstRoute  # the token before the body, for every route
     allow_every_method(app)
+    install_error_handlers(app)  # domain errors to HTTP (server.api.deps)
     app.state.server = server  # what server.api.deps.ServerDep hands the routes
     app.add_middleware(AuditMiddleware, server=server)
     if config.public_read:

@@ -23,6 +23,7 @@ from typing import Any
 
 from estimation.events import KINDS, SEVERITIES
 from server.access.truth_view import ground_events
+from server.errors import InvalidError
 from server.runtime import RoverRuntime
 from server.storage import LEGACY_KIND, Store
 from sim.world.marsclock import t_s_for_sol_lmst, t_s_to_utc
@@ -31,12 +32,13 @@ LOG_KINDS: tuple[str, ...] = (*KINDS, LEGACY_KIND)  # what the kind filter accep
 MAX_LIMIT = 1000
 
 
-class FilterError(ValueError):
+class FilterError(InvalidError):
     """A filter that cannot be met: ``param`` names the query parameter."""
 
     def __init__(self, param: str, message: str) -> None:
         super().__init__(f"{param}: {message}")
         self.param = param
+        self.loc = ("query", param)
 
 
 @dataclass(frozen=True)

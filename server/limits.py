@@ -42,6 +42,7 @@ from pathlib import Path
 from typing import Any
 
 from server.channels import is_truth
+from server.errors import InvalidError
 
 DEFAULTS_FILE = Path(__file__).resolve().parent / "limits_default.json"
 KINDS = ("numeric", "ordinal", "state")
@@ -54,8 +55,10 @@ NEEDS: dict[str, Callable[[dict[str, Any]], bool]] = {
 }
 
 
-class LimitsError(ValueError):
+class LimitsError(InvalidError):
     """A limit that cannot be: the message names the channel and the problem."""
+
+    kind = "limits"
 
 
 @dataclass(frozen=True)

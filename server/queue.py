@@ -19,6 +19,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from sequences.language import Sequence, parse, to_text
+from server.errors import ConflictError
 
 
 @dataclass(frozen=True)
@@ -89,7 +90,7 @@ class QueuedSequence:
         )
 
 
-class QueueError(Exception):
+class QueueError(ConflictError):
     """A queue change refused; the message says why (``NotQueuedError``: not in it)."""
 
 

@@ -18,13 +18,12 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from fastapi import HTTPException
-
 from sequences.validate import ValidationContext, validate
 from server.access.accounts import Accounts
 from server.access.audit import AuditEntry, AuditLog
 from server.access.truth_view import check_truth_view
 from server.alarms import AlarmEngine
+from server.errors import UnknownRoverError
 from server.hub import TelemetryHub
 from server.queue_view import QueueNotices, queue_json
 from server.runtime import ROVERS, CheckpointFormatError, RoverRuntime
@@ -174,8 +173,7 @@ class Server:
 
     def _command(self, rover: str, report: dict[str, Any]) -> None:
         self.writer.command(rover, **report)
-        if self.hub.count(rover):  # a live timeline shows it: written now, read back as listed
-            self.writer.flush()
+        if self.hub.count(rover):  # a live timeline shows it: read back (so written) as listed
             entry = stored_command(self.store, self.rovers[rover], report)
             if entry is not None:
                 self.hub.notify(rover, {"type": "command", "command": entry})
@@ -268,8 +266,9 @@ class Server:
         self.store.close()
 
     def rover(self, name: str) -> RoverRuntime:
+        """The runtime of rover ``name`` (``UnknownRoverError`` if this server runs none)."""
         if name not in self.rovers:
-            raise HTTPException(404, f"unknown rover {name!r}; known: {', '.join(self.rovers)}")
+            raise UnknownRoverError(name, list(self.rovers))
         return self.rovers[name]
 
     def scene_for(self, rover: str, sees_truth: bool) -> RoverScene | None:

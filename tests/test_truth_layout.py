@@ -38,6 +38,7 @@ TRUTH_CARRIERS = frozenset({
     "server.alarms",  # alarms on truth channels (the truth view's)
     "server.channels",  # which channels are truth
     "server.api.telemetry",  # the truth record's schema
+    "server.api.answers",  # the routes' answer models: a frame's truth fields, typed
     "server.api.telemetry_csv",  # its CSV columns
     "server.scene3d.scene",  # the 3D view's truth layer
 })  # fmt: skip

@@ -41,6 +41,7 @@ from typing import Any, Literal
 from sqlalchemy import func, insert, select, update
 from sqlalchemy.exc import IntegrityError
 
+from server.errors import ConflictError, InvalidError, NotFoundError
 from server.storage import Store, api_tokens, users
 
 Role = Literal["viewer", "operator", "conductor", "admin"]
@@ -53,15 +54,17 @@ LOCAL_ADMIN = "admin"  # the user `roverops serve` creates on a new data directo
 BOOTSTRAP = "bootstrap"  # the name the --operator-token admin acts under
 
 
-class AccountError(ValueError):
+class AccountError(InvalidError):
     """A request about users that cannot be met (bad name or role, unknown user, ...)."""
 
+    kind = "account"
 
-class UnknownUserError(AccountError):
+
+class UnknownUserError(AccountError, NotFoundError):
     """No user of that name."""
 
 
-class UserExistsError(AccountError):
+class UserExistsError(AccountError, ConflictError):
     """A user of that name exists already."""
 
 

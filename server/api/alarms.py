@@ -5,13 +5,13 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import HTTPException, Query, Request
+from fastapi import Query, Request
 from pydantic import BaseModel, ConfigDict, Field
 
 from sequences.commands import MAX_WAIT_S
 from server.access.auth import Operator, Viewer
 from server.access.truth_view import ground_channels, is_truth_channel, truth_refused
-from server.alarms import AlarmError
+from server.api.answers import Alarm, Limits
 from server.api.deps import (
     AUTH_ERRORS,
     BAD_REQUEST,
@@ -25,8 +25,6 @@ from server.api.deps import (
     error_doc,
     router,
 )
-from server.limits import LimitsError
-from server.validation.uploads import request_error
 
 LimitLevel = float | str | list[str] | None
 
@@ -55,7 +53,7 @@ class ShelveBody(BaseModel):
 routes = router()
 
 
-@routes.get("/api/rovers/{rover}/limits", responses=NOT_FOUND)
+@routes.get("/api/rovers/{rover}/limits", response_model=list[Limits], responses=NOT_FOUND)
 def get_limits(
     server: ServerDep, rover: RoverName, _: Viewer, truth: SeesTruth
 ) -> list[dict[str, Any]]:
@@ -74,6 +72,7 @@ TRUTH_REFUSED: dict[int | str, dict[str, Any]] = {
 
 @routes.put(
     "/api/rovers/{rover}/limits/{channel}",
+    response_model=Limits,
     responses={**AUTH_ERRORS, **NOT_FOUND, **TOO_LARGE, **BAD_REQUEST, **TRUTH_REFUSED},
 )
 def put_limits(
@@ -96,16 +95,13 @@ def put_limits(
     request.state.audit_action = f"set limits of {channel}: " + ", ".join(
         f"{k}={v}" for k, v in levels.items()
     )
-    try:
-        return server.alarms.set_limits(rover, channel, levels, who.name, runtime.last_frame)
-    except KeyError as unknown:
-        raise HTTPException(404, str(unknown.args[0])) from None
-    except LimitsError as bad:
-        raise request_error(("body",), str(bad), "limits") from None
+    return server.alarms.set_limits(rover, channel, levels, who.name, runtime.last_frame)
 
 
 @routes.delete(
-    "/api/rovers/{rover}/limits/{channel}", responses={**AUTH_ERRORS, **NOT_FOUND, **TRUTH_REFUSED}
+    "/api/rovers/{rover}/limits/{channel}",
+    response_model=Limits,
+    responses={**AUTH_ERRORS, **NOT_FOUND, **TRUTH_REFUSED},
 )
 def reset_limits(
     server: ServerDep,
@@ -120,13 +116,12 @@ def reset_limits(
     if not truth and is_truth_channel(channel):
         raise truth_refused("this channel")
     request.state.audit_action = f"reset limits of {channel} to the defaults"
-    try:
-        return server.alarms.reset_limits(rover, channel, runtime.last_frame)
-    except KeyError as unknown:
-        raise HTTPException(404, str(unknown.args[0])) from None
+    return server.alarms.reset_limits(rover, channel, runtime.last_frame)
 
 
-@routes.get("/api/rovers/{rover}/alarms", responses={**NOT_FOUND, **BAD_REQUEST})
+@routes.get(
+    "/api/rovers/{rover}/alarms", response_model=list[Alarm], responses={**NOT_FOUND, **BAD_REQUEST}
+)
 def list_alarms(
     server: ServerDep,
     rover: RoverName,
@@ -148,6 +143,7 @@ def list_alarms(
 
 @routes.post(
     "/api/alarms/{alarm_id}/acknowledge",
+    response_model=Alarm,
     responses={**AUTH_ERRORS, **NOT_FOUND, **TRUTH_REFUSED, 409: error_doc("acknowledged already")},
 )
 def acknowledge_alarm(
@@ -158,17 +154,14 @@ def acknowledge_alarm(
     request.state.audit_action = f"acknowledge alarm #{alarm_id}"
     if not truth and server.alarms.truth_alarm(alarm_id):
         raise truth_refused(f"alarm #{alarm_id}")
-    try:
-        alarm = server.alarms.acknowledge(alarm_id, who.name)
-    except AlarmError as refused:
-        raise HTTPException(refused.status, str(refused)) from None
+    alarm = server.alarms.acknowledge(alarm_id, who.name)
     request.state.audit_rover = alarm["rover"]
     request.state.audit_action = f"acknowledge alarm #{alarm_id} ({alarm['channel']})"
     return alarm
 
 
 @routes.post(
-    "/api/alarms/{alarm_id}/shelve",
+    "/api/alarms/{alarm_id}/shelve", response_model=Alarm,
     responses={**AUTH_ERRORS, **NOT_FOUND, **TOO_LARGE, **BAD_REQUEST,
                409: error_doc("done: acknowledged and cleared")},
 )  # fmt: skip
@@ -182,10 +175,7 @@ def shelve_alarm(
     runtime = server.rovers.get(found[0]["rover"]) if found else None
     frame = runtime.last_frame if runtime is not None else None
     now_t_s = float(frame["t_s"]) if frame else None
-    try:
-        alarm = server.alarms.shelve(alarm_id, body.duration_s, who.name, body.reason, now_t_s)
-    except AlarmError as refused:
-        raise HTTPException(refused.status, str(refused)) from None
+    alarm = server.alarms.shelve(alarm_id, body.duration_s, who.name, body.reason, now_t_s)
     request.state.audit_rover = alarm["rover"]
     request.state.audit_action = (
         f"shelve alarm #{alarm_id} ({alarm['channel']}) for {body.duration_s:g} s"
@@ -196,6 +186,7 @@ def shelve_alarm(
 
 @routes.post(
     "/api/alarms/{alarm_id}/unshelve",
+    response_model=Alarm,
     responses={**AUTH_ERRORS, **NOT_FOUND, 409: error_doc("not shelved, or done")},
 )
 def unshelve_alarm(
@@ -203,10 +194,7 @@ def unshelve_alarm(
 ) -> dict[str, Any]:
     """End a shelf before its time: the alarm is judged again from the next frame."""
     request.state.audit_action = f"unshelve alarm #{alarm_id}"
-    try:
-        alarm = server.alarms.unshelve(alarm_id, who.name)
-    except AlarmError as refused:
-        raise HTTPException(refused.status, str(refused)) from None
+    alarm = server.alarms.unshelve(alarm_id, who.name)
     request.state.audit_rover = alarm["rover"]
     request.state.audit_action = f"unshelve alarm #{alarm_id} ({alarm['channel']})"
     return alarm

@@ -9,6 +9,7 @@ from fastapi.responses import Response
 
 from server.access.audit import as_csv
 from server.access.auth import Admin
+from server.api.answers import AuditRow
 from server.api.deps import (
     BAD_REQUEST,
     CSV_FILE,
@@ -28,9 +29,9 @@ routes = router()
         200: {
             "description": "audit rows, newest first (JSON), or CSV",
             "content": {
-                "application/json": {"schema": {"type": "array", "items": {"type": "object"}}},
                 **CSV_FILE["content"],
             },
+            "model": list[AuditRow],
         },
         **BAD_REQUEST,
     },

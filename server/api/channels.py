@@ -5,10 +5,11 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import HTTPException, Query
+from fastapi import Query
 
 from server.access.auth import Viewer
 from server.access.truth_view import ground_channels, truth_refused
+from server.api.answers import ChannelInfo, ChannelSeries
 from server.api.deps import MAX_SOL, SeesTruth, ServerDep, error_doc, router
 from server.channels import (
     DEFAULT_POINTS,
@@ -20,6 +21,7 @@ from server.channels import (
     channels_of,
     series,
 )
+from server.errors import NotFoundError
 from server.validation.uploads import request_error
 from sim.world.marsclock import t_s_for_sol_lmst
 
@@ -37,7 +39,7 @@ def known(server: ServerDep, rover: str) -> dict[str, Channel]:
     return channels_of(runtime.last_frame)
 
 
-@routes.get("/api/rovers/{rover}/channels", responses=NOT_FOUND)
+@routes.get("/api/rovers/{rover}/channels", response_model=list[ChannelInfo], responses=NOT_FOUND)
 def list_channels(
     server: ServerDep, rover: str, _: Viewer, truth: SeesTruth
 ) -> list[dict[str, Any]]:
@@ -49,6 +51,7 @@ def list_channels(
 
 @routes.get(
     "/api/rovers/{rover}/channels/{channel}",
+    response_model=ChannelSeries,
     responses={**NOT_FOUND, **BAD_REQUEST, 403: error_doc("a truth channel, not for this role")},
 )
 def channel_values(
@@ -72,7 +75,7 @@ def channel_values(
     if not truth:
         channels = {name: c for name, c in channels.items() if not c.truth}
     if channel not in channels:
-        raise HTTPException(404, f"unknown channel {channel!r}; known: {', '.join(channels)}")
+        raise NotFoundError(f"unknown channel {channel!r}; known: {', '.join(channels)}")
     now = runtime.sol(runtime.t_s)
     lo = now if sol_from is None else sol_from
     hi = lo if sol_to is None else sol_to
@@ -83,7 +86,6 @@ def channel_values(
             ("query", "sol_to"), f"at most {MAX_SOLS} sols at once, asked {hi - lo + 1}",
             "range",
         )  # fmt: skip
-    server.writer.flush()
     mission = runtime.spec.mission
     t0 = t_s_for_sol_lmst(mission, lo, 0.0)
     t1 = t_s_for_sol_lmst(mission, hi + 1, 0.0)

@@ -6,6 +6,8 @@ the body is read: ``server.api.routing``); ``router()`` makes a router whose rou
 ``SeesTruth`` says whether the caller may see the simulator's truth (the truth view,
 ``server.access.truth_view``): every route that could carry it asks.
 The error shapes: every error but a 422 is ``ErrorMessage``, a 422 is ``RequestErrors``.
+``install_error_handlers`` maps the server's domain errors (``server.errors``) to HTTP, the
+one place that does: domain code never raises ``HTTPException``.
 """
 
 from __future__ import annotations
@@ -13,17 +15,19 @@ from __future__ import annotations
 from datetime import UTC, datetime
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Depends, HTTPException, WebSocket
+from fastapi import APIRouter, Depends, FastAPI, HTTPException, WebSocket
 from fastapi import Path as PathParam
 from pydantic import BaseModel, ConfigDict
 from starlette.concurrency import run_in_threadpool
-from starlette.requests import HTTPConnection
+from starlette.requests import HTTPConnection, Request
+from starlette.responses import JSONResponse
 
 from server.access.accounts import Principal
 from server.access.auth import Viewer, websocket_principal
 from server.access.truth_view import may_see_truth
 from server.api.origin import origin_allowed
 from server.api.routing import AuthFirstRoute
+from server.errors import ConflictError, DomainError, InvalidError, NotFoundError
 from server.runtime import ROVERS
 from server.state import Server
 from server.validation.uploads import request_error
@@ -152,3 +156,27 @@ async def websocket_allowed(websocket: WebSocket) -> bool:
         return False
     websocket.state.principal = who
     return True
+
+
+def domain_error_answer(error: DomainError) -> tuple[int, Any]:
+    """The HTTP status and ``detail`` of a domain error: 404 for what does not exist, 409
+    for what the record's state refuses, 422 (``RequestErrors``) for a value that cannot be;
+    a lookup fails before a value is judged."""
+    if isinstance(error, NotFoundError):
+        return 404, str(error)
+    if isinstance(error, ConflictError):
+        return 409, str(error)
+    if isinstance(error, InvalidError):
+        return 422, [{"loc": list(error.loc), "msg": str(error), "type": error.kind}]
+    return 400, str(error)
+
+
+async def _domain_error(_: Request, error: Exception) -> JSONResponse:
+    assert isinstance(error, DomainError)
+    status, detail = domain_error_answer(error)
+    return JSONResponse({"detail": detail}, status_code=status)
+
+
+def install_error_handlers(app: FastAPI) -> None:
+    """Every domain error a route lets through answered as ``domain_error_answer`` says."""
+    app.add_exception_handler(DomainError, _domain_error)

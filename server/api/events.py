@@ -7,6 +7,7 @@ from typing import Annotated, Any
 from fastapi import Query
 
 from server.access.auth import Viewer
+from server.api.answers import EventPage
 from server.api.deps import (
     BAD_REQUEST,
     MAX_ID,
@@ -17,13 +18,14 @@ from server.api.deps import (
     ServerDep,
     router,
 )
-from server.eventlog import LOG_KINDS, MAX_LIMIT, EventFilter, FilterError, event_log
-from server.validation.uploads import request_error
+from server.eventlog import LOG_KINDS, MAX_LIMIT, EventFilter, event_log
 
 routes = router()
 
 
-@routes.get("/api/rovers/{rover}/events", responses={**NOT_FOUND, **BAD_REQUEST})
+@routes.get(
+    "/api/rovers/{rover}/events", response_model=EventPage, responses={**NOT_FOUND, **BAD_REQUEST}
+)
 def event_log_page(
     server: ServerDep,
     rover: RoverName,
@@ -48,7 +50,6 @@ def event_log_page(
     "kinds", "total", "offset", "limit", "events"}``; a filter that cannot be met is a
     422 naming it. The events of alarms on truth channels only in the truth view."""
     runtime = server.rover(rover)
-    server.writer.flush()
     flt = EventFilter(
         sol=sol,
         sol_from=sol_from,
@@ -61,7 +62,4 @@ def event_log_page(
         limit=limit,
         offset=offset,
     )
-    try:
-        return event_log(server.store, runtime, flt, truth)
-    except FilterError as exc:
-        raise request_error(("query", exc.param), str(exc), "value_error") from exc
+    return event_log(server.store, runtime, flt, truth)

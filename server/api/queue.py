@@ -4,10 +4,11 @@ from __future__ import annotations
 
 from typing import Any
 
-from fastapi import HTTPException, Request
+from fastapi import Request
 from pydantic import BaseModel, ConfigDict, Field
 
 from server.access.auth import Operator, Viewer
+from server.api.answers import Queue
 from server.api.deps import (
     AUTH_ERRORS,
     BAD_REQUEST,
@@ -20,8 +21,9 @@ from server.api.deps import (
     error_doc,
     router,
 )
+from server.errors import ConflictError, NotFoundError
 from server.queue_view import queue_json, recent_json
-from server.runtime import NotQueuedError, QueueError
+from server.runtime import NotQueuedError
 
 
 class MoveBody(BaseModel):
@@ -35,7 +37,7 @@ class MoveBody(BaseModel):
 routes = router()
 
 
-@routes.get("/api/rovers/{rover}/queue", responses=NOT_FOUND)
+@routes.get("/api/rovers/{rover}/queue", response_model=Queue, responses=NOT_FOUND)
 def rover_queue(server: ServerDep, rover: RoverName, _: Viewer) -> dict[str, Any]:
     """The queue in order (``position`` 0 runs next), each sequence with every step's
     status (pending, running, completed, failed, refused, skipped) and times, whether
@@ -43,7 +45,6 @@ def rover_queue(server: ServerDep, rover: RoverName, _: Viewer) -> dict[str, Any
     sequences that left the queue (completed, failed or cancelled), newest first. The
     telemetry WebSocket sends ``{"type": "queue", "queue": [...]}`` on every change."""
     runtime = server.rover(rover)
-    server.writer.flush()
     return {
         "rover": rover,
         "queue": queue_json(runtime, server.store),
@@ -53,6 +54,7 @@ def rover_queue(server: ServerDep, rover: RoverName, _: Viewer) -> dict[str, Any
 
 @routes.post(
     "/api/rovers/{rover}/queue/{sequence_id:int}/move",
+    response_model=Queue,
     responses={
         **AUTH_ERRORS,
         **NOT_FOUND,
@@ -80,8 +82,6 @@ def move_in_queue(
     except NotQueuedError as error:
         found = server.store.get_sequence(sequence_id)
         if found is None or found["rover"] != rover:
-            raise HTTPException(404, f"no sequence {sequence_id} for rover {rover!r}") from None
-        raise HTTPException(409, f"{error}: it is {found['status']}") from None
-    except QueueError as error:
-        raise HTTPException(409, str(error)) from None
+            raise NotFoundError(f"no sequence {sequence_id} for rover {rover!r}") from None
+        raise ConflictError(f"{error}: it is {found['status']}") from None
     return {"rover": rover, "queue": queue_json(runtime, server.store)}

@@ -68,7 +68,13 @@ def _is_json(content_type: str) -> bool:
 
 class AuthFirstRoute(APIRoute):
     """An ``APIRoute`` whose handler runs the auth checks, then reads and parses a JSON
-    body safely, then FastAPI's normal handler (module docstring)."""
+    body safely, then FastAPI's normal handler (module docstring). Its answer is dumped
+    without the fields the route's dict did not set (``server.api.answers``: a frame outside
+    the truth view has no truth key, not a null one)."""
+
+    def __init__(self, path: str, endpoint: Callable[..., Any], **kwargs: Any) -> None:
+        kwargs["response_model_exclude_unset"] = True
+        super().__init__(path, endpoint, **kwargs)
 
     def get_route_handler(self) -> Callable[[Request], Coroutine[Any, Any, Response]]:
         handler = super().get_route_handler()

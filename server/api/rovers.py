@@ -13,6 +13,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from sequences import commands as cmd
 from sequences.validate import validate
 from server.access.auth import Operator, Viewer
+from server.api.answers import Clock, CommandSpec, Queued, RoverState, RoverSummary
 from server.api.deps import (
     AUTH_ERRORS,
     BAD_REQUEST,
@@ -49,13 +50,13 @@ class CommandBody(BaseModel):
 routes = router()
 
 
-@routes.get("/api/rovers")
+@routes.get("/api/rovers", response_model=list[RoverSummary])
 def list_rovers(server: ServerDep, _: Viewer) -> list[dict[str, Any]]:
     """The rovers and their clocks."""
     return [{k: v for k, v in r.state().items() if k != "frame"} for r in server.rovers.values()]
 
 
-@routes.get("/api/rovers/{rover}/state", responses=NOT_FOUND)
+@routes.get("/api/rovers/{rover}/state", response_model=RoverState, responses=NOT_FOUND)
 def rover_state(server: ServerDep, rover: RoverName, _: Viewer, truth: SeesTruth) -> dict[str, Any]:
     """Clock, queue, the executing command and the latest telemetry frame (the downlink
     record, merged with its truth record in the truth view); ``truth`` says which."""
@@ -67,7 +68,7 @@ def rover_state(server: ServerDep, rover: RoverName, _: Viewer, truth: SeesTruth
     return {**state, "truth": truth}
 
 
-@routes.get("/api/commands")
+@routes.get("/api/commands", response_model=list[CommandSpec])
 def command_dictionary(_: Viewer) -> list[dict[str, Any]]:
     """The command dictionary: every command with its arguments, each from the spec that
     construction checks (``sequences.commands.ArgSpec``): ``type`` (number, boolean,
@@ -100,6 +101,7 @@ def command_dictionary(_: Viewer) -> list[dict[str, Any]]:
 
 @routes.post(
     "/api/rovers/{rover}/commands",
+    response_model=Queued,
     status_code=201,
     responses={**AUTH_ERRORS, **NOT_FOUND, **TOO_LARGE, **BAD_REQUEST},
 )
@@ -134,6 +136,7 @@ def immediate_command(
 
 @routes.post(
     "/api/rovers/{rover}/clock",
+    response_model=Clock,
     responses={**AUTH_ERRORS, **NOT_FOUND, **TOO_LARGE, **BAD_REQUEST},
 )
 def set_clock(

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from fastapi import HTTPException, Query, Request
+from fastapi import Query, Request
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel
 from starlette.concurrency import run_in_threadpool
@@ -13,6 +13,7 @@ from starlette.concurrency import run_in_threadpool
 from sequences.language import Sequence, SequenceStep
 from sequences.validate import ValidationResult
 from server.access.auth import Operator, Viewer
+from server.api.answers import CancelledSequence, Diagnostic, SequenceRecord, StoredSequence
 from server.api.deps import (
     AUTH_ERRORS,
     BAD_REQUEST,
@@ -26,20 +27,12 @@ from server.api.deps import (
     error_doc,
     router,
 )
+from server.errors import ConflictError, NotFoundError
 from server.runtime import Cancelled, RoverRuntime
 from server.state import Server
 from server.validation.context import rover_site
 from server.validation.pool import Checked
 from server.validation.uploads import read_body
-
-
-class Diagnostic(BaseModel):
-    """One problem in a sequence (``sequences.language.Diagnostic``)."""
-
-    line: int
-    column: int
-    code: str
-    message: str
 
 
 class ValidationReport(BaseModel):
@@ -238,24 +231,27 @@ async def validate_only(
     return {"valid": not checked.result.errors, **diagnostics_json(checked.result)}
 
 
-@routes.get("/api/rovers/{rover}/sequences", responses=NOT_FOUND)
+@routes.get(
+    "/api/rovers/{rover}/sequences", response_model=list[StoredSequence], responses=NOT_FOUND
+)
 def list_sequences(server: ServerDep, rover: RoverName, _: Viewer) -> list[dict[str, Any]]:
     """Sequences of a rover, newest first, each with who submitted it."""
     server.rover(rover)
     return server.store.list_sequences(rover)
 
 
-@routes.get("/api/sequences/{sequence_id:int}", responses=NOT_FOUND)
+@routes.get("/api/sequences/{sequence_id:int}", response_model=SequenceRecord, responses=NOT_FOUND)
 def get_sequence(server: ServerDep, sequence_id: SequenceId, _: Viewer) -> dict[str, Any]:
     """One sequence with its source, steps, status, errors and warnings."""
     found = server.store.get_sequence(sequence_id)
     if found is None:
-        raise HTTPException(404, f"no sequence {sequence_id}")
+        raise NotFoundError(f"no sequence {sequence_id}")
     return found
 
 
 @routes.delete(
     "/api/sequences/{sequence_id:int}",
+    response_model=CancelledSequence,
     responses={**AUTH_ERRORS, **NOT_FOUND, 409: error_doc("the sequence is not queued")},
 )
 def cancel_sequence(
@@ -266,12 +262,12 @@ def cancel_sequence(
     request.state.audit_action = f"cancel sequence #{sequence_id}"
     found = server.store.get_sequence(sequence_id)
     if found is None:
-        raise HTTPException(404, f"no sequence {sequence_id}")
+        raise NotFoundError(f"no sequence {sequence_id}")
     request.state.audit_rover = found["rover"]
     runtime = server.rover(found["rover"])
     stopped = runtime.cancel(sequence_id)
     if stopped is None:
-        raise HTTPException(409, f"sequence {sequence_id} is {found['status']}, not queued")
+        raise ConflictError(f"sequence {sequence_id} is {found['status']}, not queued")
     detail = f"cancelled by {who.name} {cancelled_where(stopped)}"
     server.store.set_sequence_status(sequence_id, "cancelled", detail)
     return {"id": sequence_id, "status": "cancelled", "detail": detail}

@@ -11,12 +11,13 @@ import time
 from typing import Annotated, Any
 
 import anyio
-from fastapi import HTTPException, Query, Request, WebSocket
+from fastapi import Query, Request, WebSocket
 from fastapi.responses import Response
 from starlette.websockets import WebSocketDisconnect
 
 from server.access.auth import Viewer
 from server.access.truth_view import truth_refused
+from server.api.answers import Frame, RecordSchema, Timeline
 from server.api.deps import (
     BAD_REQUEST,
     CSV_FILE,
@@ -31,6 +32,7 @@ from server.api.deps import (
     websocket_allowed,
 )
 from server.api.telemetry_csv import frames_csv
+from server.errors import NotFoundError
 from server.hub import MAX_RATE_HZ, next_message
 from server.timeline import sol_timeline
 from server.validation.uploads import request_error
@@ -44,21 +46,19 @@ routes = router()
 def sols(server: ServerDep, rover: RoverName, _: Viewer) -> list[int]:
     """Sols with telemetry."""
     server.rover(rover)
-    server.writer.flush()
     return server.store.sols(rover)
 
 
-@routes.get("/api/rovers/{rover}/sols/{sol}/timeline", responses=NOT_FOUND)
+@routes.get("/api/rovers/{rover}/sols/{sol}/timeline", response_model=Timeline, responses=NOT_FOUND)
 def timeline(
     server: ServerDep, rover: RoverName, sol: Sol, _: Viewer, truth: SeesTruth
 ) -> dict[str, Any]:
     """One sol: commands, NATE mode and AQF intervals, events, distance, summary, and in
     the truth view its ``truth`` part (the true distance, the errors, the true margin)."""
     runtime = server.rover(rover)
-    server.writer.flush()
     found = sol_timeline(server.store, runtime, sol, truth)
     if found is None:
-        raise HTTPException(404, f"no telemetry on sol {sol}")
+        raise NotFoundError(f"no telemetry on sol {sol}")
     return found
 
 
@@ -79,10 +79,9 @@ def sol_telemetry_csv(
     events are always kept), named ``{rover}_sol{sol}.csv``; the truth's columns only in
     the truth view."""
     server.rover(rover)
-    server.writer.flush()
     span = server.store.sol_range(rover, sol)
     if span is None:
-        raise HTTPException(404, f"no telemetry on sol {sol} for rover {rover!r}")
+        raise NotFoundError(f"no telemetry on sol {sol} for rover {rover!r}")
     frames = server.store.frames(rover, span[0], span[1], every, with_truth=truth)
     disposition = f'attachment; filename="{rover}_sol{sol}.csv"'
     return Response(
@@ -99,9 +98,9 @@ def sol_telemetry_csv(
         200: {
             "description": "frames (JSON), or CSV on Accept: text/csv",
             "content": {
-                "application/json": {"schema": {"type": "array", "items": {"type": "object"}}},
                 **CSV_FILE["content"],
             },
+            "model": list[Frame],  # type: ignore[valid-type]
         },
         **NOT_FOUND,
         **BAD_REQUEST,
@@ -121,7 +120,6 @@ def telemetry(
     """Frames over ``from``-``to`` (TT s), one per ``every`` s; CSV on Accept: text/csv.
     Each frame is the downlink record, merged with its truth record in the truth view."""
     runtime = server.rover(rover)
-    server.writer.flush()
     lo = -math.inf if t_from is None else t_from
     hi = runtime.t_s if t_to is None else t_to
     if not (math.isfinite(hi) and lo <= hi):
@@ -184,14 +182,18 @@ async def live(server: ServerDep, websocket: WebSocket, rover: str) -> None:
         server.hub.unsubscribe(rover, client)
 
 
-@routes.get("/api/schema/downlink")
+@routes.get("/api/schema/downlink", response_model=RecordSchema)
 def downlink_record_schema(_: Viewer) -> dict[str, Any]:
     """The JSON schema of the rover's downlink record, what the rover itself reports in a
     frame (``sim.loop.downlink.Downlink``, the one definition of its fields)."""
     return downlink_schema()
 
 
-@routes.get("/api/schema/truth", responses={403: error_doc("not in the truth view")})
+@routes.get(
+    "/api/schema/truth",
+    response_model=RecordSchema,
+    responses={403: error_doc("not in the truth view")},
+)
 def truth_record_schema(_: Viewer, truth: SeesTruth) -> dict[str, Any]:
     """The JSON schema of the truth record beside each frame: what only the simulator knows,
     and the scores against it (``sim.scoring.truth.Truth``); for the truth view only."""

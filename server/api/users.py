@@ -12,14 +12,12 @@ from pydantic import BaseModel, ConfigDict, Field
 from server.access.accounts import (
     DEFAULT_EXPIRY_DAYS,
     ROLES,
-    AccountError,
     Principal,
     TokenRefusedError,
-    UnknownUserError,
-    UserExistsError,
 )
 from server.access.auth import COOKIE, Admin, Viewer
 from server.access.truth_view import may_see_truth
+from server.api.answers import Identity, IssuedToken, RoleChanged, SignedOut, TokensRevoked, User
 from server.api.deps import (
     BAD_REQUEST,
     NOT_FOUND,
@@ -27,7 +25,6 @@ from server.api.deps import (
     error_doc,
     router,
 )
-from server.validation.uploads import request_error
 
 
 class SessionBody(BaseModel):
@@ -60,14 +57,6 @@ class TokenBody(BaseModel):
     expires_days: float = Field(default=DEFAULT_EXPIRY_DAYS, gt=0, le=3650)
 
 
-def _account_error(error: AccountError) -> HTTPException:
-    if isinstance(error, UnknownUserError):
-        return HTTPException(404, str(error))
-    if isinstance(error, UserExistsError):
-        return HTTPException(409, str(error))
-    return request_error(("body",), str(error), "account")
-
-
 routes = router()
 
 
@@ -79,7 +68,7 @@ def _principal_json(server: ServerDep, who: Principal) -> dict[str, Any]:
             "sees_truth": may_see_truth(server.config.truth_view, who)}  # fmt: skip
 
 
-@routes.get("/api/me")
+@routes.get("/api/me", response_model=Identity)
 def me(server: ServerDep, who: Viewer) -> dict[str, Any]:
     """Who this request acts as (``anonymous`` with no role when reading without a
     token), whether reading needs a token on this server, its truth view and whether
@@ -87,7 +76,7 @@ def me(server: ServerDep, who: Viewer) -> dict[str, Any]:
     return _principal_json(server, who)
 
 
-@routes.post("/api/session", responses=BAD_REQUEST)
+@routes.post("/api/session", response_model=Identity, responses=BAD_REQUEST)
 def sign_in(server: ServerDep, body: SessionBody, request: Request) -> JSONResponse:
     """Sign this browser in: the token is checked and kept in an HttpOnly cookie that
     the 3D view and the telemetry WebSocket send (it counts for reading only)."""
@@ -103,7 +92,7 @@ def sign_in(server: ServerDep, body: SessionBody, request: Request) -> JSONRespo
     return response
 
 
-@routes.delete("/api/session")
+@routes.delete("/api/session", response_model=SignedOut)
 def sign_out(request: Request) -> JSONResponse:
     """Sign this browser out (forget the cookie)."""
     request.state.audit_action = "sign out"
@@ -112,57 +101,52 @@ def sign_out(request: Request) -> JSONResponse:
     return response
 
 
-@routes.get("/api/users")
+@routes.get("/api/users", response_model=list[User])
 def list_users(server: ServerDep, _: Admin) -> list[dict[str, Any]]:
     """Every user: name, role, creation time and how many live tokens it holds."""
     return server.accounts.list_users()
 
 
-@routes.post("/api/users", status_code=201, responses={409: error_doc("the user exists")})
+@routes.post(
+    "/api/users",
+    response_model=IssuedToken,
+    status_code=201,
+    responses={409: error_doc("the user exists")},
+)
 def add_user(server: ServerDep, body: NewUserBody, request: Request, _: Admin) -> dict[str, Any]:
     """A new user and its first token (shown in this answer only; stored hashed)."""
     request.state.audit_action = f"add user {body.name} as {body.role}"
-    try:
-        issued = server.accounts.add_user(body.name, body.role, body.expires_days)
-    except AccountError as error:
-        raise _account_error(error) from None
+    issued = server.accounts.add_user(body.name, body.role, body.expires_days)
     return {"name": issued.name, "role": issued.role, "token": issued.token,
             "expires_at": issued.expires_at.isoformat()}  # fmt: skip
 
 
-@routes.patch("/api/users/{name}", responses=NOT_FOUND)
+@routes.patch("/api/users/{name}", response_model=RoleChanged, responses=NOT_FOUND)
 def change_role(
     server: ServerDep, name: str, body: RoleBody, request: Request, _: Admin
 ) -> dict[str, Any]:
     """Give a user another role."""
     request.state.audit_action = f"set the role of {name} to {body.role}"
-    try:
-        server.accounts.set_role(name, body.role)
-    except AccountError as error:
-        raise _account_error(error) from None
+    server.accounts.set_role(name, body.role)
     return {"name": name, "role": body.role}
 
 
-@routes.post("/api/users/{name}/tokens", status_code=201, responses=NOT_FOUND)
+@routes.post(
+    "/api/users/{name}/tokens", response_model=IssuedToken, status_code=201, responses=NOT_FOUND
+)
 def new_token(
     server: ServerDep, name: str, body: TokenBody, request: Request, _: Admin
 ) -> dict[str, Any]:
     """Another token for a user (shown in this answer only)."""
     request.state.audit_action = f"issue a token to {name}"
-    try:
-        issued = server.accounts.issue_token(name, body.expires_days)
-    except AccountError as error:
-        raise _account_error(error) from None
+    issued = server.accounts.issue_token(name, body.expires_days)
     return {"name": issued.name, "role": issued.role, "token": issued.token,
             "expires_at": issued.expires_at.isoformat()}  # fmt: skip
 
 
-@routes.delete("/api/users/{name}/tokens", responses=NOT_FOUND)
+@routes.delete("/api/users/{name}/tokens", response_model=TokensRevoked, responses=NOT_FOUND)
 def revoke_tokens(server: ServerDep, name: str, request: Request, _: Admin) -> dict[str, Any]:
     """Revoke every live token of a user."""
     request.state.audit_action = f"revoke the tokens of {name}"
-    try:
-        revoked = server.accounts.revoke(name)
-    except AccountError as error:
-        raise _account_error(error) from None
+    revoked = server.accounts.revoke(name)
     return {"name": name, "revoked": revoked}

@@ -5,11 +5,12 @@ from __future__ import annotations
 
 from typing import Any
 
-from fastapi import HTTPException, WebSocket
+from fastapi import WebSocket
 from fastapi.responses import RedirectResponse, Response
 from starlette.concurrency import run_in_threadpool
 
 from server.access.auth import Viewer
+from server.api.answers import Scene
 from server.api.deps import (
     NOT_FOUND,
     RoverName,
@@ -19,6 +20,7 @@ from server.api.deps import (
     router,
     websocket_allowed,
 )
+from server.errors import NotFoundError
 from server.scene3d.proxy import fetch, relay
 
 routes = router()
@@ -28,7 +30,7 @@ def scene_port(server: ServerDep, rover: str, truth: bool) -> int:
     server.rover(rover)
     scene = server.scene_for(rover, truth)
     if scene is None:
-        raise HTTPException(404, "the 3D view is off (roverops serve starts it)")
+        raise NotFoundError("the 3D view is off (roverops serve starts it)")
     return scene.port
 
 
@@ -61,7 +63,7 @@ async def viser_socket(server: ServerDep, websocket: WebSocket, rover: str) -> N
     await relay(websocket, scene.port)
 
 
-@routes.get("/api/rovers/{rover}/scene", responses=NOT_FOUND)
+@routes.get("/api/rovers/{rover}/scene", response_model=Scene, responses=NOT_FOUND)
 def scene_state(server: ServerDep, rover: RoverName, _: Viewer, truth: SeesTruth) -> dict[str, Any]:
     """The 3D view: its URL on this origin, how many frames it has drawn, and whether it
     shows the truth (the truth view's scene)."""

@@ -44,6 +44,7 @@ Choices worth knowing:
 >>> store.close()
 """
 
+from server.storage.engine import data_dir_url
 from server.storage.schema import (
     LEGACY_KIND,
     LEGACY_SEVERITY,
@@ -60,7 +61,7 @@ from server.storage.schema import (
     sequences,
     users,
 )
-from server.storage.store import Store, data_dir_url
+from server.storage.store import Store
 from server.storage.writer import BatchWriter
 
 __all__ = [

@@ -8,13 +8,12 @@ row per step whatever the restarts) are the package's (``server.storage``).
 
 from __future__ import annotations
 
+import functools
 import json
 import math
-import threading
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from datetime import UTC, datetime
-from pathlib import Path
-from typing import Any
+from typing import Any, Concatenate, ParamSpec, TypeVar
 
 from sqlalchemy import (
     create_engine,
@@ -26,7 +25,6 @@ from sqlalchemy import (
     update,
 )
 from sqlalchemy.engine import Connection, Engine, RowMapping, make_url
-from sqlalchemy.pool import StaticPool
 
 from server.storage.channels import (
     DOWNLINK_ROW,
@@ -40,6 +38,7 @@ from server.storage.channels import (
     truth_record,
     truth_row,
 )
+from server.storage.engine import OneThreadAtATimePool
 from server.storage.migrate import upgrade_database
 from server.storage.schema import (
     alarm_limits,
@@ -55,6 +54,9 @@ from server.storage.schema import (
     sqlite_pragmas,
     truth_frames,
 )
+
+P = ParamSpec("P")
+R = TypeVar("R")
 
 
 def _finite(value: Any) -> Any:
@@ -136,28 +138,18 @@ def record_command(conn: Connection, row: dict[str, Any]) -> int:
     return int(key[0])
 
 
-class OneThreadAtATimePool(StaticPool):
-    """The one connection of an in-memory SQLite database, which every thread shares, held
-    by one thread at a time: two threads' transactions on it would interleave (a read's
-    rollback on return undid the writer's uncommitted frames)."""
+def _after_queued_writes(
+    read: Callable[Concatenate[Store, P], R],
+) -> Callable[Concatenate[Store, P], R]:
+    """A read of what the batch writer writes: it commits the writes queued so far first
+    (``Store.commit_queued_with``), so a reader sees everything written before it asked."""
 
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        self._holder = threading.RLock()
+    @functools.wraps(read)
+    def settled(store: Store, /, *args: P.args, **kwargs: P.kwargs) -> R:
+        store._commit_queued()
+        return read(store, *args, **kwargs)
 
-    def _do_get(self) -> Any:
-        self._holder.acquire()
-        return super()._do_get()
-
-    def _do_return_conn(self, record: Any) -> None:
-        super()._do_return_conn(record)
-        self._holder.release()
-
-
-def data_dir_url(data_dir: Path) -> str:
-    """The embedded SQLite database under ``data_dir`` (created if missing)."""
-    data_dir.mkdir(parents=True, exist_ok=True)
-    return f"sqlite:///{(data_dir / 'roverops.db').resolve()}"
+    return settled
 
 
 class Store:
@@ -186,6 +178,12 @@ class Store:
             event.listen(self.engine, "connect", sqlite_pragmas)
         metadata.create_all(self.engine)
         upgrade_database(self.engine)
+        self._commit_queued: Callable[[], None] = lambda: None
+
+    def commit_queued_with(self, flush: Callable[[], None]) -> None:
+        """Have every read of frames, events, commands and checkpoints call ``flush`` first
+        (the ``BatchWriter`` of this store registers its own), so no reader flushes."""
+        self._commit_queued = flush
 
     def close(self) -> None:
         """Close every pooled connection (the store is not usable afterwards)."""
@@ -280,6 +278,7 @@ class Store:
         with self.engine.begin() as conn:
             return record_command(conn, row)
 
+    @_after_queued_writes
     def commands(self, rover: str, t_from: float, t_to: float) -> list[dict[str, Any]]:
         """Commands whose [start, end] overlaps [t_from, t_to], by start time."""
         c = commands.c
@@ -303,6 +302,7 @@ class Store:
         ``{"t_s", "text", "kind", "severity"}``."""
         return self.event_log(rover, t_from, t_to, newest_first=False)[0]
 
+    @_after_queued_writes
     def event_log(
         self,
         rover: str,
@@ -358,6 +358,7 @@ class Store:
                 conn, [(rover, d, t) for d, t in zip(downlinks, truths, strict=True)]
             )
 
+    @_after_queued_writes
     def frames(
         self,
         rover: str,
@@ -401,6 +402,7 @@ class Store:
             out = [merged(d, truths[d["t_s"]]) if d["t_s"] in truths else d for d in out]
         return out
 
+    @_after_queued_writes
     def channel(self, rover: str, name: str, t_from: float, t_to: float) -> ChannelArrays | None:
         """One stored channel (a numeric column of the downlink or of the truth record,
         ``server.storage.columns``) over t_from <= t_s <= t_to, as arrays beside the frames'
@@ -409,6 +411,7 @@ class Store:
         with self.engine.connect() as conn:
             return read_channel(conn, rover, name, t_from, t_to)
 
+    @_after_queued_writes
     def sols(self, rover: str) -> list[int]:
         """The sols that have telemetry, ascending."""
         f = frames_table.c
@@ -416,6 +419,7 @@ class Store:
         with self.engine.connect() as conn:
             return [int(s) for s in conn.execute(query).scalars()]
 
+    @_after_queued_writes
     def sol_range(self, rover: str, sol: int) -> tuple[float, float] | None:
         """The first and last frame times of a sol, or ``None`` without telemetry."""
         f = frames_table.c
@@ -424,6 +428,7 @@ class Store:
             lo, hi = conn.execute(query).one()
         return None if lo is None else (float(lo), float(hi))
 
+    @_after_queued_writes
     def last_frame(self, rover: str) -> dict[str, Any] | None:
         """The latest downlink record of a rover, or ``None``."""
         query = (
@@ -436,6 +441,7 @@ class Store:
             row = conn.execute(query).first()
         return None if row is None else downlink_record(row)
 
+    @_after_queued_writes
     def last_truth(self, rover: str) -> dict[str, Any] | None:
         """The latest truth record of a rover, or ``None``."""
         query = (
@@ -448,6 +454,7 @@ class Store:
             row = conn.execute(query).first()
         return None if row is None else truth_record(row)
 
+    @_after_queued_writes
     def truths(self, rover: str, t_from: float, t_to: float) -> dict[float, dict[str, Any]]:
         """The truth records with t_from <= t_s <= t_to, by their time."""
         query = (
@@ -531,6 +538,7 @@ class Store:
         with self.engine.begin() as conn:
             self._replace_checkpoints(conn, {rover: (t_s, blob)})
 
+    @_after_queued_writes
     def load_checkpoint(self, rover: str) -> tuple[float, bytes] | None:
         """The rover's checkpoint as (t_s, blob), or ``None``."""
         c = checkpoints.c

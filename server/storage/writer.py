@@ -29,6 +29,8 @@ class BatchWriter:
     transaction fails (say, a command naming an unknown sequence), each kind is retried in
     its own transaction and only a kind that fails again is dropped (and logged), so one
     bad row cannot block telemetry for good. ``flushed_frames`` counts the frames committed.
+    The store's reads flush first (``Store.commit_queued_with``), so a reader never sees
+    the database behind the writes queued before it asked.
     """
 
     def __init__(self, store: Store, interval_s: float = 0.5) -> None:
@@ -44,6 +46,7 @@ class BatchWriter:
         self._events: list[tuple[str, float, Mapping[str, Any]]] = []
         self._commands: list[dict[str, Any]] = []
         self._checkpoints: dict[str, tuple[float, bytes]] = {}
+        store.commit_queued_with(self.flush)  # the store's reads see what is queued here
 
     def start(self) -> None:
         """Start the flushing thread (a no-op if it runs)."""
