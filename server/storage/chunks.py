@@ -153,14 +153,20 @@ def read_channels(
     c = packing.chunks.c
     after = last_packed_id(conn, packing, rover)
     found = conn.execute(
-        select(c.channel, c.data)
+        select(c.id_first, c.n, c.channel, c.data)
         .where(c.rover == rover, c.channel.in_(wanted), c.t_last >= t_from, c.t_first <= t_to)
         .order_by(c.id_first)
     ).cursor.fetchall()
-    parts: dict[str, list[FloatArray]] = {name: [] for name in wanted}
-    for channel, data in found:
-        parts[channel].append(np.frombuffer(data, dtype=PACKED))
-    packed = [np.concatenate(parts[n]) if parts[n] else np.empty(0) for n in wanted]
+    chunks: dict[int, tuple[int, dict[str, FloatArray]]] = {}
+    for id_first, n, channel, data in found:
+        chunks.setdefault(id_first, (n, {}))[1][channel] = np.frombuffer(data, dtype=PACKED)
+    # a channel a chunk lacks (its field added to the record since): no value there
+    packed = [
+        np.concatenate([got.get(name, np.full(n, np.nan)) for n, got in chunks.values()])
+        if chunks
+        else np.empty(0)
+        for name in wanted
+    ]
     rows = packing.rows.c
     tail = _floats(
         conn,

@@ -119,16 +119,19 @@ def test_a_field_added_to_a_record_gets_its_column_in_an_old_database(
     store_url: str, pairs: FramePairs
 ) -> None:
     """A database from before ``hga_margin_predicted_deg`` (and the truth's ``hga_margin_deg``)
-    existed: opening it adds their columns, the old rows read them as null."""
+    existed: opening it adds their columns, the old rows read them as null, and so do its
+    packed chunks (``server.storage.chunks``, one frame each here), which lack the channels."""
     from sqlalchemy import inspect, text
 
-    store = Store(store_url)
+    store = Store(store_url, chunk_frames=1)
     store.add_frames("spirit", [pairs[0][0]], [pairs[0][1]])
     with store.engine.begin() as conn:
         conn.execute(text("ALTER TABLE frames DROP COLUMN hga_margin_predicted_deg"))
         conn.execute(text("ALTER TABLE truth_frames DROP COLUMN hga_margin_deg"))
+        conn.execute(text("DELETE FROM frame_chunks WHERE channel = 'hga_margin_predicted_deg'"))
+        conn.execute(text("DELETE FROM truth_chunks WHERE channel = 'hga_margin_deg'"))
     store.close()
-    store = Store(store_url)
+    store = Store(store_url, chunk_frames=1)
     try:
         assert "hga_margin_predicted_deg" in {
             c["name"] for c in inspect(store.engine).get_columns("frames")
@@ -139,6 +142,11 @@ def test_a_field_added_to_a_record_gets_its_column_in_an_old_database(
         assert new == pairs[1][0] and new["hga_margin_predicted_deg"] is not None
         truths = list(store.truths("spirit", -math.inf, math.inf).values())
         assert truths[0]["hga_margin_deg"] is None and truths[1] == pairs[1][1]
+        for name, record in (("hga_margin_predicted_deg", 0), ("hga_margin_deg", 1)):
+            got = store.channel("spirit", name, -math.inf, math.inf)
+            assert got is not None
+            want = [math.nan, pairs[1][record][name]]
+            assert np.array_equal(got.values, want, equal_nan=True)
     finally:
         store.close()
 
