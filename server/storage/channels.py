@@ -82,14 +82,15 @@ def read_channel(
     if name not in DOWNLINK_CHANNELS and name not in TRUTH_CHANNELS:
         return None
     own = (name,) if name in DOWNLINK_CHANNELS else ()
-    rows = read_channels(conn, DOWNLINK_PACKING, rover, ("sol", "lmst_h", *own), t_from, t_to)
+    t_s, sol, lmst_h, *values = read_channels(
+        conn, DOWNLINK_PACKING, rover, ("sol", "lmst_h", *own), t_from, t_to
+    )
     if own:
-        values = rows[:, 3]
-    else:
-        truth = read_channels(conn, TRUTH_PACKING, rover, (name,), t_from, t_to)
-        values = np.full(len(rows), np.nan)
-        if len(truth):
-            at = np.minimum(np.searchsorted(truth[:, 0], rows[:, 0]), len(truth) - 1)
-            paired = truth[at, 0] == rows[:, 0]
-            values[paired] = truth[at[paired], 1]
-    return ChannelArrays(rows[:, 0], rows[:, 1].astype(np.int64), rows[:, 2], values)
+        return ChannelArrays(t_s, sol.astype(np.int64), lmst_h, values[0])
+    truth_t_s, truth_values = read_channels(conn, TRUTH_PACKING, rover, (name,), t_from, t_to)
+    paired_values = np.full(len(t_s), np.nan)
+    if len(truth_t_s):
+        at = np.minimum(np.searchsorted(truth_t_s, t_s), len(truth_t_s) - 1)
+        paired = truth_t_s[at] == t_s
+        paired_values[paired] = truth_values[at[paired]]
+    return ChannelArrays(t_s, sol.astype(np.int64), lmst_h, paired_values)

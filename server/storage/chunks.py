@@ -146,41 +146,47 @@ def read_channels(
     names: Sequence[str],
     t_from: float,
     t_to: float,
-) -> FloatArray:
-    """Channels ``names`` of ``rover`` with t_from <= t_s <= t_to, one column each after the
-    row's ``t_s``: ``[t_s, *names]`` per frame, in (t_s, row id) order (module docstring)."""
-    wanted = ("id", "t_s", *names)
+) -> list[FloatArray]:
+    """Channels ``names`` of ``rover`` with t_from <= t_s <= t_to: ``[t_s, *names]``, an
+    array each, in (t_s, row id) order (module docstring)."""
+    wanted = ("t_s", *names)
     c = packing.chunks.c
     after = last_packed_id(conn, packing, rover)
+    # No ORDER BY: SQLite would copy every 32 kB array into a temporary B-tree to sort them
+    # (5 times the query); the chunks are put in id order here. ``id_last <= after``: a chunk
+    # packed since ``after`` was read holds rows that the tail below reads already.
     found = conn.execute(
-        select(c.id_first, c.n, c.channel, c.data)
-        .where(c.rover == rover, c.channel.in_(wanted), c.t_last >= t_from, c.t_first <= t_to)
-        .order_by(c.id_first)
+        select(c.id_first, c.n, c.t_first, c.t_last, c.channel, c.data).where(
+            c.rover == rover,
+            c.channel.in_(wanted),
+            c.id_last <= after,
+            c.t_last >= t_from,
+            c.t_first <= t_to,
+        )
     ).cursor.fetchall()
-    chunks: dict[int, tuple[int, dict[str, FloatArray]]] = {}
-    for id_first, n, channel, data in found:
-        chunks.setdefault(id_first, (n, {}))[1][channel] = np.frombuffer(data, dtype=PACKED)
-    # a channel a chunk lacks (its field added to the record since): no value there
-    packed = [
-        np.concatenate([got.get(name, np.full(n, np.nan)) for n, got in chunks.values()])
-        if chunks
-        else np.empty(0)
-        for name in wanted
-    ]
+    chunks: dict[int, tuple[int, bool, dict[str, FloatArray]]] = {}
+    for id_first, n, t_first, t_last, channel, data in found:
+        whole = t_from <= t_first and t_last <= t_to
+        chunks.setdefault(id_first, (n, whole, {}))[2][channel] = np.frombuffer(data, PACKED)
+    parts: list[list[FloatArray]] = [[] for _ in wanted]
+    for n, whole, got in (chunks[k] for k in sorted(chunks)):
+        # a channel a chunk lacks (its field added to the record since): no value there
+        arrays = [got[name] if name in got else np.full(n, np.nan) for name in wanted]
+        if not whole:  # a chunk at an end of the range: its frames inside the range only
+            arrays = [a[(arrays[0] >= t_from) & (arrays[0] <= t_to)] for a in arrays]
+        for part, array in zip(parts, arrays, strict=True):
+            part.append(array)
     rows = packing.rows.c
     tail = _floats(
         conn,
         select(*(rows[n] for n in wanted))
-        .where(rows.rover == rover, rows.id > after)
+        .where(rows.rover == rover, rows.id > after, rows.t_s >= t_from, rows.t_s <= t_to)
         .order_by(rows.id),
         len(wanted),
     )
-    table = np.column_stack(packed)
-    if len(tail):
-        table = np.concatenate([table, tail])
-    t_s = table[:, 1]
-    table = table[(t_s >= t_from) & (t_s <= t_to)]
-    t_s = table[:, 1]
+    columns = [np.concatenate([*part, tail[:, j]]) for j, part in enumerate(parts)]
+    t_s = columns[0]
     if len(t_s) > 1 and not bool(np.all(t_s[1:] >= t_s[:-1])):
-        table = table[np.argsort(t_s, kind="stable")]  # id order within a time: stable
-    return np.ascontiguousarray(table[:, 1:])
+        order = np.argsort(t_s, kind="stable")  # id order within a time: stable
+        columns = [column[order] for column in columns]
+    return columns
