@@ -70,7 +70,10 @@ class ChannelArrays:
         return len(self.t_s)
 
     def where(self, keep: NDArray[np.bool_]) -> ChannelArrays:
-        """The frames where ``keep`` holds."""
+        """The frames where ``keep`` holds (these arrays themselves when it holds at every
+        frame, as for a whole range of sols: no copy of 621,000 frames)."""
+        if bool(keep.all()):
+            return self
         return ChannelArrays(self.t_s[keep], self.sol[keep], self.lmst_h[keep], self.values[keep])
 
 
