@@ -16,10 +16,13 @@ Choices worth knowing:
   ``truth_frames`` (docs/DESIGN.md, "Two records"), each number of the record in a column of
   its own, generated from the record's type (``server.storage.columns``: a list field one
   column per component, named as the CSV names it), the rest (events, the side estimators,
-  the command, the modes) as JSON beside it. A channel query reads its column alone over the
-  index on time (``Store.channel``); a field added to a record gets its column when a
-  database is opened. A database of the release before (whole merged frames as JSON) is
-  split into the two records in place when it is opened (``server.storage.migrate``).
+  the command, the modes) as JSON beside it. Every ``CHUNK_FRAMES`` rows of a rover, their
+  numbers are packed too, a float64 array per channel and chunk (``server.storage.chunks``),
+  so a channel query (``Store.channel``) reads its chunks' arrays and the few rows after the
+  last chunk; a field added to a record gets its column when a database is opened, and a
+  database without chunks has them packed then. A database of the release before (whole
+  merged frames as JSON) is split into the two records in place when it is opened
+  (``server.storage.migrate``).
 - JSON has no NaN or infinity (PostgreSQL's ``json`` rejects them) while frames carry NaN
   for "no value" (a tilt before the first estimate), so non-finite floats are stored as
   ``null`` on every database and read back as ``None``.

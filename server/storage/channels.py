@@ -4,9 +4,10 @@
 ``truth_record`` the record back from a row selected as ``DOWNLINK_ROW`` / ``TRUTH_ROW``
 (the columns: ``server.storage.columns``). ``read_channel`` reads one numeric channel of
 either record over a time range: its column and the frames' ``t_s``, ``sol`` and ``lmst_h``
-only, over the index on (rover, t_s), into numpy arrays (a truth channel's values put at
-the times of the downlink rows they pair with), so 7 sols of one channel need not decode
-any frame's JSON (issue 21).
+only, from the chunks they are packed in (``server.storage.chunks``) and the rows after the
+last chunk, into numpy arrays (a truth channel's values put at the times of the downlink rows
+they pair with), so 7 sols of one channel need neither decode any frame's JSON nor read a
+row per frame (issue 21).
 """
 
 from __future__ import annotations
@@ -17,9 +18,9 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from sqlalchemy import Select, select
 from sqlalchemy.engine import Connection
 
+from server.storage.chunks import DOWNLINK_PACKING, TRUTH_PACKING, read_channels
 from server.storage.columns import DOWNLINK, TRUTH
 from server.storage.schema import RECORD_LAYOUT, frame_events, frames_table, truth_frames
 
@@ -69,18 +70,11 @@ class ChannelArrays:
         return len(self.t_s)
 
     def where(self, keep: NDArray[np.bool_]) -> ChannelArrays:
-        """The frames where ``keep`` holds."""
+        """The frames where ``keep`` holds (these arrays themselves when it holds at every
+        frame, as for a whole range of sols: no copy of 621,000 frames)."""
+        if bool(keep.all()):
+            return self
         return ChannelArrays(self.t_s[keep], self.sol[keep], self.lmst_h[keep], self.values[keep])
-
-
-def _fetch(conn: Connection, query: Select[Any], width: int) -> FloatArray:
-    """The rows of ``query`` as a float array of ``width`` columns (null: NaN). The driver's
-    own tuples: numpy probing SQLAlchemy's rows for the array protocol cost 7 times the
-    query (the columns are plain doubles and integers, with nothing to convert)."""
-    rows = conn.execute(query).cursor.fetchall()
-    if not rows:
-        return np.empty((0, width))
-    return np.array(rows, dtype=np.float64)
 
 
 def read_channel(
@@ -90,27 +84,16 @@ def read_channel(
     when no column holds it."""
     if name not in DOWNLINK_CHANNELS and name not in TRUTH_CHANNELS:
         return None
-    span = (FRAMES.rover == rover, FRAMES.t_s >= t_from, FRAMES.t_s <= t_to)
-    order = (FRAMES.t_s, FRAMES.id)
-    own = (FRAMES[name],) if name in DOWNLINK_CHANNELS else ()
-    rows = _fetch(
-        conn,
-        select(FRAMES.t_s, FRAMES.sol, FRAMES.lmst_h, *own).where(*span).order_by(*order),
-        3 + len(own),
+    own = (name,) if name in DOWNLINK_CHANNELS else ()
+    t_s, sol, lmst_h, *values = read_channels(
+        conn, DOWNLINK_PACKING, rover, ("sol", "lmst_h", *own), t_from, t_to
     )
     if own:
-        values = rows[:, 3]
-    else:
-        truth = _fetch(
-            conn,
-            select(TRUTHS.t_s, TRUTHS[name])
-            .where(TRUTHS.rover == rover, TRUTHS.t_s >= t_from, TRUTHS.t_s <= t_to)
-            .order_by(TRUTHS.t_s, TRUTHS.id),
-            2,
-        )
-        values = np.full(len(rows), np.nan)
-        if len(truth):
-            at = np.minimum(np.searchsorted(truth[:, 0], rows[:, 0]), len(truth) - 1)
-            paired = truth[at, 0] == rows[:, 0]
-            values[paired] = truth[at[paired], 1]
-    return ChannelArrays(rows[:, 0], rows[:, 1].astype(np.int64), rows[:, 2], values)
+        return ChannelArrays(t_s, sol.astype(np.int64), lmst_h, values[0])
+    truth_t_s, truth_values = read_channels(conn, TRUTH_PACKING, rover, (name,), t_from, t_to)
+    paired_values = np.full(len(t_s), np.nan)
+    if len(truth_t_s):
+        at = np.minimum(np.searchsorted(truth_t_s, t_s), len(truth_t_s) - 1)
+        paired = truth_t_s[at] == t_s
+        paired_values[paired] = truth_values[at[paired]]
+    return ChannelArrays(t_s, sol.astype(np.int64), lmst_h, paired_values)

@@ -13,6 +13,10 @@ downlink. It runs in batches of ``BATCH_ROWS`` frames, each batch one transactio
 marks its rows done (``layout``), so a migration stopped half-way (the server killed)
 carries on where it was at the next opening; once no old row is left it is recorded in
 ``storage_steps`` and not looked for again. Each batch is logged.
+
+``pack_stored`` (``server.storage.chunks``): a database written before the channels were
+packed by chunk has its rows packed, a chunk a transaction, logged; a database that has
+them packs only what has filled a chunk since (nothing, after a clean stop).
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ from typing import Any
 from sqlalchemy import bindparam, insert, select, update
 from sqlalchemy.engine import Engine
 
+from server.storage.chunks import CHUNK_FRAMES, pack_stored
 from server.storage.columns import DOWNLINK, TRUTH
 from server.storage.schema import (
     RECORD_LAYOUT,
@@ -43,11 +48,13 @@ TRUTH_ONLY = frozenset(truth_fields()) - frozenset(downlink_fields())
 SIDE_SCORES = frozenset({"position_error_m", "attitude_error_deg"})  # a side estimator's errors
 
 
-def upgrade_database(engine: Engine) -> None:
+def upgrade_database(engine: Engine, chunk_frames: int = CHUNK_FRAMES) -> None:
     """This version's tables, columns and indexes (``upgrade_schema``), then the data
-    migrations: the old merged frames split (``split_merged_frames``)."""
+    migrations: the old merged frames split (``split_merged_frames``), then the channels of
+    the rows no chunk holds yet packed (``server.storage.chunks.pack_stored``)."""
     upgrade_schema(engine)
     split_merged_frames(engine)
+    pack_stored(engine, chunk_frames)
 
 
 def split_merged(frame: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:

@@ -118,6 +118,7 @@ frames_table = Table(
     *DOWNLINK.table_columns(),
     Index("ix_frames_rover_t", "rover", "t_s"),
     Index("ix_frames_rover_sol", "rover", "sol"),
+    Index("ix_frames_rover_id", "rover", "id"),  # the rows after a rover's last chunk
 )
 
 # What only the simulator knows, beside each frame of the downlink (``frames``): the truth
@@ -132,7 +133,31 @@ truth_frames = Table(
     Column("data", JSON, nullable=False),
     *TRUTH.table_columns(),
     Index("ix_truth_frames_rover_t", "rover", "t_s"),
+    Index("ix_truth_frames_rover_id", "rover", "id"),
 )
+
+
+def chunk_table(name: str) -> Table:
+    """A table of packed channels (``server.storage.chunks``): per rover, channel and chunk
+    of rows (ids ``id_first``-``id_last``, ``n`` of them, times ``t_first``-``t_last``) the
+    channel's values as little-endian float64 in ``data``."""
+    return Table(
+        name,
+        metadata,
+        Column("rover", String(64), primary_key=True),
+        Column("channel", String(64), primary_key=True),
+        Column("id_first", Integer, primary_key=True, autoincrement=False),
+        Column("id_last", Integer, nullable=False),
+        Column("t_first", Double, nullable=False),
+        Column("t_last", Double, nullable=False),
+        Column("n", Integer, nullable=False),
+        Column("data", LargeBinary, nullable=False),
+    )
+
+
+# the downlink's channels by chunk of ``frames`` rows, and the truth's of ``truth_frames``
+frame_chunks = chunk_table("frame_chunks")
+truth_chunks = chunk_table("truth_chunks")
 
 # The data migrations done on this database (``server.storage.migrate``), by name.
 storage_steps = Table(

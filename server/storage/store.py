@@ -38,6 +38,7 @@ from server.storage.channels import (
     truth_record,
     truth_row,
 )
+from server.storage.chunks import CHUNK_FRAMES, pack_new
 from server.storage.engine import OneThreadAtATimePool
 from server.storage.migrate import upgrade_database
 from server.storage.schema import (
@@ -161,9 +162,10 @@ class Store:
     call from any thread. Times ``t_s`` are simulated TT seconds from J2000 (floats).
     """
 
-    def __init__(self, url: str) -> None:
+    def __init__(self, url: str, chunk_frames: int = CHUNK_FRAMES) -> None:
         parsed = make_url(url)
         self.url = url
+        self.chunk_frames = chunk_frames  # rows per packed chunk (server.storage.chunks)
         kwargs: dict[str, Any] = {"json_serializer": json_dumps}
         self.is_sqlite = parsed.get_backend_name() == "sqlite"
         if self.is_sqlite:
@@ -177,7 +179,7 @@ class Store:
         if self.is_sqlite:
             event.listen(self.engine, "connect", sqlite_pragmas)
         metadata.create_all(self.engine)
-        upgrade_database(self.engine)
+        upgrade_database(self.engine, chunk_frames)
         self._commit_queued: Callable[[], None] = lambda: None
 
     def commit_queued_with(self, flush: Callable[[], None]) -> None:
@@ -554,6 +556,7 @@ class Store:
         if rows:
             conn.execute(insert(frames_table), [downlink_row(r, d) for r, d, _ in rows])
             conn.execute(insert(truth_frames), [truth_row(r, t) for r, _, t in rows])
+            pack_new(conn, [r for r, _, _ in rows], self.chunk_frames)
 
     def _insert_events(
         self, conn: Connection, rows: list[tuple[str, float, Mapping[str, Any]]]

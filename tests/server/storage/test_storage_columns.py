@@ -6,6 +6,7 @@ read from its column is the channel of the stored records; on SQLite and Postgre
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Iterator
 from datetime import UTC, datetime
@@ -16,6 +17,7 @@ import pytest
 
 from server.channels import frame_channels
 from server.storage import BatchWriter, Store
+from server.storage.chunks import CHUNK_FRAMES
 from server.storage.columns import DOWNLINK, TRUTH
 from sim.loop.downlink import downlink_fields
 from sim.scoring.truth import truth_fields
@@ -117,16 +119,19 @@ def test_a_field_added_to_a_record_gets_its_column_in_an_old_database(
     store_url: str, pairs: FramePairs
 ) -> None:
     """A database from before ``hga_margin_predicted_deg`` (and the truth's ``hga_margin_deg``)
-    existed: opening it adds their columns, the old rows read them as null."""
+    existed: opening it adds their columns, the old rows read them as null, and so do its
+    packed chunks (``server.storage.chunks``, one frame each here), which lack the channels."""
     from sqlalchemy import inspect, text
 
-    store = Store(store_url)
+    store = Store(store_url, chunk_frames=1)
     store.add_frames("spirit", [pairs[0][0]], [pairs[0][1]])
     with store.engine.begin() as conn:
         conn.execute(text("ALTER TABLE frames DROP COLUMN hga_margin_predicted_deg"))
         conn.execute(text("ALTER TABLE truth_frames DROP COLUMN hga_margin_deg"))
+        conn.execute(text("DELETE FROM frame_chunks WHERE channel = 'hga_margin_predicted_deg'"))
+        conn.execute(text("DELETE FROM truth_chunks WHERE channel = 'hga_margin_deg'"))
     store.close()
-    store = Store(store_url)
+    store = Store(store_url, chunk_frames=1)
     try:
         assert "hga_margin_predicted_deg" in {
             c["name"] for c in inspect(store.engine).get_columns("frames")
@@ -137,17 +142,34 @@ def test_a_field_added_to_a_record_gets_its_column_in_an_old_database(
         assert new == pairs[1][0] and new["hga_margin_predicted_deg"] is not None
         truths = list(store.truths("spirit", -math.inf, math.inf).values())
         assert truths[0]["hga_margin_deg"] is None and truths[1] == pairs[1][1]
+        for name, record in (("hga_margin_predicted_deg", 0), ("hga_margin_deg", 1)):
+            got = store.channel("spirit", name, -math.inf, math.inf)
+            assert got is not None
+            want = [math.nan, pairs[1][record][name]]
+            assert np.array_equal(got.values, want, equal_nan=True)
     finally:
         store.close()
 
 
+@pytest.mark.parametrize("chunk_frames", [7, CHUNK_FRAMES])  # packed, or all in the rows
 @pytest.mark.parametrize("name", ["tilt_est_deg", "q_b_ll_est_2", "site_index",
                                   "attitude_error_deg", "sun_ll_true_0"])  # fmt: skip
 def test_a_channel_read_from_its_column_is_the_records_channel(
-    store: Store, pairs: FramePairs, name: str
+    store_url: str, pairs: FramePairs, name: str, chunk_frames: int
 ) -> None:
+    store = Store(store_url, chunk_frames=chunk_frames)
+    try:
+        check_channel(store, pairs, name)
+    finally:
+        store.close()
+
+
+def check_channel(store: Store, pairs: FramePairs, name: str) -> None:
+    """Channel ``name`` read as arrays is the stored records' channel, frame for frame."""
     _stored(store, pairs)
     store.add_frames("opportunity", [pairs[0][0]], [pairs[0][1]])  # another rover: not read
+    # a stretch stored again later (a rover run again from its checkpoint): out of time order
+    store.add_frames("spirit", [d for d, _ in pairs[20:40]], [t for _, t in pairs[20:40]])
     # one downlink without its truth record: a truth channel has no value there
     lonely = {**pairs[-1][0], "t_s": pairs[-1][0]["t_s"] + 10.0}
     store.add_frames("spirit", [lonely], [{**pairs[-1][1], "t_s": lonely["t_s"] + 0.5}])
@@ -168,3 +190,31 @@ def test_a_channel_read_from_its_column_is_the_records_channel(
     assert store.channel("spirit", "kinematic_ekf_position_error_m", 0.0, 1e12) is None
     empty = store.channel("spirit", name, 0.0, 1.0)
     assert empty is not None and len(empty) == 0
+
+
+def test_a_database_without_chunks_has_its_channels_packed_when_opened(
+    store_url: str, pairs: FramePairs, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A database of the release before the chunks (its rows' numbers in columns only) opens
+    with them packed, a chunk a transaction, and its channels read as before."""
+    from sqlalchemy import text
+
+    store = Store(store_url)  # a chunk is more frames than stored: none packed
+    _stored(store, pairs)
+    with store.engine.begin() as conn:  # as that release left it
+        for table in ("frame_chunks", "truth_chunks"):
+            conn.execute(text(f"DROP TABLE {table}"))
+        for index in ("ix_frames_rover_id", "ix_truth_frames_rover_id"):
+            conn.execute(text(f"DROP INDEX {index}"))
+    store.close()
+    with caplog.at_level(logging.INFO, logger="server.storage"):
+        store = Store(store_url, chunk_frames=10)
+    try:
+        chunks = 2 * (len(pairs) // 10)  # the downlink's and the truth's
+        assert f"({chunks} chunks so far)" in caplog.text
+        got = store.channel("spirit", "tilt_est_deg", -math.inf, math.inf)
+        assert got is not None and got.t_s.tolist() == [d["t_s"] for d, _ in pairs]
+        want = [math.nan if d["tilt_est_deg"] is None else d["tilt_est_deg"] for d, _ in pairs]
+        assert np.array_equal(got.values, want, equal_nan=True)
+    finally:
+        store.close()

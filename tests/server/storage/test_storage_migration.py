@@ -1,7 +1,8 @@
 """A database written before the two records were stored apart (one ``frames`` table, each
 row's ``data`` the whole merged frame, no truth table) opens with this version and is
 migrated in place (``server.storage.migrate``): every field of the old frames comes back,
-the downlink's from ``frames`` and the truth's from ``truths``; in batches, and again from
+the downlink's from ``frames`` and the truth's from ``truths``, and their channels packed by
+chunk (``server.storage.chunks``) are the old frames' numbers; in batches, and again from
 where it was if it was stopped; on SQLite and PostgreSQL. The old frames are the reference
 frames recorded in that format (``tests/sim/loop/frames_before_fast_loop.json.gz``)."""
 
@@ -14,6 +15,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from sqlalchemy import (
     JSON,
@@ -38,6 +40,7 @@ from sim.scoring.truth import merged, truth_fields
 
 REFERENCE = Path(__file__).parents[2] / "sim" / "loop" / "frames_before_fast_loop.json.gz"
 SIDE_SCORES = {"position_error_m", "attitude_error_deg"}
+CHUNK = 64  # rows a packed chunk (server.storage.chunks): a few chunks and rows after them
 
 # The frames table of the release before (main's server/storage/schema.py), as it was.
 OLD = MetaData()
@@ -113,24 +116,29 @@ def test_an_old_database_is_split_into_the_two_records(
     store_url: str, old_frames: list[dict[str, Any]], caplog: pytest.LogCaptureFixture
 ) -> None:
     old_database(store_url, old_frames)
-    with caplog.at_level(logging.INFO, logger="server.storage.migrate"):
-        store = Store(store_url)
+    with caplog.at_level(logging.INFO, logger="server.storage"):
+        store = Store(store_url, chunk_frames=CHUNK)
     try:
         assert f"{SPLIT_STEP} done: {len(old_frames) + 5} frames split" in caplog.text
+        chunks = len(old_frames) // CHUNK
+        assert f"spirit in a chunk ({chunks} chunks so far)" in caplog.text  # the downlink's
         check_every_field(store, old_frames)
-        # the numbers are in their columns now: a channel is read from its column
-        got = store.channel("spirit", "attitude_error_deg", -math.inf, math.inf)
-        assert got is not None
-        assert got.values.tolist() == [f["attitude_error_deg"] for f in old_frames]
+        # the numbers are in their columns and packed by chunk now: a channel is read so
+        for name in ("attitude_error_deg", "tilt_est_deg"):
+            got = store.channel("spirit", name, -math.inf, math.inf)
+            assert got is not None
+            want = [math.nan if f[name] is None else f[name] for f in old_frames]
+            assert np.array_equal(got.values, want, equal_nan=True)
+            assert got.t_s.tolist() == [f["t_s"] for f in old_frames]
         with store.engine.connect() as conn:
             assert conn.execute(select(frames_table.c.layout).distinct()).scalars().all() == [2]
     finally:
         store.close()
     caplog.clear()
-    with caplog.at_level(logging.INFO, logger="server.storage.migrate"):
-        again = Store(store_url)  # opened again: nothing to do, nothing changed
+    with caplog.at_level(logging.INFO, logger="server.storage"):
+        again = Store(store_url, chunk_frames=CHUNK)  # opened again: nothing to do
     try:
-        assert "split" not in caplog.text
+        assert "split" not in caplog.text and "packed" not in caplog.text
         check_every_field(again, old_frames)
     finally:
         again.close()
