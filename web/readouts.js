@@ -9,6 +9,7 @@ import { lmstText } from "./lib/marstime.js";
 const IMU_WARN_S = 10000; // Ali et al. 2005 sec. 4: MER reacquired attitude at about this IMU time
 const view = { rover: null };
 
+/** @param {import("./lib/bus.js").Frame} f */
 function showFrame(f) {
   $("sol-clock").textContent = `Sol ${f.sol}  ${lmstText(f.lmst_h)} LMST`;
   $("nate-mode").textContent = f.nate_mode;

@@ -18,6 +18,7 @@ function show(me) {
   document.body.classList.toggle("no-truth", !sees);
 }
 
+/** @param {import("./lib/bus.js").Frame} f */
 function onFrame(f) {
   if (f.p_mission_true === undefined) return; // the downlink alone: nothing of the truth
   const hga = $("hga-margin");

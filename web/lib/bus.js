@@ -8,6 +8,13 @@
 // WebSocket opened: subscribed, so what a REST read made from now on misses comes over it),
 // "focus" ({sol, t_s}: show that moment on the sol timeline), "sol-truth" ({sol, truth}: the
 // shown sol's truth summary).
+
+/**
+ * A "frame" event's value: the rover's downlink record, and in the truth view the truth
+ * record's fields beside it (their types: records.js, made from the schemas).
+ * @typedef {import("./records.js").Downlink & Partial<import("./records.js").Truth>} Frame
+ */
+
 const listeners = new Map();
 
 export const bus = {
