@@ -7,7 +7,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: run test lint typecheck pytest pg chromium bench clean
+.PHONY: run test lint typecheck pytest jstest pg chromium node bench clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -19,7 +19,7 @@ $(STAMP): pyproject.toml
 run: $(STAMP)
 	exec $(BIN)/roverops serve --data-dir data
 
-test: lint typecheck pytest
+test: lint typecheck pytest jstest
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
@@ -30,6 +30,11 @@ typecheck: $(STAMP)
 
 pytest: $(STAMP) pg chromium
 	$(BIN)/pytest
+
+# The console's JavaScript unit tests (tests/js), Node's own runner; jsdom (Debian's
+# node-jsdom, under /usr/share/nodejs) gives the DOM helper's test a W3C DOM.
+jstest: node
+	NODE_PATH=/usr/share/nodejs node --test tests/js/*.test.mjs
 
 # PostgreSQL for the storage tests (tests/conftest.py starts a throwaway cluster from its
 # binaries): Debian's package, installed once, `apt-get update` only if the install needs it.
@@ -51,6 +56,16 @@ chromium:
 	  test "$$(id -u)" = 0 || { echo "make chromium: Chromium missing; install it as root"; exit 0; }; \
 	  echo "make chromium: installing Chromium (Debian package chromium)"; \
 	  $(CHROMIUM_INSTALL) 2>/dev/null || { apt-get update -qq && $(CHROMIUM_INSTALL); }; }
+
+# Debian's Node.js and jsdom for the JavaScript tests (installed once, like Chromium).
+NODE_INSTALL := DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
+	nodejs node-jsdom >/dev/null
+
+node:
+	@{ command -v node >/dev/null && test -e /usr/share/nodejs/jsdom/package.json; } || { \
+	  test "$$(id -u)" = 0 || { echo "make node: Node.js or jsdom missing; install them as root"; exit 0; }; \
+	  echo "make node: installing Node.js and jsdom (Debian packages nodejs, node-jsdom)"; \
+	  $(NODE_INSTALL) 2>/dev/null || { apt-get update -qq && $(NODE_INSTALL); }; }
 
 bench: $(STAMP)
 	$(BIN)/roverops bench sim --json

@@ -1,6 +1,7 @@
-"""The ``roverops`` command line: ``serve``, ``ephem``, ``run``, ``validate``, ``users`` and
-``bench``, one module each where they are more than a call (``cli.serve``, ``cli.validate``,
-``cli.bench``), their shared argument types in ``cli.arguments``.
+"""The ``roverops`` command line: ``serve``, ``ephem``, ``run``, ``validate``, ``users``,
+``bench`` and ``web-types``, one module each where they are more than a call (``cli.serve``,
+``cli.validate``, ``cli.bench``, ``cli.web_types``), their shared argument types in
+``cli.arguments``.
 
 Every argument from outside is validated; a bad one ends the command with a one-line
 message naming the parameter and exit status 2, never a traceback.
@@ -20,6 +21,7 @@ from cli.output import print_result
 from cli.run_report import print_run
 from cli.serve import add_serve, add_users
 from cli.validate import add_validate
+from cli.web_types import add_web_types
 from sim.errors import InputError
 
 EXIT_BAD_INPUT = 2
@@ -98,6 +100,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_serve(sub)
     add_users(sub)
     add_bench(sub)
+    add_web_types(sub)
     return parser
 
 

@@ -4,213 +4,205 @@
 // and, as a fallback, re-reads GET /api/rovers/{rover}/queue when the 1 s /state poll shows
 // a queue other than the one drawn. A sequence that has started, or an immediate command,
 // keeps its place: the server says why, and its buttons say so too.
-"use strict";
+import { api, detailText, heldToken } from "./lib/api.js";
+import { bus } from "./lib/bus.js";
+import { $, el } from "./lib/dom.js";
+import { lmstText } from "./lib/marstime.js";
+import { mayAct } from "./lib/roles.js";
 
-(() => {
-  const ro = window.roverops;
-  const panel = document.getElementById("queue-panel");
-  const STATUS_WORDS = {
-    pending: "pending", running: "running", completed: "done", failed: "failed",
-    refused: "refused", skipped: "skipped",
-  };
-  const view = { rover: null, queue: [], recent: [], key: "", open: new Set(), loading: false, again: false };
+const panel = $("queue-panel");
+const STATUS_WORDS = {
+  pending: "pending", running: "running", completed: "done", failed: "failed",
+  refused: "refused", skipped: "skipped",
+};
+const view = { rover: null, me: null, queue: [], recent: [], key: "", open: new Set(), loading: false, again: false };
 
-  const el = (tag, cls, text) => {
-    const e = document.createElement(tag);
-    if (cls) e.className = cls;
-    if (text !== undefined) e.textContent = text;
-    return e;
-  };
-  // what the /state poll lists of the queue, for comparing with what is drawn
-  const keyOf = (queue) => queue.map((q) => `${q.sequence_id}:${q.next_step}`).join(",");
+// what the /state poll lists of the queue, for comparing with what is drawn
+const keyOf = (queue) => queue.map((q) => `${q.sequence_id}:${q.next_step}`).join(",");
 
-  async function load() {
-    if (!view.rover) return;
-    if (view.loading) { view.again = true; return; }
-    view.loading = true;
-    try {
-      const rover = view.rover;
-      const r = await ro.api(`/api/rovers/${rover}/queue`);
-      if (r.ok && rover === view.rover) {
-        view.recent = r.body.recent;
-        show(r.body.queue);
-      }
-    } finally {
-      view.loading = false;
-      if (view.again) { view.again = false; load(); }
-    }
-  }
-
-  function show(queue) {
-    view.queue = queue;
-    view.key = keyOf(queue);
-    render();
-  }
-
-  function say(text, bad) {
-    const status = panel.querySelector(".queue-status");
-    status.textContent = text;
-    status.classList.toggle("bad", Boolean(bad));
-  }
-
-  async function move(q, to) {
-    const r = await ro.api(`/api/rovers/${view.rover}/queue/${q.sequence_id}/move`, {
-      method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify({ to }),
-    });
-    if (r.ok) {
-      say(`Sequence #${q.sequence_id} moved to position ${to + 1}`);
+async function load() {
+  if (!view.rover) return;
+  if (view.loading) { view.again = true; return; }
+  view.loading = true;
+  try {
+    const rover = view.rover;
+    const r = await api(`/api/rovers/${rover}/queue`);
+    if (r.ok && rover === view.rover) {
+      view.recent = r.body.recent;
       show(r.body.queue);
-    } else {
-      const detail = r.body && r.body.detail;
-      say(`Not moved: ${Array.isArray(detail) ? detail.map((d) => d.msg).join("; ") : detail}`, true);
-      load();
     }
+  } finally {
+    view.loading = false;
+    if (view.again) { view.again = false; load(); }
   }
+}
 
-  async function cancel(q) {
-    const what = `#${q.sequence_id} ${q.name || ""}`.trim();
-    const note = q.status === "running" ? " Its step under way runs to its end; the rest are not run." : "";
-    if (!window.confirm(`Cancel sequence ${what}?${note}`)) return;
-    const r = await ro.api(`/api/sequences/${q.sequence_id}`, { method: "DELETE" });
-    if (r.ok) say(`Sequence ${what} ${r.body.detail}`);
-    else say(`Not cancelled: ${r.body && r.body.detail}`, true);
+function show(queue) {
+  view.queue = queue;
+  view.key = keyOf(queue);
+  render();
+}
+
+function say(text, bad) {
+  const status = panel.querySelector(".queue-status");
+  status.textContent = text;
+  status.classList.toggle("bad", Boolean(bad));
+}
+
+async function move(q, to) {
+  const r = await api(`/api/rovers/${view.rover}/queue/${q.sequence_id}/move`, {
+    method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify({ to }),
+  });
+  if (r.ok) {
+    say(`Sequence #${q.sequence_id} moved to position ${to + 1}`);
+    show(r.body.queue);
+  } else {
+    say(`Not moved: ${detailText(r)}`, true);
     load();
   }
+}
 
-  // A button the queue allows gets data-role (applyRole greys it out for a viewer); one it
-  // does not allow is disabled with the reason as its title.
-  function button(label, action, testid, why, run) {
-    const b = el("button", `queue-${action}`, label);
-    b.type = "button";
-    b.dataset.testid = testid;
-    b.setAttribute("aria-label", `${action} ${testid.split("-").pop()}`);
-    if (why) {
-      b.disabled = true;
-      b.title = why;
-    } else {
-      b.dataset.role = "operator";
-      b.disabled = !ro.mayAct("operator");
-      b.title = b.disabled ? "needs the operator role: sign in with an operator's token" : action;
-      b.addEventListener("click", run);
-    }
-    return b;
+async function cancel(q) {
+  const what = `#${q.sequence_id} ${q.name || ""}`.trim();
+  const note = q.status === "running" ? " Its step under way runs to its end; the rest are not run." : "";
+  if (!window.confirm(`Cancel sequence ${what}?${note}`)) return;
+  const r = await api(`/api/sequences/${q.sequence_id}`, { method: "DELETE" });
+  if (r.ok) say(`Sequence ${what} ${r.body.detail}`);
+  else say(`Not cancelled: ${detailText(r)}`, true);
+  load();
+}
+
+// A button the queue allows gets data-role (applyRole greys it out for a viewer); one it
+// does not allow is disabled with the reason as its title.
+function button(label, action, testid, why, run) {
+  const b = el("button", { className: `queue-${action}`, textContent: label });
+  b.type = "button";
+  b.dataset.testid = testid;
+  b.setAttribute("aria-label", `${action} ${testid.split("-").pop()}`);
+  if (why) {
+    b.disabled = true;
+    b.title = why;
+  } else {
+    b.dataset.role = "operator";
+    b.disabled = !mayAct(view.me, heldToken(), "operator");
+    b.title = b.disabled ? "needs the operator role: sign in with an operator's token" : action;
+    b.addEventListener("click", run);
   }
+  return b;
+}
 
-  function when(step) {
-    if (!step.start) return "";
-    const end = step.end ? `–${ro.lmst(step.end.lmst_h)}` : "";
-    return `${ro.lmst(step.start.lmst_h)}${end} LMST`;
-  }
+function when(step) {
+  if (!step.start) return "";
+  const end = step.end ? `–${lmstText(step.end.lmst_h)}` : "";
+  return `${lmstText(step.start.lmst_h)}${end} LMST`;
+}
 
-  function stepsList(steps) {
-    const ol = el("ol", "queue-steps");
-    for (const s of steps) {
-      const li = el("li", `queue-step step-${s.status}`);
-      li.dataset.testid = "queue-step";
-      li.dataset.status = s.status;
-      li.append(
-        el("span", "step-status", STATUS_WORDS[s.status] || s.status),
-        el("span", "step-line", s.line ? `line ${s.line}` : ""),
-        el("span", "step-command", s.command),
-        el("span", "step-when", s.tag && s.status === "pending" ? s.tag : when(s)),
-      );
-      if (s.reason) li.title = s.reason;
-      ol.append(li);
-    }
-    return ol;
-  }
-
-  function summaryText(q) {
-    // a step's frames play out after it computed: the running step can be behind next_step
-    const running = q.steps.findIndex((s) => s.status === "running");
-    const where = running >= 0 ? `running, step ${running + 1} of ${q.step_count}`
-      : q.status === "running" ? `started, step ${Math.min(q.next_step + 1, q.step_count)} of ${q.step_count} next`
-        : `${q.step_count} step(s)`;
-    return `${q.immediate ? "immediate · " : ""}${where}${q.submitted_by ? ` · by ${q.submitted_by}` : ""}`;
-  }
-
-  function item(q, index, queue) {
-    const li = el("li", `queue-item queue-${q.status}`);
-    li.dataset.testid = "queue-item";
-    li.dataset.sequenceId = q.sequence_id;
-    const details = el("details");
-    details.open = view.open.has(q.sequence_id);
-    details.addEventListener("toggle", () => {
-      if (details.open) view.open.add(q.sequence_id);
-      else view.open.delete(q.sequence_id);
-    });
-    const summary = el("summary");
-    summary.append(
-      el("span", "queue-name", `#${q.sequence_id} ${q.name || "(unnamed)"}`),
-      el("span", "queue-state", summaryText(q)),
+function stepsList(steps) {
+  const ol = el("ol", { className: "queue-steps" });
+  for (const s of steps) {
+    const li = el("li", { className: `queue-step step-${s.status}` });
+    li.dataset.testid = "queue-step";
+    li.dataset.status = s.status;
+    li.append(
+      el("span", { className: "step-status", textContent: STATUS_WORDS[s.status] || s.status }),
+      el("span", { className: "step-line", textContent: s.line ? `line ${s.line}` : "" }),
+      el("span", { className: "step-command", textContent: s.command }),
+      el("span", { className: "step-when", textContent: s.tag && s.status === "pending" ? s.tag : when(s) }),
     );
-    details.append(summary, stepsList(q.steps));
-    const above = queue[index - 1];
-    const upWhy = q.pinned || (!above ? "first in the queue" : above.pinned ? `#${above.sequence_id} keeps its place` : "");
-    const downWhy = q.pinned || (index === queue.length - 1 ? "last in the queue" : "");
-    const buttons = el("span", "queue-buttons");
-    buttons.append(
-      button("▲", "up", "queue-up", upWhy, () => move(q, index - 1)),
-      button("▼", "down", "queue-down", downWhy, () => move(q, index + 1)),
-      button("✕", "cancel", "queue-cancel", "", () => cancel(q)),
-    );
-    li.append(details, buttons);
-    return li;
+    if (s.reason) li.title = s.reason;
+    ol.append(li);
   }
+  return ol;
+}
 
-  function recentItem(s) {
-    const li = el("li", `queue-item queue-left queue-${s.status}`);
-    li.dataset.testid = "queue-recent-item";
-    li.dataset.sequenceId = s.sequence_id;
-    const details = el("details");
-    const summary = el("summary");
-    summary.append(
-      el("span", "queue-name", `#${s.sequence_id} ${s.name || "(unnamed)"}`),
-      el("span", `queue-state seq-${s.status}`, s.status),
-    );
-    details.append(summary);
-    if (s.detail) details.append(el("p", "queue-detail", s.detail));
-    details.append(stepsList(s.steps));
-    li.append(details);
-    return li;
+function summaryText(q) {
+  // a step's frames play out after it computed: the running step can be behind next_step
+  const running = q.steps.findIndex((s) => s.status === "running");
+  const where = running >= 0 ? `running, step ${running + 1} of ${q.step_count}`
+    : q.status === "running" ? `started, step ${Math.min(q.next_step + 1, q.step_count)} of ${q.step_count} next`
+      : `${q.step_count} step(s)`;
+  return `${q.immediate ? "immediate · " : ""}${where}${q.submitted_by ? ` · by ${q.submitted_by}` : ""}`;
+}
+
+function item(q, index, queue) {
+  const li = el("li", { className: `queue-item queue-${q.status}` });
+  li.dataset.testid = "queue-item";
+  li.dataset.sequenceId = q.sequence_id;
+  const details = el("details");
+  details.open = view.open.has(q.sequence_id);
+  details.addEventListener("toggle", () => {
+    if (details.open) view.open.add(q.sequence_id);
+    else view.open.delete(q.sequence_id);
+  });
+  const summary = el("summary");
+  summary.append(
+    el("span", { className: "queue-name", textContent: `#${q.sequence_id} ${q.name || "(unnamed)"}` }),
+    el("span", { className: "queue-state", textContent: summaryText(q) }),
+  );
+  details.append(summary, stepsList(q.steps));
+  const above = queue[index - 1];
+  const upWhy = q.pinned || (!above ? "first in the queue" : above.pinned ? `#${above.sequence_id} keeps its place` : "");
+  const downWhy = q.pinned || (index === queue.length - 1 ? "last in the queue" : "");
+  const buttons = el("span", { className: "queue-buttons" });
+  buttons.append(
+    button("▲", "up", "queue-up", upWhy, () => move(q, index - 1)),
+    button("▼", "down", "queue-down", downWhy, () => move(q, index + 1)),
+    button("✕", "cancel", "queue-cancel", "", () => cancel(q)),
+  );
+  li.append(details, buttons);
+  return li;
+}
+
+function recentItem(s) {
+  const li = el("li", { className: `queue-item queue-left queue-${s.status}` });
+  li.dataset.testid = "queue-recent-item";
+  li.dataset.sequenceId = s.sequence_id;
+  const details = el("details");
+  const summary = el("summary");
+  summary.append(
+    el("span", { className: "queue-name", textContent: `#${s.sequence_id} ${s.name || "(unnamed)"}` }),
+    el("span", { className: `queue-state seq-${s.status}`, textContent: s.status }),
+  );
+  details.append(summary);
+  if (s.detail) details.append(el("p", { className: "queue-detail", textContent: s.detail }));
+  details.append(stepsList(s.steps));
+  li.append(details);
+  return li;
+}
+
+function render() {
+  const list = el("ol", { className: "queue-list" });
+  list.dataset.testid = "queue-list";
+  list.append(...view.queue.map((q, i, all) => item(q, i, all)));
+  const parts = [view.queue.length ? list : el("p", { className: "queue-empty", textContent: "The queue is empty." })];
+  if (view.recent.length) {
+    const recent = el("ol", { className: "queue-list queue-recent" });
+    recent.dataset.testid = "queue-recent";
+    recent.append(...view.recent.map(recentItem));
+    parts.push(el("h3", { className: "queue-subhead", textContent: "Left the queue" }), recent);
   }
+  const status = panel.querySelector(".queue-status") || el("p", { className: "queue-status" });
+  status.dataset.testid = "queue-status";
+  panel.replaceChildren(status, ...parts);
+}
 
-  function render() {
-    const list = el("ol", "queue-list");
-    list.dataset.testid = "queue-list";
-    list.append(...view.queue.map((q, i, all) => item(q, i, all)));
-    const parts = [view.queue.length ? list : el("p", "queue-empty", "The queue is empty.")];
-    if (view.recent.length) {
-      const recent = el("ol", "queue-list queue-recent");
-      recent.dataset.testid = "queue-recent";
-      recent.append(...view.recent.map(recentItem));
-      parts.push(el("h3", "queue-subhead", "Left the queue"), recent);
-    }
-    const status = panel.querySelector(".queue-status") || el("p", "queue-status");
-    status.dataset.testid = "queue-status";
-    panel.replaceChildren(status, ...parts);
-  }
-
-  ro.on("rover", (rover) => {
-    view.rover = rover;
-    view.queue = [];
-    view.recent = [];
-    view.open.clear();
-    render();
-    load();
-  });
-  ro.on("notice", (n) => {
-    if (n.type !== "queue" || n.rover !== view.rover) return;
-    const now = new Set(n.queue.map((q) => q.sequence_id));
-    const left = view.queue.some((q) => !now.has(q.sequence_id));
-    show(n.queue);
-    if (left) load(); // and what left it, with its outcome
-  });
-  ro.on("state", (s) => {
-    if (s.rover === view.rover && keyOf(s.queue) !== view.key) load();
-  });
-  ro.on("me", render);
-  view.rover = ro.state.rover; // null until the console has picked a rover ("rover" then)
+bus.on("rover", (rover) => {
+  view.rover = rover;
+  view.queue = [];
+  view.recent = [];
+  view.open.clear();
   render();
   load();
-})();
+});
+bus.on("notice", (n) => {
+  if (n.type !== "queue" || n.rover !== view.rover) return;
+  const now = new Set(n.queue.map((q) => q.sequence_id));
+  const left = view.queue.some((q) => !now.has(q.sequence_id));
+  show(n.queue);
+  if (left) load(); // and what left it, with its outcome
+});
+bus.on("state", (s) => {
+  if (s.rover === view.rover && keyOf(s.queue) !== view.key) load();
+});
+bus.on("me", (me) => { view.me = me; render(); });
+render();

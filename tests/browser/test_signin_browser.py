@@ -14,7 +14,7 @@ import httpx
 import pytest
 
 from tests.browser.test_console_browser import ARTIFACTS, CHROMIUM, console_page
-from tests.server.test_server_restart import serving
+from tests.server.test_server_restart import _wait, serving
 
 if not Path(CHROMIUM).exists():
     pytest.skip("Chromium not installed (make test installs it)", allow_module_level=True)
@@ -87,3 +87,24 @@ def test_an_operator_may_command_and_signing_out_forgets_the_token(
     ).json()
     assert [r["action"] for r in audit][:2] == ["clock action=pause", "sign in"]
     page.screenshot(path=str(ARTIFACTS / "signin_operator.png"))
+
+
+def test_a_tab_reads_the_timeline_with_its_token_when_another_tab_signed_out(
+    page: Page, server: tuple[str, dict[str, str]]
+) -> None:
+    """The console's reads all carry the tab's token: another tab of the browser signing out
+    (which forgets the shared cookie) leaves this tab reading, its sol timeline too (issue
+    21: the timeline's own fetch sent no token and was refused 401 without the cookie)."""
+    if page.get_by_test_id("sign-out").is_visible():
+        page.click("[data-testid=sign-out]")
+    page.fill("[data-testid=token]", server[1]["operator"])
+    page.click("[data-testid=sign-in]")
+    expect(page.get_by_test_id("signed-in")).to_have_text("operator1 · operator")
+    # what another tab's Sign out sends: the browser forgets the (HttpOnly) sign-in cookie
+    page.evaluate("fetch('/api/session', { method: 'DELETE' })")
+    _wait(lambda: page.context.cookies() == [])
+    page.reload()
+    expect(page.get_by_test_id("signed-in")).to_have_text("operator1 · operator")
+    status = page.get_by_test_id("timeline-status")
+    expect(status).to_contain_text(re.compile(r"frames plotted|live:"), timeout=30_000)
+    expect(page.get_by_test_id("timeline-summary")).to_contain_text("Sol ")
