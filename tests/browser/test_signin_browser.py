@@ -58,6 +58,15 @@ def test_a_viewer_reads_live_and_may_not_command(
     expect(page.get_by_test_id("sol-clock")).to_contain_text("LMST", timeout=20_000)
     # the telemetry WebSocket reads with the cookie: readouts arrive without a reload
     expect(page.get_by_test_id("nate-mode")).not_to_have_text("—", timeout=20_000)
+    # Reading needs the cookie here, so the view cannot come from the loopback twin (a
+    # process of its own): it would share the console's thread, and with software WebGL
+    # (SwiftShader) it starts hidden, saying why, so that the console stays responsive.
+    toggle = page.get_by_test_id("view3d-toggle")
+    expect(toggle).to_have_attribute("aria-expanded", "false")
+    expect(page.locator("#view3d-status")).to_contain_text("draws WebGL in software")
+    toggle.click()  # this browser's choice: shown, it loads
+    expect(toggle).to_have_attribute("aria-expanded", "true")
+    page.locator("#view3d-box").scroll_into_view_if_needed()
     # the 3D view (its own page and WebSocket in the iframe) reads with the cookie too
     frame = page.frame_locator("[data-testid=view3d]")
     expect(frame.locator("canvas").first).to_be_visible(timeout=60_000)
@@ -65,6 +74,8 @@ def test_a_viewer_reads_live_and_may_not_command(
         expect(page.locator(control)).to_be_disabled()
         expect(page.locator(control)).to_have_attribute("title", re.compile("operator role"))
     page.screenshot(path=str(ARTIFACTS / "signin_viewer.png"))
+    toggle.click()  # hidden again: the next steps time the console, not SwiftShader
+    expect(page.get_by_test_id("view3d")).to_have_attribute("src", "about:blank")
 
 
 def test_an_operator_may_command_and_signing_out_forgets_the_token(
