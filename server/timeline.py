@@ -23,7 +23,7 @@ from server.alarms import alarm_json
 from server.eventlog import rest_event
 from server.runtime import RoverRuntime
 from server.storage import Store
-from sim.world.marsclock import t_s_to_utc
+from sim.world.marsclock import t_s_for_sol_lmst, t_s_to_utc
 
 
 def _when(runtime: RoverRuntime, t_s: float) -> dict[str, Any]:
@@ -87,11 +87,19 @@ def sol_timeline(
     span = store.sol_range(rover, sol)
     if span is None:
         return None
-    t0, t1 = span
+    # The span runs from the sol's first to its last record: a frame, or an event stored
+    # outside the frames (the server's start, stamped before the first frame; a restart,
+    # stamped at the checkpoint the rover resumed from, before frames stored already).
+    mission = runtime.spec.mission
+    sol_events = store.events(
+        rover, t_s_for_sol_lmst(mission, sol, 0.0), t_s_for_sol_lmst(mission, sol + 1, 0.0)
+    )
+    events = [e for e in sol_events if runtime.sol(float(e["t_s"])) == sol]
+    t0 = min([span[0], *(float(e["t_s"]) for e in events)])
+    t1 = max([span[1], *(float(e["t_s"]) for e in events)])
     frames = store.frames(rover, t0, t1)
     truths = list(store.truths(rover, t0, t1).values()) if truth else []
     commands = store.commands(rover, t0, t1)
-    events = store.events(rover, t0, t1)
     alarms = [alarm_json(a) for a in reversed(store.alarms(rover, span=(t0, t1)))]
     if not truth:
         events, alarms = ground_events(events), ground_channels(alarms)

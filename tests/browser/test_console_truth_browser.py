@@ -209,18 +209,30 @@ def test_a_failed_upload_clears_the_old_diagnostics(
     row = page.locator("#sequences tbody tr").first
     expect(row).to_contain_text("broken")
     expect(row).to_contain_text(re.compile(r"rejected: 2 errors: line 2: .*; line 4: "))
+    # A file's diagnostics go under the file's name; the editor's list keeps describing the
+    # editor's text. A failed upload of another file clears the first file's diagnostics.
+    file_head = page.get_by_test_id("file-result-head")
+    file_diagnostics = page.get_by_test_id("file-diagnostics").locator("li")
+    bad = tmp_path / "bad.seq"
+    bad.write_text(BAD)
+    page.set_input_files("[data-testid=file-input]", str(bad))
+    page.click("#upload-file")
+    expect(file_head).to_have_text("bad.seq: Rejected: 2 error(s), nothing queued")
+    expect(file_diagnostics).to_have_count(2)
     big = tmp_path / "big.seq"
     big.write_text("SEQUENCE big\n" + "# padding\n" * 120_000)  # over the 1 MB limit
     page.set_input_files("[data-testid=file-input]", str(big))
     page.click("#upload-file")
-    expect(status).to_have_text(
-        re.compile(r"^Upload failed \(413\): body over the upload limit of 1 MB \(1000000 bytes\)$")
-    )
-    expect(diagnostics).to_have_count(0)
+    refused = r"Upload failed \(413\): body over the upload limit of 1 MB \(1000000 bytes\)$"
+    expect(status).to_have_text(re.compile("^" + refused))
+    expect(file_head).to_have_text(re.compile(r"^big\.seq: " + refused))
+    expect(file_diagnostics).to_have_count(0)
+    expect(diagnostics).to_have_count(2)  # the editor's text, unchanged
     # the editor's check comes back late (a busy server): it is not shown over the upload's
     assert len(held) == 1
     with page.expect_response("**/api/sequences/validate*"):
         held[0].continue_()
     page.wait_for_timeout(300)
-    expect(diagnostics).to_have_count(0)
+    expect(diagnostics).to_have_count(2)
+    expect(file_diagnostics).to_have_count(0)
     page.close()
