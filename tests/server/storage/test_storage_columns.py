@@ -167,6 +167,15 @@ def test_a_channel_read_from_its_column_is_the_records_channel(
 def check_channel(store: Store, pairs: FramePairs, name: str) -> None:
     """Channel ``name`` read as arrays is the stored records' channel, frame for frame."""
     _stored(store, pairs)
+    channel = frame_channels()[name]
+    # every downlink with its truth, each time once: the values of the records written
+    written = store.channel("spirit", name, -math.inf, math.inf)
+    assert written is not None
+    assert written.t_s.tolist() == [d["t_s"] for d, _ in pairs]
+    record = 1 if channel.truth else 0
+    want_written = [channel.read(pair[record]) for pair in pairs]
+    want_written = [math.nan if v is None else v for v in want_written]
+    assert np.array_equal(written.values, want_written, equal_nan=True)
     store.add_frames("opportunity", [pairs[0][0]], [pairs[0][1]])  # another rover: not read
     # a stretch stored again later (a rover run again from its checkpoint): out of time order
     store.add_frames("spirit", [d for d, _ in pairs[20:40]], [t for _, t in pairs[20:40]])
@@ -177,7 +186,6 @@ def check_channel(store: Store, pairs: FramePairs, name: str) -> None:
     got = store.channel("spirit", name, t[5], lonely["t_s"])
     assert got is not None
     frames = store.frames("spirit", t[5], lonely["t_s"], with_truth=True)
-    channel = frame_channels()[name]
     unpaired = channel.truth and frames[-1]["t_s"] == lonely["t_s"]
     expected = [channel.read(f) for f in frames[: -1 if unpaired else None]]
     expected += [None] if unpaired else []
