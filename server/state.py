@@ -29,7 +29,7 @@ from server.queue_view import QueueNotices, queue_json
 from server.runtime import ROVERS, CheckpointFormatError, RoverRuntime
 from server.scene3d.scene import RoverScene
 from server.sinks import FrameSink, StorageSink
-from server.storage import BatchWriter, Store
+from server.storage import BatchWriter, CommandRecord, Store
 from server.timeline import stored_command
 from server.validation.context import rover_site, validation_context
 from server.validation.pool import ValidationPool
@@ -171,8 +171,8 @@ class Server:
         return {"t_s": t_s, "utc": t_s_to_utc(t_s).isoformat(), "lmst_h": runtime.lmst_h(t_s),
                 "sol": runtime.sol(t_s)}  # fmt: skip
 
-    def _command(self, rover: str, report: dict[str, Any]) -> None:
-        self.writer.command(rover, **report)
+    def _command(self, rover: str, report: CommandRecord) -> None:
+        self.writer.command(rover, report)
         if self.hub.count(rover):  # a live timeline shows it: read back (so written) as listed
             entry = stored_command(self.store, self.rovers[rover], report)
             if entry is not None:

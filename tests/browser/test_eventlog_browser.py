@@ -9,6 +9,7 @@ test-artifacts/ (eventlog.png, the page; eventlog-panel-{760,1280,1920}.png)."""
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Iterator
 from typing import Any
 
