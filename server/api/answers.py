@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import typing
 from dataclasses import fields
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, create_model
+from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, create_model
 from pydantic.fields import FieldInfo
 
 from sim.loop.downlink import Downlink
@@ -477,3 +477,74 @@ class Timeline(Answer):
     distance_m: float
     summary: SolSummary
     truth: SolTruth | None = None
+
+
+class LiveEvent(Answer):
+    """An event as the WebSocket carries it: stamped with its own frame's time."""
+
+    text: str
+    kind: str
+    severity: str
+    t_s: float | None
+    sol: int | None
+    lmst_h: float | None
+
+
+class FrameMessage(Frame):  # type: ignore[misc, valid-type]
+    """A frame on the WebSocket (it has no ``type``): the newest frame played out, with the
+    events of every frame since the last message and what this client lost."""
+
+    published_wall: float
+    events: list[LiveEvent]
+    dropped: int
+    dropped_events: int
+
+
+class _NoticeMessage(Answer):
+    dropped_notices: int
+
+
+class AlarmMessage(_NoticeMessage):
+    type: Literal["alarm"]
+    alarm: Alarm
+
+
+class CommandMessage(_NoticeMessage):
+    type: Literal["command"]
+    command: CommandRun
+
+
+class EventMessage(_NoticeMessage):
+    type: Literal["event"]
+    event: LiveEvent
+
+
+class QueueMessage(_NoticeMessage):
+    type: Literal["queue"]
+    rover: str
+    queue: list[QueueEntry]
+
+
+def _message_tag(message: Any) -> str:
+    """A message's tag: its ``type``, or ``frame`` for a frame (which has none)."""
+    got = message.get("type") if isinstance(message, dict) else getattr(message, "type", None)
+    return str(got) if got is not None else "frame"
+
+
+WsMessage = Annotated[
+    Annotated[FrameMessage, Tag("frame")]
+    | Annotated[AlarmMessage, Tag("alarm")]
+    | Annotated[CommandMessage, Tag("command")]
+    | Annotated[EventMessage, Tag("event")]
+    | Annotated[QueueMessage, Tag("queue")],
+    Discriminator(_message_tag),
+]
+"""A message of ``/ws/rovers/{rover}/telemetry``: a frame, or a notice tagged by ``type``."""
+
+
+class UnionSchema(Answer):
+    """A JSON schema (draft 2020-12) of a tagged union: its members in ``oneOf``, their
+    definitions in ``$defs``."""
+
+    one_of: list[dict[str, Any]] = Field(alias="oneOf")
+    defs: dict[str, dict[str, Any]] = Field(alias="$defs")
