@@ -28,11 +28,11 @@ class Answer(BaseModel):
     model_config = ConfigDict(extra="allow")
 
 
-def _frame_model() -> type[Answer]:
+def _frame_model(name: str = "Frame", truth: bool = True) -> type[Answer]:
     """A frame: the downlink record's fields, then the truth record's (present in the truth
     view only); each may be null (a figure that does not exist)."""
     declared: dict[str, Any] = {}
-    for record, where in ((Downlink, "downlink"), (Truth, "truth")):
+    for record, where in ((Downlink, "downlink"), (Truth, "truth"))[: 2 if truth else 1]:
         hints = typing.get_type_hints(record)
         extras = typing.get_type_hints(record, include_extras=True)
         for f in fields(record):
@@ -46,7 +46,7 @@ def _frame_model() -> type[Answer]:
                 Field(default=None, description=f"{text} ({where} record)" if text else where),
             )
     model: type[Answer] = create_model(
-        "Frame", __base__=Answer, __doc__="A telemetry frame: the downlink record, merged with "
+        name, __base__=Answer, __doc__="A telemetry frame: the downlink record, merged with "
         "its truth record in the truth view (GET /api/schema/downlink and /truth).",
         **declared,
     )  # fmt: skip
@@ -490,9 +490,10 @@ class LiveEvent(Answer):
     lmst_h: float | None
 
 
-class FrameMessage(Frame):  # type: ignore[misc, valid-type]
+class FrameMessage(_frame_model("DownlinkFrame", truth=False)):  # type: ignore[misc]
     """A frame on the WebSocket (it has no ``type``): the newest frame played out, with the
-    events of every frame since the last message and what this client lost."""
+    events of every frame since the last message and what this client lost. The truth
+    record's fields, merged in for the truth view, are in ``GET /api/schema/truth``."""
 
     published_wall: float
     events: list[LiveEvent]
