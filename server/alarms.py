@@ -50,6 +50,7 @@ from sequences.commands import COMMANDS
 from server.access.truth_view import TRUTH_MARK
 from server.errors import ConflictError, DomainError, NotFoundError, UnknownChannelError
 from server.limits import ChannelLimits, LimitsError, check_levels, load_defaults
+from server.notices import AlarmNotice
 from server.sinks import FrameBatch
 from server.storage import Store
 from sim.scoring.truth import merged
@@ -58,7 +59,7 @@ RANK = {"warning": 1, "critical": 2}
 LATEST_EVERY_S = 60.0  # a number's latest value is stored at least this often (rover's clock)
 
 When = Callable[[str, float], dict[str, Any]]  # (rover, t_s) -> {t_s, utc, lmst_h, sol}
-Notify = Callable[[str, dict[str, Any]], None]
+Notify = Callable[[str, AlarmNotice], None]
 # (rover, t_s or None for "the rover's clock now", event {text, kind, severity})
 OnEvent = Callable[[str, float | None, dict[str, str]], None]
 
@@ -314,7 +315,7 @@ class AlarmEngine:
         }  # fmt: skip
         row["id"] = self.store.add_alarm(row)
         self._listed[rover][limits.channel] = row
-        self._notify(rover, {"type": "alarm", "alarm": alarm_json(row)})
+        self._notify(rover, AlarmNotice(alarm_json(row)))
         self._event(rover, t_s, row, "raised")
 
     def _change(
@@ -331,7 +332,7 @@ class AlarmEngine:
         row.update({k: v.isoformat() if isinstance(v, datetime) else v for k, v in values.items()})
         if done:
             self._listed[rover].pop(row["channel"], None)  # done: no longer listed
-        self._notify(rover, {"type": "alarm", "alarm": alarm_json(row)})
+        self._notify(rover, AlarmNotice(alarm_json(row)))
         if what is not None:
             self._event(rover, t_s, row, what, cleared=True)
         elif values.get("acknowledged_by") is not None:  # then the event log's line

@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from server.access.truth_view import is_truth_notice
+from server.notices import Notice
 from server.sinks import FrameBatch
 from sim.scoring.truth import merged
 
@@ -139,20 +140,18 @@ class TelemetryHub:
             except RuntimeError:  # the client's loop has closed
                 self.unsubscribe(rover, client)
 
-    def notify(self, rover: str, notice: dict[str, Any]) -> None:
-        """Hand a notice (a dict with a ``type``) to every client of ``rover``
-        (thread-safe, never blocks); one that tells the truth to those in the truth view
-        only."""
-        if "type" not in notice:
-            raise ValueError("a notice needs a type")
-        truth_only = is_truth_notice(notice)
+    def notify(self, rover: str, notice: Notice) -> None:
+        """Hand a notice (``server.notices``) to every client of ``rover`` (thread-safe,
+        never blocks); one that tells the truth to those in the truth view only."""
+        message = notice.message()
+        truth_only = is_truth_notice(message)
         with self._lock:
             clients = list(self._clients.get(rover, set()))
         for client in clients:
             if truth_only and not client.truth:
                 continue
             try:
-                client.loop.call_soon_threadsafe(client.put_notice, dict(notice))
+                client.loop.call_soon_threadsafe(client.put_notice, dict(message))
             except RuntimeError:  # the client's loop has closed
                 self.unsubscribe(rover, client)
 

@@ -26,6 +26,7 @@ from typing import Any
 from sqlalchemy import select
 
 from sequences.language import SequenceStep, TimeTag
+from server.notices import QueueNotice
 from server.runtime import QueueEntry, RoverRuntime
 from server.storage import Store, commands
 from sim.world.marsclock import t_s_to_utc
@@ -170,8 +171,8 @@ class QueueNotices:
 
     def __init__(
         self,
-        build: Callable[[str], dict[str, Any]],
-        send: Callable[[str, dict[str, Any]], None],
+        build: Callable[[str], QueueNotice],
+        send: Callable[[str, QueueNotice], None],
         wanted: Callable[[str], bool],
         min_interval_s: float = MIN_INTERVAL_S,
     ) -> None:

@@ -70,6 +70,7 @@ from server.queue import (
     snapshot,
 )
 from server.sinks import Frame, FrameBatch, FrameSink, PlayedFrame, with_truth
+from server.storage.records import CommandRecord
 from sim.loop.session import RoverSession
 from sim.world.marsclock import (
     SOL_S,
@@ -152,7 +153,7 @@ class RoverRuntime:
         self.queue: deque[QueuedSequence] = deque()
         self.lock = threading.RLock()
         self.sinks: list[FrameSink] = []
-        self.on_command: Callable[[str, dict[str, Any]], None] | None = None
+        self.on_command: Callable[[str, CommandRecord], None] | None = None
         self.on_sequence: Callable[[int, str, str | None], None] | None = None
         self.on_checkpoint: Callable[[str, float, bytes], None] | None = None
         self.commit: Callable[[], None] | None = None
@@ -484,12 +485,10 @@ class RoverRuntime:
                 item.next_step = len(item.sequence.steps)
                 item.halted = True
         if self.on_command is not None:
-            self.on_command(self.spec.name, {
-                "sequence_id": item.sequence_id, "step_index": index,
-                "command": step.command.describe(), "status": report.status,
-                "reason": report.reason, "start_t_s": report.start_t_s,
-                "end_t_s": report.end_t_s, "events": [e.text for e in report.events],
-            })  # fmt: skip
+            self.on_command(self.spec.name, CommandRecord(
+                item.sequence_id, index, step.command.describe(), report.status, report.reason,
+                report.start_t_s, report.end_t_s, tuple(e.text for e in report.events),
+            ))  # fmt: skip
         self._queue_changed()
         if report.status != "completed":
             log.info("rover %s: %s: %s", self.spec.name, report.status, report.reason)

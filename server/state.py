@@ -25,11 +25,12 @@ from server.access.truth_view import check_truth_view
 from server.alarms import AlarmEngine
 from server.errors import UnknownRoverError
 from server.hub import TelemetryHub
+from server.notices import CommandNotice, EventNotice, QueueNotice
 from server.queue_view import QueueNotices, queue_json
 from server.runtime import ROVERS, CheckpointFormatError, RoverRuntime
 from server.scene3d.scene import RoverScene
 from server.sinks import FrameSink, StorageSink
-from server.storage import BatchWriter, Store
+from server.storage import BatchWriter, CommandRecord, Store
 from server.timeline import stored_command
 from server.validation.context import rover_site, validation_context
 from server.validation.pool import ValidationPool
@@ -171,12 +172,12 @@ class Server:
         return {"t_s": t_s, "utc": t_s_to_utc(t_s).isoformat(), "lmst_h": runtime.lmst_h(t_s),
                 "sol": runtime.sol(t_s)}  # fmt: skip
 
-    def _command(self, rover: str, report: dict[str, Any]) -> None:
-        self.writer.command(rover, **report)
+    def _command(self, rover: str, report: CommandRecord) -> None:
+        self.writer.command(rover, report)
         if self.hub.count(rover):  # a live timeline shows it: read back (so written) as listed
             entry = stored_command(self.store, self.rovers[rover], report)
             if entry is not None:
-                self.hub.notify(rover, {"type": "command", "command": entry})
+                self.hub.notify(rover, CommandNotice(entry))
 
     def _sequence(self, sequence_id: int, status: str, detail: str | None) -> None:
         self.writer.flush()
@@ -214,15 +215,11 @@ class Server:
         t = self.rovers[rover].t_s if t_s is None else t_s
         when = self._when(rover, t)
         self.writer.events(rover, [(t, event)])
-        self.hub.notify(rover, {"type": "event", "event": {
-            **event, "t_s": t, "sol": when["sol"], "lmst_h": when["lmst_h"]}})  # fmt: skip
+        self.hub.notify(rover, EventNotice(
+            {**event, "t_s": t, "sol": when["sol"], "lmst_h": when["lmst_h"]}))  # fmt: skip
 
-    def _queue_notice(self, rover: str) -> dict[str, Any]:
-        return {
-            "type": "queue",
-            "rover": rover,
-            "queue": queue_json(self.rovers[rover], self.store),
-        }
+    def _queue_notice(self, rover: str) -> QueueNotice:
+        return QueueNotice(rover, queue_json(self.rovers[rover], self.store))
 
     def _record_start(self) -> None:
         """The server's own start on every rover's event log, at the rover's clock now, and

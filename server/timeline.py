@@ -22,7 +22,7 @@ from server.access.truth_view import ground_channels, ground_events
 from server.alarms import alarm_json
 from server.eventlog import rest_event
 from server.runtime import RoverRuntime
-from server.storage import Store
+from server.storage import CommandRecord, Store
 from sim.world.marsclock import t_s_for_sol_lmst, t_s_to_utc
 
 
@@ -44,17 +44,17 @@ def command_entry(
 
 
 def stored_command(
-    store: Store, runtime: RoverRuntime, report: dict[str, Any]
+    store: Store, runtime: RoverRuntime, report: CommandRecord
 ) -> dict[str, Any] | None:
     """The timeline entry of the command a runtime just reported (``on_command``'s
     report), read back from storage once it is written: its id, reruns and submitter are
     the stored ones. ``None`` if it is not stored (the writer dropped it)."""
     rover = runtime.spec.name
-    start, end = float(report["start_t_s"]), float(report["end_t_s"])
+    start, end = report.start_t_s, report.end_t_s
     rows = [
         c
         for c in store.commands(rover, start, end)
-        if c["sequence_id"] == report["sequence_id"] and c["step_index"] == report["step_index"]
+        if c["sequence_id"] == report.sequence_id and c["step_index"] == report.step_index
     ]
     if not rows:
         return None

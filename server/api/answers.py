@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import typing
 from dataclasses import fields
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, create_model
+from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, create_model
 from pydantic.fields import FieldInfo
 
 from sim.loop.downlink import Downlink
@@ -28,11 +28,11 @@ class Answer(BaseModel):
     model_config = ConfigDict(extra="allow")
 
 
-def _frame_model() -> type[Answer]:
+def _frame_model(name: str = "Frame", truth: bool = True) -> type[Answer]:
     """A frame: the downlink record's fields, then the truth record's (present in the truth
     view only); each may be null (a figure that does not exist)."""
     declared: dict[str, Any] = {}
-    for record, where in ((Downlink, "downlink"), (Truth, "truth")):
+    for record, where in ((Downlink, "downlink"), (Truth, "truth"))[: 2 if truth else 1]:
         hints = typing.get_type_hints(record)
         extras = typing.get_type_hints(record, include_extras=True)
         for f in fields(record):
@@ -46,7 +46,7 @@ def _frame_model() -> type[Answer]:
                 Field(default=None, description=f"{text} ({where} record)" if text else where),
             )
     model: type[Answer] = create_model(
-        "Frame", __base__=Answer, __doc__="A telemetry frame: the downlink record, merged with "
+        name, __base__=Answer, __doc__="A telemetry frame: the downlink record, merged with "
         "its truth record in the truth view (GET /api/schema/downlink and /truth).",
         **declared,
     )  # fmt: skip
@@ -477,3 +477,75 @@ class Timeline(Answer):
     distance_m: float
     summary: SolSummary
     truth: SolTruth | None = None
+
+
+class LiveEvent(Answer):
+    """An event as the WebSocket carries it: stamped with its own frame's time."""
+
+    text: str
+    kind: str
+    severity: str
+    t_s: float | None
+    sol: int | None
+    lmst_h: float | None
+
+
+class FrameMessage(_frame_model("DownlinkFrame", truth=False)):  # type: ignore[misc]
+    """A frame on the WebSocket (it has no ``type``): the newest frame played out, with the
+    events of every frame since the last message and what this client lost. The truth
+    record's fields, merged in for the truth view, are in ``GET /api/schema/truth``."""
+
+    published_wall: float
+    events: list[LiveEvent]
+    dropped: int
+    dropped_events: int
+
+
+class _NoticeMessage(Answer):
+    dropped_notices: int
+
+
+class AlarmMessage(_NoticeMessage):
+    type: Literal["alarm"]
+    alarm: Alarm
+
+
+class CommandMessage(_NoticeMessage):
+    type: Literal["command"]
+    command: CommandRun
+
+
+class EventMessage(_NoticeMessage):
+    type: Literal["event"]
+    event: LiveEvent
+
+
+class QueueMessage(_NoticeMessage):
+    type: Literal["queue"]
+    rover: str
+    queue: list[QueueEntry]
+
+
+def _message_tag(message: Any) -> str:
+    """A message's tag: its ``type``, or ``frame`` for a frame (which has none)."""
+    got = message.get("type") if isinstance(message, dict) else getattr(message, "type", None)
+    return str(got) if got is not None else "frame"
+
+
+WsMessage = Annotated[
+    Annotated[FrameMessage, Tag("frame")]
+    | Annotated[AlarmMessage, Tag("alarm")]
+    | Annotated[CommandMessage, Tag("command")]
+    | Annotated[EventMessage, Tag("event")]
+    | Annotated[QueueMessage, Tag("queue")],
+    Discriminator(_message_tag),
+]
+"""A message of ``/ws/rovers/{rover}/telemetry``: a frame, or a notice tagged by ``type``."""
+
+
+class UnionSchema(Answer):
+    """A JSON schema (draft 2020-12) of a tagged union: its members in ``oneOf``, their
+    definitions in ``$defs``."""
+
+    one_of: list[dict[str, Any]] = Field(alias="oneOf")
+    defs: dict[str, dict[str, Any]] = Field(alias="$defs")

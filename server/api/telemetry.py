@@ -13,11 +13,12 @@ from typing import Annotated, Any
 import anyio
 from fastapi import Query, Request, WebSocket
 from fastapi.responses import Response
+from pydantic import TypeAdapter
 from starlette.websockets import WebSocketDisconnect
 
 from server.access.auth import Viewer
 from server.access.truth_view import truth_refused
-from server.api.answers import Frame, RecordSchema, Timeline
+from server.api.answers import Frame, RecordSchema, Timeline, UnionSchema, WsMessage
 from server.api.deps import (
     BAD_REQUEST,
     CSV_FILE,
@@ -200,3 +201,14 @@ def truth_record_schema(_: Viewer, truth: SeesTruth) -> dict[str, Any]:
     if not truth:
         raise truth_refused("the truth record's schema")
     return truth_schema()
+
+
+WS_MESSAGE = TypeAdapter(WsMessage)
+
+
+@routes.get("/api/schema/ws", response_model=UnionSchema)
+def ws_message_schema(_: Viewer) -> dict[str, Any]:
+    """The JSON schema of a message of ``/ws/rovers/{rover}/telemetry``: a frame (it has no
+    ``type``) or a notice tagged by its ``type`` (``alarm``, ``command``, ``event``,
+    ``queue``)."""
+    return WS_MESSAGE.json_schema()

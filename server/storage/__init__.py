@@ -48,6 +48,7 @@ Choices worth knowing:
 """
 
 from server.storage.engine import data_dir_url
+from server.storage.records import CommandRecord
 from server.storage.schema import (
     LEGACY_KIND,
     LEGACY_SEVERITY,
@@ -71,6 +72,7 @@ __all__ = [
     "LEGACY_KIND",
     "LEGACY_SEVERITY",
     "BatchWriter",
+    "CommandRecord",
     "Store",
     "alarm_limits",
     "alarms_table",

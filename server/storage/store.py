@@ -41,6 +41,7 @@ from server.storage.channels import (
 from server.storage.chunks import CHUNK_FRAMES, pack_new
 from server.storage.engine import OneThreadAtATimePool
 from server.storage.migrate import upgrade_database
+from server.storage.records import CommandRecord
 from server.storage.schema import (
     alarm_limits,
     alarms_table,
@@ -97,27 +98,19 @@ def event_columns(event: Mapping[str, Any]) -> dict[str, str]:
     return {"text": str(e["text"]), "kind": str(e["kind"]), "severity": str(e["severity"])}
 
 
-def command_row(
-    rover: str,
-    sequence_id: int | None,
-    step_index: int | None,
-    command: str,
-    status: str,
-    reason: str | None,
-    start_t_s: float,
-    end_t_s: float,
-    events: list[str],
-) -> dict[str, Any]:
+def command_row(rover: str, record: CommandRecord) -> dict[str, Any]:
+    """The ``commands`` row of ``record`` (its columns, plus the rover and when it is
+    written)."""
     return {
         "rover": rover,
-        "sequence_id": sequence_id,
-        "step_index": step_index,
-        "command": command,
-        "status": status,
-        "reason": reason,
-        "start_t_s": float(start_t_s),
-        "end_t_s": float(end_t_s),
-        "events": list(events),
+        "sequence_id": record.sequence_id,
+        "step_index": record.step_index,
+        "command": record.command,
+        "status": record.status,
+        "reason": record.reason,
+        "start_t_s": float(record.start_t_s),
+        "end_t_s": float(record.end_t_s),
+        "events": list(record.events),
         "created_at": now_utc(),
     }
 
@@ -275,8 +268,9 @@ class Store:
     ) -> int:
         """Store one executed or refused command; its row's id. A step of a sequence
         already stored (run again after a restart) updates its row (module docstring)."""
-        row = command_row(rover, sequence_id, step_index, command, status, reason,
-                           start_t_s, end_t_s, events)  # fmt: skip
+        record = CommandRecord(sequence_id, step_index, command, status, reason,
+                               start_t_s, end_t_s, tuple(events))  # fmt: skip
+        row = command_row(rover, record)
         with self.engine.begin() as conn:
             return record_command(conn, row)
 

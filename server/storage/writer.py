@@ -12,6 +12,7 @@ from typing import Any
 
 from sqlalchemy.engine import Connection
 
+from server.storage.records import CommandRecord
 from server.storage.store import Store, command_row
 
 log = logging.getLogger(__name__)
@@ -68,9 +69,9 @@ class BatchWriter:
         with self._lock:
             self._events.extend((rover, float(t), e) for t, e in events)
 
-    def command(self, rover: str, **fields: Any) -> None:
-        """Queue one command execution (the keyword arguments of ``Store.add_command``)."""
-        row = command_row(rover, **fields)  # a wrong field fails here, in the caller
+    def command(self, rover: str, record: CommandRecord) -> None:
+        """Queue one command execution."""
+        row = command_row(rover, record)
         with self._lock:
             self._commands.append(row)
 

@@ -30,7 +30,7 @@ class Rig:
         def when(rover: str, t_s: float) -> dict[str, Any]:
             return {"t_s": t_s, "utc": f"utc-{t_s:g}", "lmst_h": t_s / 3600.0, "sol": 7}
 
-        return AlarmEngine(self.store, when, lambda rover, n: self.notices.append(n))
+        return AlarmEngine(self.store, when, lambda rover, n: self.notices.append(n.message()))
 
     def feed(self, t_s: float, **values: Any) -> None:
         frame = {"t_s": t_s, "aqf": "Fine", "earth_up": True, "hga_margin_deg": 1.9,

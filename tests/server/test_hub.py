@@ -5,9 +5,8 @@ from __future__ import annotations
 
 import asyncio
 
-import pytest
-
 from server.hub import QUEUE_NOTICES, TelemetryHub, next_message
+from server.notices import AlarmNotice, CommandNotice, EventNotice, QueueNotice
 from server.sinks import FrameBatch
 from tests.frame_batches import batch
 
@@ -26,7 +25,7 @@ def test_notices_go_before_frames_and_frames_are_merged_to_the_newest() -> None:
         hub.publish(
             "spirit", batch([{"t_s": 1.0, "events": [EV_A]}, {"t_s": 2.0, "events": [EV_B]}])
         )
-        hub.notify("spirit", {"type": "command", "command": "DRIVE_STRAIGHT"})
+        hub.notify("spirit", CommandNotice({"command": "DRIVE_STRAIGHT"}))
         await asyncio.sleep(0)  # let call_soon_threadsafe deliver
         return [await next_message(client), await next_message(client)]
 
@@ -67,10 +66,10 @@ def test_a_waiting_client_wakes_for_a_notice() -> None:
         waiter = asyncio.create_task(next_message(client))
         await asyncio.sleep(0.01)
         assert not waiter.done()
-        hub.notify("spirit", {"type": "alarm", "id": 1})
+        hub.notify("spirit", AlarmNotice({"id": 1}))
         return await asyncio.wait_for(waiter, 2.0)
 
-    assert _run(scenario())["id"] == 1
+    assert _run(scenario())["alarm"]["id"] == 1
 
 
 def test_a_client_far_behind_loses_the_oldest_notices_and_is_told() -> None:
@@ -78,17 +77,12 @@ def test_a_client_far_behind_loses_the_oldest_notices_and_is_told() -> None:
         hub = TelemetryHub()
         client = hub.subscribe("spirit")
         for i in range(QUEUE_NOTICES + 5):
-            hub.notify("spirit", {"type": "queue", "i": i})
+            hub.notify("spirit", QueueNotice("spirit", [{"i": i}]))
         await asyncio.sleep(0)
         return await next_message(client)
 
     first = _run(scenario())
-    assert first["i"] == 5 and first["dropped_notices"] == 5
-
-
-def test_a_notice_needs_a_type() -> None:
-    with pytest.raises(ValueError, match="type"):
-        TelemetryHub().notify("spirit", {"id": 1})
+    assert first["queue"] == [{"i": 5}] and first["dropped_notices"] == 5
 
 
 class _Collect:
@@ -163,11 +157,11 @@ def test_at_max_speed_every_event_of_every_frame_reaches_a_client_exactly_once()
 def test_a_client_outside_the_truth_view_gets_the_downlink_and_no_truth_notice() -> None:
     """Issue 21, item 3: the truth merged in only for a client in the truth view, decided
     when it subscribes; an alarm on a truth channel (and its event) only to such clients."""
-    truth_alarm = {"type": "alarm", "alarm": {"id": 1, "channel": "hga_margin_deg", "truth": True}}
-    truth_event = {"type": "event", "event": {
+    truth_alarm = AlarmNotice({"id": 1, "channel": "hga_margin_deg", "truth": True})
+    truth_event = EventNotice({
         "text": "alarm raised: hga_margin_deg -1 deg (truth view)", "kind": "alarm",
-        "severity": "error"}}  # fmt: skip
-    rover_alarm = {"type": "alarm", "alarm": {"id": 2, "channel": "aqf", "truth": False}}
+        "severity": "error"})  # fmt: skip
+    rover_alarm = AlarmNotice({"id": 2, "channel": "aqf", "truth": False})
 
     async def scenario() -> tuple[list[dict], list[dict]]:  # type: ignore[type-arg]
         hub = TelemetryHub()

@@ -21,6 +21,7 @@ from server.runtime import (
     QueueError,
     RoverRuntime,
 )
+from server.storage import CommandRecord
 
 THREE = "SEQUENCE three\nNADIR_UPDATE\nWAIT duration_s=30\nGET_TILT_ATTITUDE\n"
 
@@ -31,11 +32,11 @@ def _seq(text: str = THREE) -> Sequence:
     return result.sequence
 
 
-def _runtime(speed: float = math.inf) -> tuple[RoverRuntime, list[dict[str, Any]]]:
+def _runtime(speed: float = math.inf) -> tuple[RoverRuntime, list[CommandRecord]]:
     """A runtime whose clock the test ticks; its command reports collected."""
     runtime = RoverRuntime(ROVERS["spirit"])
     runtime.set_clock(speed=speed)
-    reports: list[dict[str, Any]] = []
+    reports: list[CommandRecord] = []
     runtime.on_command = lambda _rover, report: reports.append(report)
     return runtime, reports
 
@@ -111,7 +112,7 @@ def test_a_step_starts_only_if_its_sequence_is_still_at_the_head() -> None:
     runtime._execute(picked[0])
     assert reports == [] and runtime.queue[1].has_started is False
     runtime._tick(0.05)
-    assert [(r["sequence_id"], r["step_index"]) for r in reports] == [(2, 0)]
+    assert [(r.sequence_id, r.step_index) for r in reports] == [(2, 0)]
     runtime._tick(0.05)  # its frames played out: between two steps
     assert runtime.current_step is None
 
@@ -130,7 +131,7 @@ def test_moves_and_cancels_from_another_thread_never_break_a_sequence() -> None:
     other one runs whole."""
     runtime, reports = _runtime()
 
-    def stored(_rover: str, report: dict[str, Any]) -> None:
+    def stored(_rover: str, report: CommandRecord) -> None:
         # as the server's storage takes a moment: at max speed the clock thread no longer
         # sleeps between steps, and could drain the queue before this thread ran at all
         reports.append(report)
@@ -164,7 +165,7 @@ def test_moves_and_cancels_from_another_thread_never_break_a_sequence() -> None:
         _wait_for(lambda: not runtime.queued_ids() and not runtime.executing)
     finally:
         runtime.stop()
-    ran = [(r["sequence_id"], r["step_index"]) for r in reports]
+    ran = [(r.sequence_id, r.step_index) for r in reports]
     runs: list[int] = []  # sequences in the order they ran, one entry per contiguous run
     for sequence_id, _step in ran:
         if not runs or runs[-1] != sequence_id:
@@ -217,7 +218,7 @@ def test_cancel_mid_sequence_runs_nothing_after_the_step_under_way() -> None:
     assert stopped is not None and (stopped.steps, stopped.done, stopped.running_step) == (3, 1, 1)
     for _ in range(100):
         runtime._tick(0.25)
-    assert [(r["sequence_id"], r["step_index"]) for r in reports] == [(1, 0)]
+    assert [(r.sequence_id, r.step_index) for r in reports] == [(1, 0)]
     assert runtime.queued_ids() == [] and runtime.current_step is None
 
 
@@ -255,7 +256,7 @@ def test_an_immediate_command_waits_for_a_started_sequence_to_end() -> None:
     runtime.enqueue(9, _seq("SEQUENCE now\nNADIR_UPDATE\n"), immediate=True)
     assert runtime.queued_ids() == [1, 9, 2]
     _tick_until(runtime, lambda: not runtime.queue and not runtime._playout)
-    order = [(r["sequence_id"], r["command"].split()[0]) for r in reports]
+    order = [(r.sequence_id, r.command.split()[0]) for r in reports]
     assert order == [
         (1, "NADIR_UPDATE"),
         (1, "DRIVE_STRAIGHT"),

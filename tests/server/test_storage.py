@@ -22,7 +22,7 @@ from typing import Any
 
 import pytest
 
-from server.storage import BatchWriter, Store
+from server.storage import BatchWriter, CommandRecord, Store
 from tests.frame_batches import scores_of
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -170,9 +170,8 @@ def test_the_batch_writer_records_a_step_once(store: Store) -> None:
 
     def step(index: int, end_t_s: float) -> None:
         writer.command(
-            "spirit", sequence_id=seq, step_index=index, command="WAIT", status="completed",
-            reason=None, start_t_s=float(index), end_t_s=end_t_s, events=[],
-        )  # fmt: skip
+            "spirit", CommandRecord(seq, index, "WAIT", "completed", None, float(index), end_t_s)
+        )
 
     step(0, 1.0)
     step(0, 1.5)  # twice in one batch
@@ -466,9 +465,9 @@ def test_batch_writer_flushes_on_its_own(store: Store, real_frames: list[dict[st
         writer.frames("spirit", real_frames[:10], scores_of(real_frames[:10]))
         writer.events("spirit", [(real_frames[3]["t_s"], ev("Sungaze converged", "sungaze"))])
         writer.command(
-            "spirit", sequence_id=seq, step_index=0, command="SUNGAZE", status="completed",
-            reason=None, start_t_s=1.0, end_t_s=2.0, events=["Sungaze converged"],
-        )  # fmt: skip
+            "spirit",
+            CommandRecord(seq, 0, "SUNGAZE", "completed", None, 1.0, 2.0, ("Sungaze converged",)),
+        )
         writer.checkpoint("spirit", 1.0, b"old")
         writer.checkpoint("spirit", 2.0, b"new")  # last one wins
         took = wait_for(lambda: store.load_checkpoint("spirit") is not None)
@@ -509,15 +508,12 @@ def test_batch_writer_drops_only_a_bad_row(
     writer = BatchWriter(store, interval_s=3600.0)
     writer.frames("spirit", real_frames[:3], scores_of(real_frames[:3]))
     writer.command(
-        "spirit", sequence_id=10**6, step_index=0, command="WAIT", status="completed",
-        reason=None, start_t_s=1.0, end_t_s=2.0, events=[],
-    )  # fmt: skip  # no such sequence: the foreign key refuses it
+        "spirit", CommandRecord(10**6, 0, "WAIT", "completed", None, 1.0, 2.0)
+    )  # no such sequence: the foreign key refuses it
     writer.flush()
     assert all_frames(store) == real_frames[:3]
     assert store.commands("spirit", 0.0, 3.0) == []
     assert "dropped a batch of commands" in caplog.text
-    with pytest.raises(TypeError):
-        writer.command("spirit", command="WAIT")  # missing fields fail in the caller
 
 
 WRITER_SCRIPT = """

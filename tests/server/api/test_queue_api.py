@@ -16,6 +16,7 @@ from fastapi.testclient import TestClient
 
 from sequences.validate import validate
 from server.app import Server, ServerConfig, create_app, data_dir_url
+from server.notices import QueueNotice
 from server.queue_view import QueueNotices
 from server.runtime import RoverRuntime
 
@@ -250,15 +251,17 @@ def test_notices_are_snapshots_built_once_for_many_changes_and_only_for_followed
     builds: list[str] = []
     sent: list[dict[str, Any]] = []
 
-    def build(rover: str) -> dict[str, Any]:
+    def build(rover: str) -> QueueNotice:
         builds.append(rover)
-        return {"type": "queue", "rover": rover}
+        return QueueNotice(rover, [])
 
-    notices = QueueNotices(build, lambda _rover, notice: sent.append(notice), "spirit".__eq__)
+    notices = QueueNotices(
+        build, lambda _rover, notice: sent.append(notice.message()), "spirit".__eq__
+    )
     for _ in range(5):  # five changes before the thread's next turn: one snapshot says all
         notices.changed("spirit")
     notices.changed("opportunity")  # nobody follows it: nothing built
     notices.send_pending()
-    assert builds == ["spirit"] and sent == [{"type": "queue", "rover": "spirit"}]
+    assert builds == ["spirit"] and sent == [{"type": "queue", "rover": "spirit", "queue": []}]
     notices.send_pending()
     assert builds == ["spirit"]  # nothing changed since

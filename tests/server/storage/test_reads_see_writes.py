@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from server.storage import BatchWriter, Store
+from server.storage import BatchWriter, CommandRecord, Store
 
 API = Path(__file__).resolve().parents[3] / "server" / "api"
 EVENT = {"text": "NADIR_UPDATE done", "kind": "command", "severity": "info"}
@@ -30,10 +30,7 @@ def test_each_queued_write_is_read_back_without_a_flush(store: Store) -> None:
     downlink = {"t_s": 10.0, "sol": 3, "events": [], "aqf": "Fine"}
     writer.frames("spirit", [downlink], [{"t_s": 10.0, "position_error_m": 0.25}])
     writer.events("spirit", [(10.0, EVENT)])
-    writer.command(
-        "spirit", sequence_id=seq, step_index=0, command="WAIT", status="completed",
-        reason=None, start_t_s=9.0, end_t_s=10.0, events=[],
-    )  # fmt: skip
+    writer.command("spirit", CommandRecord(seq, 0, "WAIT", "completed", None, 9.0, 10.0))
     writer.checkpoint("spirit", 10.0, b"state")
     assert store.sols("spirit") == [3]
     assert [f["t_s"] for f in store.frames("spirit", -math.inf, math.inf)] == [10.0]
