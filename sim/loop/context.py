@@ -104,13 +104,16 @@ class LoopContext:
         else:
             self.recorder.now(force=True)
 
-    def wait(self, duration_s: float) -> None:
-        """Let time pass; Articulate keeps propagating at 8 Hz, Idle is jumped over."""
+    def wait(self, duration_s: float, report_waiting_first: bool = True) -> None:
+        """Let time pass; Articulate keeps propagating at 8 Hz, Idle is jumped over.
+        ``report_waiting_first``: events waiting for a frame are reported at the next cycle;
+        ``False`` within a command whose events are known only at the wait's end (VO's
+        result, computed while the rover stands), so that one jump reports them."""
         nate, sim, frame = self.nate, self.sim, self.recorder.at_rest
         if nate.busy:
             raise CommandRefusedError(f"WAIT: refused while {nate.mode.value} runs")
         if nate.wait_hint_s > CONTROL_DT_S:  # Idle: one jump
-            if self.recorder.events and duration_s > CONTROL_DT_S:
+            if report_waiting_first and self.recorder.events and duration_s > CONTROL_DT_S:
                 # events waiting for a frame (a command that took no time: sim.loop.frames)
                 # are reported at the next cycle, not at the end of the jump
                 frame(nate.step(imu_sample(sim.rest(CONTROL_DT_S), 0)))

@@ -87,7 +87,9 @@ def drive_vo(
         distance += drive(ctx, command, kind, *step)["distance_truth_m"]
         after = ctx.estimate()
         updates += _vo_step(ctx, vo, before, after, i, len(steps), attitude)
-        ctx.wait(cmd.VO_PROCESSING_S)  # the rover stands while VO computes
+        # the rover stands while VO computes: the step's outcome is known at the stand's end,
+        # so its events are reported there, the stand one jump (sim.loop.frames)
+        ctx.wait(cmd.VO_PROCESSING_S, report_waiting_first=False)
         ctx.recorder.now(force=True)
         before = ctx.estimate()
     vo.reset()  # the last pair's images are not needed again (and checkpoints stay small)
