@@ -199,8 +199,8 @@ def test_a_failed_upload_clears_the_old_diagnostics(
     sign_in(page)
     held: list[Route] = []  # the editor's own check, answered only after both uploads
     page.route("**/api/sequences/validate*", lambda route: held.append(route))
-    page.fill("#editor", BAD)
-    page.wait_for_timeout(600)  # the editor checks 300 ms after the last keystroke
+    with page.expect_request("**/api/sequences/validate*"):  # 300 ms after the last key
+        page.fill("#editor", BAD)
     page.click("#upload-text")
     status = page.get_by_test_id("sequence-status")
     expect(status).to_contain_text("Rejected: 2 error(s)")
@@ -230,9 +230,10 @@ def test_a_failed_upload_clears_the_old_diagnostics(
     expect(diagnostics).to_have_count(2)  # the editor's text, unchanged
     # the editor's check comes back late (a busy server): it is not shown over the upload's
     assert len(held) == 1
-    with page.expect_response("**/api/sequences/validate*"):
+    with page.expect_response("**/api/sequences/validate*") as late:
         held[0].continue_()
-    page.wait_for_timeout(300)
+    late.value.finished()  # its body read; then the page's tasks queued behind it have run
+    page.evaluate("() => new Promise(r => setTimeout(() => setTimeout(r)))")
     expect(diagnostics).to_have_count(2)
     expect(file_diagnostics).to_have_count(0)
     page.close()
