@@ -28,6 +28,7 @@ ROUTES: list[tuple[str, str, str, dict[str, Any]]] = [
     ("GET", "/api/rovers/spirit/state", "viewer", {}),
     ("GET", "/api/schema/downlink", "viewer", {}),
     ("GET", "/api/schema/truth", "viewer", {}),
+    ("GET", "/api/schema/ws", "viewer", {}),
     ("GET", "/api/rovers/spirit/queue", "viewer", {}),
     ("GET", "/api/commands", "viewer", {}),
     ("GET", "/api/me", "viewer", {}),

@@ -3,9 +3,9 @@ records, and the console read against them.
 
 Every frame field the console's scripts read must be in one of the schemas, so that renaming
 a field of ``Downlink`` or ``Truth`` fails here rather than leaving a blank in the browser. The
-scripts name a frame ``f`` (console.js, timeline.js, plot.js) or ``frame`` (eventlog.js; in
-view3d.js ``frame`` is the 3D view's iframe); the timeline's band lanes name the field they
-follow in a string (``bandLane(..., "nate_mode")``).
+modules that read frames name a frame ``f`` (readouts.js, plot.js, truth.js, the timeline's
+modules) or ``frame`` (eventlog.js; in view3d.js ``frame`` is the 3D view's iframe); the
+timeline's band lanes name the field they follow in a string (``bandLane(..., "nate_mode")``).
 """
 
 from __future__ import annotations
@@ -26,7 +26,15 @@ from sim.scoring.truth import truth_schema
 WEB = Path(__file__).resolve().parents[3] / "web"
 TOKEN = "schema-test-token"
 # the name a script gives a telemetry frame
-FRAME_NAMES = {"console.js": "f", "timeline.js": "f", "plot.js": "f", "eventlog.js": "frame"}
+FRAME_NAMES = {
+    "readouts.js": "f",
+    "plot.js": "f",
+    "truth.js": "f",
+    "eventlog.js": "frame",
+    "timeline/panel.js": "f",
+    "timeline/plots.js": "f",
+    "timeline/lanes.js": "f",
+}
 
 
 def _nan_as_null(value: Any) -> Any:
@@ -108,14 +116,15 @@ def test_every_frame_field_the_console_reads_is_in_the_schema(
         text = (WEB / script).read_text(encoding="utf-8")
         read[script] = frame_fields_read(text, name)
         assert read[script], f"{script}: no read of a frame named {name!r} found"
-    read["timeline.js"] |= lane_fields((WEB / "timeline.js").read_text(encoding="utf-8"))
-    assert {"nate_mode", "aqf"} <= read["timeline.js"]  # the extraction finds the lanes
+    lanes = lane_fields((WEB / "timeline/lanes.js").read_text(encoding="utf-8"))
+    assert {"nate_mode", "aqf"} <= lanes  # the extraction finds the lanes
+    read["timeline/lanes.js"] |= lanes
     unknown = {f"{script}: {field}" for script, got in read.items() for field in got - fields}
     assert not unknown, f"the console reads fields a frame does not have: {sorted(unknown)}"
 
 
 def test_a_renamed_field_would_be_caught() -> None:
-    console = (WEB / "console.js").read_text(encoding="utf-8")
+    console = (WEB / "readouts.js").read_text(encoding="utf-8")
     fields = set(downlink_schema()["properties"]) | set(truth_schema()["properties"])
     assert "hga_margin_predicted_deg" in frame_fields_read(console, "f")
     renamed = fields - {"hga_margin_predicted_deg"} | {"hga_margin_now_deg"}

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import csv
 import io
+import posixpath
+import re
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -123,4 +125,17 @@ def test_the_vendored_plot_library_is_served_locally(client: TestClient) -> None
         assert r.status_code == 200 and len(r.content) > 1000
     js = client.get("/static/vendor/uplot/uPlot.iife.min.js")
     assert "javascript" in js.headers["content-type"] and "var uPlot=" in js.text
-    assert "/static/timeline.js" in page and client.get("/static/timeline.js").status_code == 200
+    assert '<script type="module" src="/static/main.js">' in page
+    # the console's module graph from its one entry: every import served, as JavaScript
+    # (a browser refuses a module of another type)
+    seen, todo = set(), ["/static/main.js"]
+    while todo:
+        path = todo.pop()
+        if path in seen:
+            continue
+        seen.add(path)
+        r = client.get(path)
+        assert r.status_code == 200 and "javascript" in r.headers["content-type"], path
+        for spec in re.findall(r'^\s*import\b[^"\']*["\'](\.{1,2}/[^"\']+)["\']', r.text, re.M):
+            todo.append(posixpath.normpath(posixpath.join(posixpath.dirname(path), spec)))
+    assert {"/static/timeline/panel.js", "/static/lib/api.js"} <= seen  # the walk went deep
