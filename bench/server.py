@@ -360,7 +360,7 @@ def _rover_context() -> Any:
     an in-memory database, clocks not started)."""
     from server.app import Server, ServerConfig
 
-    server = Server(ServerConfig(database_url="sqlite://", start_clocks=False))
+    server = Server.open(ServerConfig(database_url="sqlite://", start_clocks=False))
     try:
         return server.context(server.rovers[ROVER])
     finally:

@@ -53,7 +53,7 @@ WEB_DIR = Path(__file__).resolve().parent.parent / "web"  # the console, served 
 
 def create_app(config: ServerConfig) -> FastAPI:
     """The FastAPI app over a new ``Server``."""
-    server = Server(config)
+    server = Server.open(config)
 
     @asynccontextmanager
     async def lifespan(_: FastAPI) -> AsyncIterator[None]:

@@ -165,7 +165,8 @@ def recent_json(runtime: RoverRuntime, store: Store, limit: int = RECENT) -> lis
 
 class QueueNotices:
     """Queue notices, built and sent by a thread of their own (module docstring).
-    ``changed(rover)`` is what the runtimes call (``RoverRuntime.on_queue``): it never waits.
+    ``changed(rover)`` is what the runtimes' listener calls (``Server.queue_changed``): it
+    never waits.
     ``build(rover)`` makes a notice, ``send(rover, notice)`` hands it on (the hub), and
     ``wanted(rover)`` says whether anyone follows the rover."""
 

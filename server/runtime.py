@@ -20,7 +20,7 @@ its queue of accepted sequences, and a thread that runs the clock:
 - Operators reorder the queue (``move``) and cancel from it (``cancel``) within the rules of
   ``server.queue``; a step starts only if its sequence is still at the head when the clock
   thread takes it up (under ``lock``). Every queue change is applied to the last checkpoint
-  at once, and an ``on_queue`` hook hears of it (``server.queue_view``).
+  at once, and its listener's ``queue_changed`` hears of it (``server.queue_view``).
 - A step that fails (its mode ran and failed) is reported and the sequence goes on; a step
   that is refused (it could not run) stops the sequence, which ends ``failed``. A sequence
   that ran to the end is ``completed``, with the failed steps in its ``detail``.
@@ -48,7 +48,7 @@ import math
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import asdict, dataclass
 from datetime import UTC, datetime
 from typing import Any
@@ -69,7 +69,7 @@ from server.queue import (
     moved,
     snapshot,
 )
-from server.sinks import Frame, FrameBatch, FrameSink, PlayedFrame, with_truth
+from server.sinks import Frame, FrameBatch, FrameSink, PlayedFrame, RuntimeListener, with_truth
 from server.storage.records import CommandRecord
 from sim.loop.session import RoverSession
 from sim.world.marsclock import (
@@ -134,17 +134,20 @@ class ClockState:
 class RoverRuntime:
     """One rover on its own clock (module docstring). ``sinks`` receive every frame
     batch as it is played out (``server.sinks``: storage, alarms, WebSocket hub, 3D view);
-    ``on_command`` every command report; ``on_sequence`` sequence status changes; ``on_checkpoint``
-    the encoded state (called under ``lock``, so checkpoints arrive in the order they were taken);
-    ``commit`` stores what ``on_checkpoint`` queued, at once (a clock change)."""
+    ``listener`` (``server.sinks.RuntimeListener``, given when the runtime is built) hears
+    of everything else: command reports, sequence status, checkpoints and queue changes.
+    Without a listener the runtime runs alone: it neither checkpoints nor reports."""
 
     def __init__(
         self,
         spec: RoverSpec,
         session: RoverSession | None = None,
         estimators: tuple[str, ...] = ("sapp",),
+        listener: RuntimeListener | None = None,
+        sinks: Iterable[FrameSink] = (),
     ) -> None:
         self.spec = spec
+        self.listener = listener
         self.estimators = tuple(estimators)
         self.session = session or RoverSession(
             spec.site, spec.seed, spec.start_utc, frame_every_s=FRAME_EVERY_S, estimators=estimators
@@ -152,12 +155,7 @@ class RoverRuntime:
         self.clock = ClockState()
         self.queue: deque[QueuedSequence] = deque()
         self.lock = threading.RLock()
-        self.sinks: list[FrameSink] = []
-        self.on_command: Callable[[str, CommandRecord], None] | None = None
-        self.on_sequence: Callable[[int, str, str | None], None] | None = None
-        self.on_checkpoint: Callable[[str, float, bytes], None] | None = None
-        self.commit: Callable[[], None] | None = None
-        self.on_queue: Callable[[str], None] | None = None  # the queue or a step changed
+        self.sinks: list[FrameSink] = list(sinks)  # a 3D view joins and leaves (RoverScene)
         self.executing: str = ""
         self.current_step: tuple[int, int] | None = None  # (sequence id, step) executing
         # (downlink, truth) record pairs still to play out, in time order
@@ -218,11 +216,10 @@ class RoverRuntime:
                 return
             self._clock_changed = True
             self._wake.set()
-            if self._last_state is None or self.on_checkpoint is None:
+            if self._last_state is None or self.listener is None:
                 return
             self._save({**self._last_state, "clock": asdict(self.clock)})
-        if self.commit is not None:
-            self.commit()
+        self.listener.commit()
 
     def enqueue(self, sequence_id: int, sequence: Sequence, immediate: bool = False) -> None:
         """Queue an accepted sequence. An immediate command goes before the sequences but
@@ -280,17 +277,18 @@ class RoverRuntime:
         """Apply a queue change to the last checkpoint and store it (the caller holds
         ``lock``), as ``set_clock`` does a clock change: the session may be mid-command in
         the clock thread, so its state is not taken from here (``server.queue.merged``)."""
-        if self._last_state is None or self.on_checkpoint is None:
+        if self._last_state is None or self.listener is None:
             return
         queue = merged(self._last_state["queue"], self.queue, removed)
         self._save({**self._last_state, "queue": queue})
 
     def _queue_changed(self, commit: bool = False) -> None:
-        """Store a queue change at once (``commit``) and tell ``on_queue``."""
-        if commit and self.commit is not None and self._last_state is not None:
-            self.commit()
-        if self.on_queue is not None:
-            self.on_queue(self.spec.name)
+        """Store a queue change at once (``commit``) and tell the listener of it."""
+        if self.listener is None:
+            return
+        if commit and self._last_state is not None:
+            self.listener.commit()
+        self.listener.queue_changed(self.spec.name)
 
     # ---- state for the API ----------------------------------------------------------
 
@@ -484,8 +482,8 @@ class RoverRuntime:
             if report.status == "refused":  # the rest assumed this step: stop the sequence
                 item.next_step = len(item.sequence.steps)
                 item.halted = True
-        if self.on_command is not None:
-            self.on_command(self.spec.name, CommandRecord(
+        if self.listener is not None:
+            self.listener.command_reported(self.spec.name, CommandRecord(
                 item.sequence_id, index, step.command.describe(), report.status, report.reason,
                 report.start_t_s, report.end_t_s, tuple(e.text for e in report.events),
             ))  # fmt: skip
@@ -535,13 +533,13 @@ class RoverRuntime:
                 self.reported_params[got[0]] = got[1]
 
     def _sequence_status(self, sequence_id: int, status: str, detail: str | None) -> None:
-        if self.on_sequence is not None:
-            self.on_sequence(sequence_id, status, detail)
+        if self.listener is not None:
+            self.listener.sequence_status(sequence_id, status, detail)
 
     def checkpoint(self) -> None:
         """Checkpoint the whole state now, from the clock thread or with it stopped."""
         self._last_checkpoint_wall = time.monotonic()
-        if self.on_checkpoint is None:
+        if self.listener is None:
             return
         with self.lock:
             self._clock_changed = False
@@ -563,19 +561,27 @@ class RoverRuntime:
         }
 
     def _save(self, state: dict[str, Any]) -> None:
-        """Encode ``state`` and hand it to ``on_checkpoint`` (the caller holds ``lock``)."""
-        assert self.on_checkpoint is not None
+        """Encode ``state`` and hand it to the listener (the caller holds ``lock``, so
+        checkpoints arrive in the order they were taken)."""
+        assert self.listener is not None
         blob = encode(self.spec.name, state)
         self._last_state = state
-        self.on_checkpoint(self.spec.name, float(state["session"]["sim"]["t_s"]), blob)
+        self.listener.checkpoint(self.spec.name, float(state["session"]["sim"]["t_s"]), blob)
 
     @classmethod
-    def restore(cls, spec: RoverSpec, blob: bytes) -> RoverRuntime:
+    def restore(
+        cls,
+        spec: RoverSpec,
+        blob: bytes,
+        listener: RuntimeListener | None = None,
+        sinks: Iterable[FrameSink] = (),
+    ) -> RoverRuntime:
         """A runtime from a checkpoint blob (``server.checkpoint``); ``CheckpointFormatError``
         for a blob it cannot read (the caller starts the rover fresh)."""
         state = decode(spec.name, blob)
         try:
-            runtime = cls(spec, estimators=tuple(state["estimators"]))
+            runtime = cls(spec, estimators=tuple(state["estimators"]), listener=listener,
+                          sinks=sinks)  # fmt: skip
             runtime.session.load_state(state["session"])
             runtime.queue = deque(QueuedSequence.from_state(q) for q in state["queue"])
             runtime.clock = ClockState(bool(state["clock"]["running"]), state["clock"]["speed"])

@@ -1,4 +1,4 @@
-"""Where a rover's telemetry goes: the frame sinks.
+"""Where a rover's telemetry and reports go: the frame sinks and the runtime's listener.
 
 A ``RoverRuntime`` plays its frames out as its clock reaches them and hands each batch, in
 order, to every sink in its ``sinks`` list: storage (the records and their events), the alarm
@@ -11,14 +11,21 @@ serves the ground reads the downlink; the truth goes only where the truth view a
 ``server.state.Server`` wires them: every runtime gets ``StorageSink``, the alarm engine
 (``server.alarms.AlarmEngine``) and the hub (``server.hub.TelemetryHub``), in that order,
 and a 3D view (``server.scene3d.scene.RoverScene``) joins its rover's sinks when it starts.
+
+What a runtime reports beside its frames (a command's report, a sequence's status, a
+checkpoint, a queue change) goes to the one ``RuntimeListener`` it is built with: the
+``Server``, which stores and announces it.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from sim.scoring.truth import merged
+
+if TYPE_CHECKING:
+    from server.storage.records import CommandRecord
 
 Frame = dict[str, Any]  # one record as a JSON-ready dict
 PlayedFrame = tuple[Frame, Frame]  # a downlink record and its truth record
@@ -54,6 +61,28 @@ class FrameSink(Protocol):
     rover's clock thread: it must not block (queue the work if it is slow)."""
 
     def publish(self, rover: str, batch: FrameBatch) -> None: ...
+
+
+class RuntimeListener(Protocol):
+    """What a rover runtime reports beside its frames, given to it when it is built. Called
+    on the runtime's clock thread (``checkpoint`` under its lock, so checkpoints arrive in
+    the order they were taken), or on the thread that changed the queue or the clock."""
+
+    def command_reported(self, rover: str, report: CommandRecord) -> None:
+        """A queued step ended (completed, refused or failed)."""
+
+    def sequence_status(self, sequence_id: int, status: str, detail: str | None) -> None:
+        """A sequence started, completed or failed."""
+
+    def checkpoint(self, rover: str, t_s: float, blob: bytes) -> None:
+        """The runtime's encoded state at ``t_s``, to be stored (queued, not waited for)."""
+
+    def commit(self) -> None:
+        """Store what ``checkpoint`` queued, now: a clock or queue change is stored before
+        the request that made it is answered."""
+
+    def queue_changed(self, rover: str) -> None:
+        """The queue or the step executing changed (it must not wait)."""
 
 
 class StorageSink:

@@ -73,20 +73,48 @@ class ServerConfig:
         self.truth_view = check_truth_view(self.truth_view)
 
 
+@dataclass(frozen=True)
+class ServerParts:
+    """What a ``Server`` is built from, made before it: its storage and the services over
+    it. ``ServerParts.open(config)`` makes the ones a configuration asks for; a test may
+    build its own (an in-memory store, a pool with no worker processes)."""
+
+    store: Store
+    accounts: Accounts
+    audit: AuditLog
+    writer: BatchWriter  # the frames, events, commands and checkpoints, off the clock threads
+    hub: TelemetryHub
+    validation: ValidationPool
+    slots: ValidationSlots  # a client's validations at once (429 past them)
+
+    @classmethod
+    def open(cls, config: ServerConfig) -> ServerParts:
+        store = Store(config.database_url)
+        return cls(
+            store=store,
+            accounts=Accounts(store, config.operator_token),
+            audit=AuditLog(store),
+            writer=BatchWriter(store),
+            hub=TelemetryHub(),
+            validation=ValidationPool(config.validation_processes),
+            slots=ValidationSlots(config.max_concurrent_validations),
+        )
+
+
 class Server:
     """The app's state: the runtimes, storage, the writer, the hub and the frame sinks
-    (module docstring)."""
+    (module docstring). It is each runtime's listener (``server.sinks.RuntimeListener``):
+    it stores and announces what the runtimes report beside their frames."""
 
-    def __init__(self, config: ServerConfig) -> None:
+    def __init__(self, config: ServerConfig, parts: ServerParts) -> None:
         self.config = config
-        self.store = Store(config.database_url)
-        self.accounts = Accounts(self.store, config.operator_token)
-        self.audit = AuditLog(self.store)
-        self.writer = BatchWriter(self.store)
-        self.hub = TelemetryHub()
-        self.validation = ValidationPool(config.validation_processes)
-        # a client's validations at once (429 past them; server.validation.uploads)
-        self.slots = ValidationSlots(config.max_concurrent_validations)
+        self.store = parts.store
+        self.accounts = parts.accounts
+        self.audit = parts.audit
+        self.writer = parts.writer
+        self.hub = parts.hub
+        self.validation = parts.validation
+        self.slots = parts.slots
         self.rovers: dict[str, RoverRuntime] = {}
         self.queue_notices = QueueNotices(
             self._queue_notice, self.hub.notify, lambda rover: self.hub.count(rover) > 0
@@ -101,25 +129,21 @@ class Server:
         for name, spec in ROVERS.items():
             saved = self.store.load_checkpoint(name)
             try:
-                runtime = RoverRuntime.restore(spec, saved[1]) if saved else None
+                runtime = RoverRuntime.restore(spec, saved[1], self, self.sinks) if saved else None
             except CheckpointFormatError as error:  # an older format: the rover starts fresh
                 log.warning("%s", error)
                 refused[name] = str(error)
                 saved = None
             if saved is None:
-                runtime = RoverRuntime(spec, estimators=config.estimators)
+                runtime = RoverRuntime(
+                    spec, estimators=config.estimators, listener=self, sinks=self.sinks
+                )
             assert runtime is not None
             if saved is None:
                 runtime.set_clock(speed=config.initial_speed)
             if saved is not None:
                 self.resumed.add(name)
                 self._resume(runtime)
-            runtime.sinks.extend(self.sinks)
-            runtime.on_command = self._command
-            runtime.on_sequence = self._sequence
-            runtime.on_checkpoint = self.writer.checkpoint
-            runtime.commit = self.writer.flush  # a clock change is stored when it answers
-            runtime.on_queue = self.queue_notices.changed
             self.rovers[name] = runtime
         for name, why in refused.items():
             self._drop_stale_queue(name, why)
@@ -138,6 +162,11 @@ class Server:
                 self.truth_scenes = {
                     name: RoverScene(rt, self.store, truth=True) for name, rt in self.rovers.items()
                 }
+
+    @classmethod
+    def open(cls, config: ServerConfig) -> Server:
+        """A server over the parts ``config`` asks for (``ServerParts.open``)."""
+        return cls(config, ServerParts.open(config))
 
     def _resume(self, runtime: RoverRuntime) -> None:
         """After a restart: no frame stored twice, and every accepted sequence the
@@ -172,14 +201,16 @@ class Server:
         return {"t_s": t_s, "utc": t_s_to_utc(t_s).isoformat(), "lmst_h": runtime.lmst_h(t_s),
                 "sol": runtime.sol(t_s)}  # fmt: skip
 
-    def _command(self, rover: str, report: CommandRecord) -> None:
+    # ---- the runtimes' listener (server.sinks.RuntimeListener) -------------------------
+
+    def command_reported(self, rover: str, report: CommandRecord) -> None:
         self.writer.command(rover, report)
         if self.hub.count(rover):  # a live timeline shows it: read back (so written) as listed
             entry = stored_command(self.store, self.rovers[rover], report)
             if entry is not None:
                 self.hub.notify(rover, CommandNotice(entry))
 
-    def _sequence(self, sequence_id: int, status: str, detail: str | None) -> None:
+    def sequence_status(self, sequence_id: int, status: str, detail: str | None) -> None:
         self.writer.flush()
         before = self.store.get_sequence(sequence_id)
         self.store.set_sequence_status(sequence_id, status, detail)
@@ -193,6 +224,17 @@ class Server:
             {"text": text + (f": {detail}" if detail else ""), "kind": "sequence",
              "severity": severity},
         )  # fmt: skip
+
+    def checkpoint(self, rover: str, t_s: float, blob: bytes) -> None:
+        self.writer.checkpoint(rover, t_s, blob)
+
+    def commit(self) -> None:
+        self.writer.flush()  # a clock or queue change is stored before it is answered
+
+    def queue_changed(self, rover: str) -> None:
+        self.queue_notices.changed(rover)
+
+    # ---- the server's own events -------------------------------------------------------
 
     def _drop_stale_queue(self, rover: str, why: str) -> None:
         """A rover that started fresh has an empty queue: the sequences its refused

@@ -46,9 +46,10 @@ def command_entry(
 def stored_command(
     store: Store, runtime: RoverRuntime, report: CommandRecord
 ) -> dict[str, Any] | None:
-    """The timeline entry of the command a runtime just reported (``on_command``'s
-    report), read back from storage once it is written: its id, reruns and submitter are
-    the stored ones. ``None`` if it is not stored (the writer dropped it)."""
+    """The timeline entry of the command a runtime just reported
+    (``RuntimeListener.command_reported``), read back from storage once it is written: its
+    id, reruns and submitter are the stored ones. ``None`` if it is not stored (the writer
+    dropped it)."""
     rover = runtime.spec.name
     start, end = report.start_t_s, report.end_t_s
     rows = [

@@ -1,7 +1,7 @@
 """The typed records the server hands to storage.
 
 ``CommandRecord`` is one executed (or refused) command as a rover runtime reports it
-(``server.runtime.RoverRuntime``'s ``on_command``): the server stores it
+(``server.sinks.RuntimeListener.command_reported``): the server stores it
 (``BatchWriter.command``) and announces it on the live timeline. Its fields are the columns
 of the ``commands`` table, so a report and its stored row hold the same figures.
 """

@@ -20,6 +20,7 @@ from server.sinks import FrameBatch
 from sim.loop.rover_sim import RoverSim
 from sim.loop.session import RoverSession
 from sim.scoring.truth import merged
+from tests.runtime_listener import RecordingListener
 
 START = datetime(2004, 4, 14, 16, 30, tzinfo=UTC)  # Spirit sol 100, ~10 LMST
 ESTIMATORS = ("sapp", "kinematic_ekf", "radio_ekf")
@@ -108,9 +109,9 @@ def test_a_checkpoint_without_the_state_needed_is_refused() -> None:
 
 
 def test_a_runtime_restored_from_its_checkpoint_has_its_queue_and_clock() -> None:
-    runtime = RoverRuntime(ROVERS["spirit"])
-    blobs: list[bytes] = []
-    runtime.on_checkpoint = lambda rover, t_s, blob: blobs.append(blob)
+    listener = RecordingListener()
+    runtime = RoverRuntime(ROVERS["spirit"], listener=listener)
+    blobs = listener.blobs
     runtime.set_clock(speed=float("inf"))
     text = "SEQUENCE two\nNADIR_UPDATE\n@ +30s WAIT duration_s=30\n"
     from sequences.language import parse
@@ -150,9 +151,9 @@ def test_a_runtime_restored_mid_sequence_runs_on_as_if_never_stopped() -> None:
         "SEQUENCE drive\nGET_FINE_ATTITUDE\nDRIVE_STRAIGHT distance_m=0.8 vo=on\n"
         "DRIVE_ARC radius_m=3 angle_deg=15\nWAIT duration_s=60\n"
     )
-    runtime = RoverRuntime(ROVERS["spirit"], estimators=ESTIMATORS)
-    blobs: list[bytes] = []
-    runtime.on_checkpoint = lambda rover, t_s, blob: blobs.append(blob)
+    listener = RecordingListener()
+    runtime = RoverRuntime(ROVERS["spirit"], estimators=ESTIMATORS, listener=listener)
+    blobs = listener.blobs
     runtime.set_clock(speed=float("inf"))
     runtime.enqueue(1, parse(text))
     for _ in range(100):  # up to the end of the second step, its frames played out
@@ -182,7 +183,7 @@ def test_a_refused_checkpoint_cancels_the_sequences_it_held_and_says_so(tmp_path
                               "text", "completed", [], [], [])  # fmt: skip
     store.save_checkpoint("spirit", 100.0, pickle.dumps({"session": None, "queue": []}))
     store.engine.dispose()
-    server = Server(ServerConfig(database_url=url, start_clocks=False))
+    server = Server.open(ServerConfig(database_url=url, start_clocks=False))
     try:
         server.writer.flush()
         plan = server.store.get_sequence(queued)

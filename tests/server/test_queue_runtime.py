@@ -22,6 +22,7 @@ from server.runtime import (
     RoverRuntime,
 )
 from server.storage import CommandRecord
+from tests.runtime_listener import RecordingListener
 
 THREE = "SEQUENCE three\nNADIR_UPDATE\nWAIT duration_s=30\nGET_TILT_ATTITUDE\n"
 
@@ -32,22 +33,15 @@ def _seq(text: str = THREE) -> Sequence:
     return result.sequence
 
 
-def _runtime(speed: float = math.inf) -> tuple[RoverRuntime, list[CommandRecord]]:
-    """A runtime whose clock the test ticks; its command reports collected."""
-    runtime = RoverRuntime(ROVERS["spirit"])
+def _runtime(
+    speed: float = math.inf, listener: RecordingListener | None = None
+) -> tuple[RoverRuntime, list[CommandRecord]]:
+    """A runtime whose clock the test ticks; its command reports (and the rest it reports)
+    collected by its listener."""
+    listener = listener or RecordingListener()
+    runtime = RoverRuntime(ROVERS["spirit"], listener=listener)
     runtime.set_clock(speed=speed)
-    reports: list[CommandRecord] = []
-    runtime.on_command = lambda _rover, report: reports.append(report)
-    return runtime, reports
-
-
-def _checkpointed(runtime: RoverRuntime) -> tuple[list[bytes], list[int]]:
-    """Collect the runtime's checkpoints and count its commits."""
-    blobs: list[bytes] = []
-    commits: list[int] = []
-    runtime.on_checkpoint = lambda _rover, _t, blob: blobs.append(blob)
-    runtime.commit = lambda: commits.append(1)
-    return blobs, commits
+    return runtime, listener.reports
 
 
 def _tick_until(runtime: RoverRuntime, done: Any, ticks: int = 200) -> None:
@@ -129,15 +123,13 @@ def test_moves_and_cancels_from_another_thread_never_break_a_sequence() -> None:
     each sequence's steps run in order and together (a started sequence keeps the head),
     a cancelled one runs no step after the one running when it was cancelled, and every
     other one runs whole."""
-    runtime, reports = _runtime()
 
-    def stored(_rover: str, report: CommandRecord) -> None:
+    def stored(_report: CommandRecord) -> None:
         # as the server's storage takes a moment: at max speed the clock thread no longer
         # sleeps between steps, and could drain the queue before this thread ran at all
-        reports.append(report)
         time.sleep(0.002)
 
-    runtime.on_command = stored
+    runtime, reports = _runtime(listener=RecordingListener(on_report=stored))
     short = _seq("SEQUENCE short\nWAIT duration_s=5\nWAIT duration_s=5\nWAIT duration_s=5\n")
     ids = list(range(1, 41))
     for i in ids:
@@ -188,8 +180,9 @@ def _wait_for(predicate: Any, timeout_s: float = 30.0) -> None:
 
 
 def test_every_queue_change_is_in_the_checkpoint_a_restart_restores() -> None:
-    runtime, _ = _runtime()
-    blobs, commits = _checkpointed(runtime)
+    listener = RecordingListener()
+    runtime, _ = _runtime(listener=listener)
+    blobs = listener.blobs
     for i in (1, 2, 3):
         runtime.enqueue(i, _seq())
     runtime.checkpoint()  # the last full checkpoint: before any step
@@ -198,7 +191,7 @@ def test_every_queue_change_is_in_the_checkpoint_a_restart_restores() -> None:
     runtime.enqueue(4, _seq())
     runtime.cancel(2)
     assert runtime.queued_ids() == [1, 3, 4]
-    assert len(commits) == 2  # a move and a cancel are stored before they return
+    assert listener.commits == 2  # a move and a cancel are stored before they return
     restored = RoverRuntime.restore(ROVERS["spirit"], blobs[-1])
     assert restored.queued_ids() == [1, 3, 4]
     # what ran after the full checkpoint runs again after a restart, as before

@@ -30,7 +30,9 @@ SEQ = "SEQUENCE three\n" + "\n".join(STEPS) + "\n"
 def _server(url: str) -> tuple[Server, RoverRuntime]:
     """A server whose clocks and writer threads are not started: the test ticks and
     flushes, so it decides exactly what is stored when the "kill" comes."""
-    server = Server(ServerConfig(database_url=url, operator_token="unused", start_clocks=False))
+    server = Server.open(
+        ServerConfig(database_url=url, operator_token="unused", start_clocks=False)
+    )
     runtime = server.rovers["spirit"]
     runtime.set_clock(speed=float("inf"))
     return server, runtime

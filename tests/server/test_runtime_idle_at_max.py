@@ -74,7 +74,9 @@ def test_a_sequence_starts_at_the_clock_its_operators_saw(tmp_path: Path) -> Non
     clock the operators saw when they sent it."""
     from server.state import Server, ServerConfig
 
-    server = Server(ServerConfig(database_url=f"sqlite:///{tmp_path / 'r.db'}", start_clocks=False))
+    server = Server.open(
+        ServerConfig(database_url=f"sqlite:///{tmp_path / 'r.db'}", start_clocks=False)
+    )
     try:
         rover = server.rovers["spirit"]
         rover.set_clock(speed=math.inf)

@@ -21,6 +21,7 @@ from server.sinks import FrameBatch
 from server.state import Server, ServerConfig
 from server.storage.store import json_dumps
 from sim.loop.session import RoverSession
+from tests.runtime_listener import RecordingListener
 
 SOL = "SEQUENCE short_sol\nNADIR_UPDATE\nDRIVE_STRAIGHT distance_m=3\nHGA_PASS duration_min=2\n"
 
@@ -45,7 +46,7 @@ def _reference(sequence: Sequence) -> tuple[list[dict[str, Any]], list[float]]:
 
 
 def test_a_sol_at_max_stores_exactly_the_frames_of_the_session() -> None:
-    server = Server(ServerConfig(database_url="sqlite://", start_clocks=False))
+    server = Server.open(ServerConfig(database_url="sqlite://", start_clocks=False))
     runtime = server.rovers["spirit"]
     sequence = _seq(SOL)
     seq_id = server.store.add_sequence("spirit", "short_sol", SOL, "text", "queued", [], [], [])
@@ -76,10 +77,10 @@ def ticked(monkeypatch: pytest.MonkeyPatch) -> tuple[RoverRuntime, list[bytes], 
     """A runtime at max speed whose clock the test ticks, checkpointing every tick; its
     checkpoints and the times of the frames it publishes."""
     monkeypatch.setattr("server.runtime.CHECKPOINT_EVERY_S", 0.0)
-    runtime = RoverRuntime(ROVERS["spirit"])
+    listener = RecordingListener()
+    runtime = RoverRuntime(ROVERS["spirit"], listener=listener)
     runtime.set_clock(speed=math.inf)
-    blobs: list[bytes] = []
-    runtime.on_checkpoint = lambda _rover, _t, blob: blobs.append(blob)
+    blobs = listener.blobs
     published: list[float] = []
 
     class Times:

@@ -226,7 +226,7 @@ def test_the_order_survives_a_kill_and_a_cancelled_sequence_stays_cancelled(
     cancelled sequence again (its record says cancelled; it used to come back from the
     checkpoint)."""
     url = f"sqlite:///{tmp_path / 'roverops.db'}"
-    first = Server(ServerConfig(database_url=url, operator_token="x", start_clocks=False))
+    first = Server.open(ServerConfig(database_url=url, operator_token="x", start_clocks=False))
     runtime = first.rovers["spirit"]
     ids = []
     for name in ("alpha", "bravo", "charlie"):
@@ -242,7 +242,7 @@ def test_the_order_survives_a_kill_and_a_cancelled_sequence_stays_cancelled(
     first.store.set_sequence_status(a, "cancelled", "cancelled by test")
     first.store.close()  # killed: no final checkpoint
 
-    second = Server(ServerConfig(database_url=url, operator_token="x", start_clocks=False))
+    second = Server.open(ServerConfig(database_url=url, operator_token="x", start_clocks=False))
     assert second.rovers["spirit"].queued_ids() == [c, b]
     second.stop()
 
