@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import contextlib
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from datetime import UTC, datetime
 from typing import Any
 
@@ -76,7 +76,7 @@ class AlarmConflictError(AlarmError, ConflictError):
     """Acknowledged already, not shelved, or done."""
 
 
-def acquiring(frame: dict[str, Any]) -> bool:
+def acquiring(frame: Mapping[str, Any]) -> bool:
     """Whether the frame's command deliberately sets the AQF (``aqf_after``): the frame's
     ``command`` is the command's text, its name first."""
     command = COMMANDS.get(str(frame.get("command") or "").split(" ", 1)[0])
@@ -172,7 +172,7 @@ class AlarmEngine:
 
     def set_limits(
         self, rover: str, channel: str, levels: dict[str, Any], by: str,
-        last_frame: dict[str, Any] | None,
+        last_frame: Mapping[str, Any] | None,
     ) -> dict[str, Any]:  # fmt: skip
         """Validate and store an operator's levels for ``channel`` (``LimitsError`` if they
         cannot be, ``KeyError`` for an unknown channel; nothing stored then), then judge the
@@ -194,7 +194,7 @@ class AlarmEngine:
             return next(c for c in self.limits(rover) if c["channel"] == channel)
 
     def reset_limits(
-        self, rover: str, channel: str, last_frame: dict[str, Any] | None
+        self, rover: str, channel: str, last_frame: Mapping[str, Any] | None
     ) -> dict[str, Any]:
         """Back to the default levels for ``channel`` (``KeyError`` if unknown)."""
         with self._lock:
@@ -249,7 +249,7 @@ class AlarmEngine:
                     frame = scored if limits[channel].truth else downlink  # the rover's own
                     self._judge(rover, channel, frame, expected)
 
-    def _judge(self, rover: str, channel: str, frame: dict[str, Any], expected: bool) -> None:
+    def _judge(self, rover: str, channel: str, frame: Mapping[str, Any], expected: bool) -> None:
         """Judge one channel on one frame; ``expected``: an attitude acquisition runs."""
         limits = self._limits[rover][channel]
         value = limits.judged_value(frame)

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 import typing
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -141,7 +141,7 @@ def side_channels(estimators: list[str]) -> dict[str, Channel]:
     return out
 
 
-def channels_of(last_frame: dict[str, Any] | None) -> dict[str, Channel]:
+def channels_of(last_frame: Mapping[str, Any] | None) -> dict[str, Channel]:
     """The channels of a rover: the frame's, and those of the estimators its last frame
     shows running beside SAPP."""
     running = sorted((last_frame or {}).get("estimators") or {})

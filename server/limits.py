@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -49,7 +49,7 @@ KINDS = ("numeric", "ordinal", "state")
 LEVELS = ("warning", "critical")
 # What a value needs to mean anything: a heading (AQF Coarse or Fine: with TiltOnly or
 # Unknown the predicted HGA margin is 2 deg minus 180), or Earth above the horizon.
-NEEDS: dict[str, Callable[[dict[str, Any]], bool]] = {
+NEEDS: dict[str, Callable[[Mapping[str, Any]], bool]] = {
     "heading": lambda frame: frame.get("aqf") in ("Coarse", "Fine"),
     "earth_up": lambda frame: bool(frame.get("earth_up")),
 }
@@ -79,7 +79,7 @@ class ChannelLimits:
     needs: str | None = None
     shelved_while_acquiring: bool = False
 
-    def judged_value(self, frame: dict[str, Any]) -> Any:
+    def judged_value(self, frame: Mapping[str, Any]) -> Any:
         """The frame's value of the channel, or ``None`` where it means nothing (``needs``)."""
         if self.needs is not None and not NEEDS[self.needs](frame):
             return None

@@ -69,9 +69,11 @@ from server.queue import (
     moved,
     snapshot,
 )
-from server.sinks import Frame, FrameBatch, FrameSink, PlayedFrame, RuntimeListener, with_truth
+from server.sinks import FrameBatch, FrameSink, PlayedFrame, RuntimeListener, with_truth
 from server.storage.records import CommandRecord
+from sim.loop.downlink import DownlinkDict
 from sim.loop.session import RoverSession
+from sim.scoring.truth import TruthDict
 from sim.world.marsclock import (
     SOL_S,
     get_mission,
@@ -138,14 +140,9 @@ class RoverRuntime:
     of everything else: command reports, sequence status, checkpoints and queue changes.
     Without a listener the runtime runs alone: it neither checkpoints nor reports."""
 
-    def __init__(
-        self,
-        spec: RoverSpec,
-        session: RoverSession | None = None,
-        estimators: tuple[str, ...] = ("sapp",),
-        listener: RuntimeListener | None = None,
-        sinks: Iterable[FrameSink] = (),
-    ) -> None:
+    def __init__(self, spec: RoverSpec, session: RoverSession | None = None,
+                 estimators: tuple[str, ...] = ("sapp",), listener: RuntimeListener | None = None,
+                 sinks: Iterable[FrameSink] = ()) -> None:  # fmt: skip
         self.spec = spec
         self.listener = listener
         self.estimators = tuple(estimators)
@@ -168,8 +165,8 @@ class RoverRuntime:
         self._last_checkpoint_wall = 0.0
         self._last_state: dict[str, Any] | None = None  # the last checkpoint taken (or restored)
         self._clock_changed = False  # since the clock thread's last checkpoint
-        self.last_frame: Frame | None = None  # the latest downlink record played out
-        self.last_truth: Frame | None = None  # and its truth record
+        self.last_frame: DownlinkDict | None = None  # the latest downlink record played out
+        self.last_truth: TruthDict | None = None  # and its truth record
         self.reported_params: dict[str, float] = {}
         self.watermark_t_s = -math.inf  # frames up to here are stored already (restore)
 
@@ -569,13 +566,8 @@ class RoverRuntime:
         self.listener.checkpoint(self.spec.name, float(state["session"]["sim"]["t_s"]), blob)
 
     @classmethod
-    def restore(
-        cls,
-        spec: RoverSpec,
-        blob: bytes,
-        listener: RuntimeListener | None = None,
-        sinks: Iterable[FrameSink] = (),
-    ) -> RoverRuntime:
+    def restore(cls, spec: RoverSpec, blob: bytes, listener: RuntimeListener | None = None,
+                sinks: Iterable[FrameSink] = ()) -> RoverRuntime:  # fmt: skip
         """A runtime from a checkpoint blob (``server.checkpoint``); ``CheckpointFormatError``
         for a blob it cannot read (the caller starts the rover fresh)."""
         state = decode(spec.name, blob)

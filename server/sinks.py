@@ -3,8 +3,10 @@
 A ``RoverRuntime`` plays its frames out as its clock reaches them and hands each batch, in
 order, to every sink in its ``sinks`` list: storage (the records and their events), the alarm
 engine, the WebSocket hub and the 3D view. A batch (``FrameBatch``) is two lists of the same
-length: the rover's downlink records (``sim.loop.downlink.Downlink.as_dict()``) and, at the
-same times, the scorer's truth records (``sim.scoring.truth.Truth.as_dict()``). A sink that
+length: the rover's downlink records (``sim.loop.downlink.DownlinkDict``, what
+``Downlink.as_dict()`` gives) and, at the same times, the scorer's truth records
+(``sim.scoring.truth.TruthDict``). The records are typed dicts, not the dataclasses: every
+sink sends or stores them as JSON, so each is made once, when it is played out. A sink that
 serves the ground reads the downlink; the truth goes only where the truth view allows it
 (docs/DESIGN.md, "Two records").
 
@@ -22,21 +24,22 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
 
-from sim.scoring.truth import merged
+from sim.loop.downlink import DownlinkDict
+from sim.scoring.truth import TruthDict, merged
 
 if TYPE_CHECKING:
     from server.storage.records import CommandRecord
 
-Frame = dict[str, Any]  # one record as a JSON-ready dict
-PlayedFrame = tuple[Frame, Frame]  # a downlink record and its truth record
+Frame = dict[str, Any]  # a merged frame (downlink and truth) as a JSON-ready dict
+PlayedFrame = tuple[DownlinkDict, TruthDict]  # a downlink record and its truth record
 
 
 @dataclass(frozen=True)
 class FrameBatch:
     """Records played out together: ``downlink[i]`` and ``truth[i]`` share their ``t_s``."""
 
-    downlink: list[Frame]
-    truth: list[Frame]
+    downlink: list[DownlinkDict]
+    truth: list[TruthDict]
 
     def __post_init__(self) -> None:
         if len(self.downlink) != len(self.truth):
@@ -48,11 +51,13 @@ class FrameBatch:
         return len(self.downlink)
 
 
-def with_truth(downlink: Frame | None, truth: Frame | None) -> Frame | None:
+def with_truth(downlink: DownlinkDict | None, truth: TruthDict | None) -> Frame | None:
     """``downlink`` merged with its ``truth`` record (``sim.scoring.truth.merged``) when
     there is one of its time, else ``downlink`` as it is."""
-    if downlink is None or truth is None or truth["t_s"] != downlink["t_s"]:
-        return downlink
+    if downlink is None:
+        return None
+    if truth is None or truth["t_s"] != downlink["t_s"]:
+        return dict(downlink)
     return merged(downlink, truth)
 
 

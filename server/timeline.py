@@ -14,6 +14,7 @@ and the alarms on truth channels and their events are left out.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -107,14 +108,15 @@ def sol_timeline(
     submitted_by = store.submitters(c["sequence_id"] for c in commands if c["sequence_id"])
     distance = path_length_m(frames, "p_mission_est")  # what the rover reports it drove
 
-    def finite(records: list[dict[str, Any]], key: str) -> list[float]:
+    def finite(records: Sequence[Mapping[str, Any]], key: str) -> list[float]:
         return [
             float(f[key])
             for f in records
             if f.get(key) is not None and math.isfinite(float(f[key]))
         ]
 
-    margins = [float(f["hga_margin_deg"]) for f in truths if f.get("earth_up")]
+    # a margin that does not exist (no attitude to point from) is no figure, not a crash
+    margins = finite([f for f in truths if f["earth_up"]], "hga_margin_deg")
     pos_err = finite(truths, "position_error_m")
     att_err = finite(truths, "attitude_error_deg")
     out: dict[str, Any] = {
@@ -152,7 +154,7 @@ def sol_timeline(
     return out
 
 
-def path_length_m(records: list[dict[str, Any]], key: str) -> float:
+def path_length_m(records: Sequence[Mapping[str, Any]], key: str) -> float:
     """The horizontal length of the path of the positions ``key`` of ``records``, m."""
     path = np.array([f[key] for f in records], dtype=float)
     if len(path) < 2:

@@ -33,6 +33,7 @@ TRUTH_CARRIERS = frozenset({
     "server.sinks",  # hands each frame's two records on
     "server.storage.store",  # stores and reads them
     "server.storage.columns",  # their columns, from the records' fields
+    "server.storage.channels",  # a stored row back into its typed record
     "server.storage.migrate",  # splits frames stored as one record into the two
     "server.hub",  # the WebSocket: the truth only to those the truth view allows
     "server.alarms",  # alarms on truth channels (the truth view's)

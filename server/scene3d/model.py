@@ -10,7 +10,7 @@ Site: x North, y East, z Down, metres); attitudes are the frames' ``q_b_ll``.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -83,7 +83,7 @@ class RoverPose:
     steer_rad: FloatArray
 
     @staticmethod
-    def from_frame(frame: dict[str, Any], which: str) -> RoverPose:
+    def from_frame(frame: Mapping[str, Any], which: str) -> RoverPose:
         """The ``"true"`` or ``"est"`` pose of a telemetry frame: the true pose on the true
         joint angles, the estimate on the angles the rover's encoders read (the downlink's)."""
         q_b_w = Rotation.from_quat(np.asarray(frame[f"q_b_ll_{which}"], dtype=float))
@@ -248,7 +248,7 @@ def _points_w(pose: RoverPose, p_b: Sequence[float]) -> FloatArray:
     return np.asarray(pose.p_w + Rotation.from_quat(pose.q_w_b).apply(np.asarray(p_b, float)))
 
 
-def draw_vectors(scene: viser.SceneApi, frame: dict[str, Any], pose: RoverPose) -> None:
+def draw_vectors(scene: viser.SceneApi, frame: Mapping[str, Any], pose: RoverPose) -> None:
     """Sun and Earth from the mast head, the HGA boresight from the dish (truth, LL); a
     vector the frame lacks is hidden (a replaying viewer must not see the live one)."""
     start = {
@@ -268,7 +268,7 @@ def draw_vectors(scene: viser.SceneApi, frame: dict[str, Any], pose: RoverPose) 
         )
 
 
-def status_text(frame: dict[str, Any], live: bool) -> str:
+def status_text(frame: Mapping[str, Any], live: bool) -> str:
     """The status line of a viewer: sol, LMST, live or replay, mode, AQF, and the position
     error where the frame carries the truth."""
     h = float(frame["lmst_h"])

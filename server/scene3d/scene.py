@@ -51,7 +51,7 @@ import io
 import logging
 import math
 import threading
-from collections.abc import Callable, Coroutine
+from collections.abc import Callable, Coroutine, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -128,7 +128,7 @@ class Viewer:
         self.lock = threading.RLock()
         self.following = True
         self.replay: Replay | None = None
-        self.shown: dict[str, Any] | None = None  # the frame this viewer sees
+        self.shown: Mapping[str, Any] | None = None  # the frame this viewer sees
         self.shown_p: FloatArray | None = None  # its rover's position then (the chase)
         gui = client.gui
         self.status = gui.add_markdown(f"**{scene.rover}**")
@@ -186,7 +186,7 @@ class Viewer:
 
     # ---- what the viewer sees ----------------------------------------------------------
 
-    def show_live(self, frame: dict[str, Any], span: tuple[float, float] | None) -> None:
+    def show_live(self, frame: Mapping[str, Any], span: tuple[float, float] | None) -> None:
         """The live frame's status and slider, the camera carried along (the shared rover
         is drawn for everyone); nothing while this viewer replays."""
         p_w = np.asarray(frame[f"p_mission_{self.scene.pose}"], dtype=float)
@@ -208,7 +208,7 @@ class Viewer:
             self.shown = frame
         self.client.flush()
 
-    def show_replay(self, frame: dict[str, Any]) -> None:
+    def show_replay(self, frame: Mapping[str, Any]) -> None:
         """``frame`` for this viewer alone: its own rover, ghost and vectors shadow the
         shared ones; it stops following."""
         pose = RoverPose.from_frame(frame, self.scene.pose)
@@ -287,7 +287,7 @@ class RoverScene:
         self.origin_world = np.asarray(runtime.session.mission_origin_world, dtype=float)
         self.server: viser.ViserServer | None = None
         self._lock = threading.Lock()
-        self._latest: dict[str, Any] | None = None
+        self._latest: Mapping[str, Any] | None = None
         self._dirty = threading.Event()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -295,7 +295,7 @@ class RoverScene:
         self._sites: dict[int, FloatArray] = {}
         self._new_sites: list[int] = []
         self._terrain_centre: FloatArray | None = None
-        self._sol_frames: list[dict[str, Any]] = []  # the current sol, for the slider
+        self._sol_frames: list[Mapping[str, Any]] = []  # the current sol, for the slider
         self._shown_p: FloatArray | None = None  # the live rover's position last drawn
         self.viewers: dict[int, Viewer] = {}  # by viser's client id
         self.frames_drawn = 0
@@ -355,9 +355,10 @@ class RoverScene:
         frames = self.store.frames(
             self.rover, -math.inf, math.inf, HISTORY_EVERY_S, with_truth=self.truth
         )
-        last = self.store.last_frame(self.rover)
-        if self.truth:
-            last = with_truth(last, self.store.last_truth(self.rover))
+        last = with_truth(
+            self.store.last_frame(self.rover),
+            self.store.last_truth(self.rover) if self.truth else None,
+        )
         if last is not None and (not frames or last["t_s"] > frames[-1]["t_s"]):
             frames.append(last)
         return frames
@@ -382,12 +383,12 @@ class RoverScene:
         with self._lock:  # viser drops the viewer's own elements itself
             self.viewers.pop(client.client_id, None)
 
-    def live(self) -> tuple[dict[str, Any] | None, tuple[float, float] | None]:
+    def live(self) -> tuple[Mapping[str, Any] | None, tuple[float, float] | None]:
         """The newest frame and the slider's span over the current sol."""
         with self._lock:
             return self._latest, self._slider_span()
 
-    def frame_at(self, lmst_h: float) -> dict[str, Any] | None:
+    def frame_at(self, lmst_h: float) -> Mapping[str, Any] | None:
         """The stored frame of the current sol nearest ``lmst_h``."""
         with self._lock:
             frames = list(self._sol_frames)
@@ -405,7 +406,7 @@ class RoverScene:
                 self._take(merged(d, t) if self.truth else d)
         self._dirty.set()
 
-    def _take(self, f: dict[str, Any]) -> None:
+    def _take(self, f: Mapping[str, Any]) -> None:
         self._latest = f
         if self.truth:
             self._tracks["true"].add(f["p_mission_true"])
@@ -443,7 +444,7 @@ class RoverScene:
                     log.exception("3D view of %s: drawing failed", self.rover)
             self._stop.wait(period)
 
-    def _draw(self, frame: dict[str, Any]) -> None:
+    def _draw(self, frame: Mapping[str, Any]) -> None:
         """The live frame: the shared rover, ghost, vectors, traverses and Sites once for
         everyone, then each following viewer's status and slider."""
         server = self.server

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -23,6 +23,10 @@ from sqlalchemy.engine import Connection
 from server.storage.chunks import DOWNLINK_PACKING, TRUTH_PACKING, read_channels
 from server.storage.columns import DOWNLINK, TRUTH
 from server.storage.schema import RECORD_LAYOUT, frame_events, frames_table, truth_frames
+
+if TYPE_CHECKING:  # types only: storage loads without the simulator (roverops users)
+    from sim.loop.downlink import DownlinkDict
+    from sim.scoring.truth import TruthDict
 
 FRAMES = frames_table.c
 TRUTHS = truth_frames.c
@@ -43,15 +47,15 @@ def truth_row(rover: str, record: dict[str, Any]) -> dict[str, Any]:
     return {"rover": rover, "t_s": float(record["t_s"]), **TRUTH.encode(record)}
 
 
-def downlink_record(row: Sequence[Any]) -> dict[str, Any]:
+def downlink_record(row: Sequence[Any]) -> DownlinkDict:
     """The downlink record of a row selected as ``DOWNLINK_ROW``."""
     head = {"t_s": float(row[0]), "sol": int(row[1])}
-    return frame_events(DOWNLINK.decode(head, row[3:], row[2]))
+    return cast("DownlinkDict", frame_events(DOWNLINK.decode(head, row[3:], row[2])))
 
 
-def truth_record(row: Sequence[Any]) -> dict[str, Any]:
+def truth_record(row: Sequence[Any]) -> TruthDict:
     """The truth record of a row selected as ``TRUTH_ROW``."""
-    return frame_events(TRUTH.decode({"t_s": float(row[0])}, row[2:], row[1]))
+    return cast("TruthDict", frame_events(TRUTH.decode({"t_s": float(row[0])}, row[2:], row[1])))
 
 
 FloatArray = NDArray[np.float64]

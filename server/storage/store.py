@@ -13,7 +13,7 @@ import json
 import math
 from collections.abc import Callable, Iterable, Mapping
 from datetime import UTC, datetime
-from typing import Any, Concatenate, ParamSpec, TypeVar
+from typing import TYPE_CHECKING, Any, Concatenate, ParamSpec, TypeVar
 
 from sqlalchemy import (
     create_engine,
@@ -42,6 +42,10 @@ from server.storage.chunks import CHUNK_FRAMES, pack_new
 from server.storage.engine import OneThreadAtATimePool
 from server.storage.migrate import upgrade_database
 from server.storage.records import CommandRecord
+
+if TYPE_CHECKING:  # types only: storage loads without the simulator (roverops users)
+    from sim.loop.downlink import DownlinkDict
+    from sim.scoring.truth import TruthDict
 from server.storage.schema import (
     alarm_limits,
     alarms_table,
@@ -376,9 +380,9 @@ class Store:
             .where(FRAMES.rover == rover, FRAMES.t_s >= t_from, FRAMES.t_s <= t_to)
             .order_by(FRAMES.t_s, FRAMES.id)
         )
-        out: list[dict[str, Any]] = []
+        out: list[DownlinkDict] = []
         if limit is not None and limit <= 0:
-            return out
+            return []
         last = -math.inf
         with self.engine.connect() as conn:
             for row in conn.execution_options(yield_per=2000).execute(query):
@@ -395,8 +399,8 @@ class Store:
             # the simulator (tests/cli/test_cli_imports.py)
             from sim.scoring.truth import merged
 
-            out = [merged(d, truths[d["t_s"]]) if d["t_s"] in truths else d for d in out]
-        return out
+            return [merged(d, truths[d["t_s"]]) if d["t_s"] in truths else dict(d) for d in out]
+        return [dict(d) for d in out]
 
     @_after_queued_writes
     def channel(self, rover: str, name: str, t_from: float, t_to: float) -> ChannelArrays | None:
@@ -425,7 +429,7 @@ class Store:
         return None if lo is None else (float(lo), float(hi))
 
     @_after_queued_writes
-    def last_frame(self, rover: str) -> dict[str, Any] | None:
+    def last_frame(self, rover: str) -> DownlinkDict | None:
         """The latest downlink record of a rover, or ``None``."""
         query = (
             select(*DOWNLINK_ROW)
@@ -438,7 +442,7 @@ class Store:
         return None if row is None else downlink_record(row)
 
     @_after_queued_writes
-    def last_truth(self, rover: str) -> dict[str, Any] | None:
+    def last_truth(self, rover: str) -> TruthDict | None:
         """The latest truth record of a rover, or ``None``."""
         query = (
             select(*TRUTH_ROW)
@@ -451,7 +455,7 @@ class Store:
         return None if row is None else truth_record(row)
 
     @_after_queued_writes
-    def truths(self, rover: str, t_from: float, t_to: float) -> dict[float, dict[str, Any]]:
+    def truths(self, rover: str, t_from: float, t_to: float) -> dict[float, TruthDict]:
         """The truth records with t_from <= t_s <= t_to, by their time."""
         query = (
             select(*TRUTH_ROW)

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -199,7 +199,7 @@ def rover_site(runtime: RoverRuntime) -> RoverSite:
     otherwise). Never from the live session, which may be a command ahead of the clock."""
     landing = site(runtime.spec.site)
     with runtime.lock:
-        frame = dict(runtime.last_frame or {})
+        last = runtime.last_frame  # a played-out record is never changed: no copy needed
         t_s = float(runtime.t_s)
         params = dict(runtime.reported_params)
     return RoverSite(
@@ -207,9 +207,10 @@ def rover_site(runtime: RoverRuntime) -> RoverSite:
         math.radians(landing.lat_deg),
         math.radians(landing.lon_east_deg),
         t_s,
-        aqf=frame.get("aqf", "Unknown"),
-        imu_integration_s=float(frame.get("imu_integration_s") or 0.0),
-        articulating=frame.get("nate_mode") == "Articulate",
+        # the flag as the rover reported it (ValidationContext checks it is one of AQF_RANK)
+        aqf=cast(AqfName, last["aqf"]) if last is not None else "Unknown",
+        imu_integration_s=last["imu_integration_s"] if last is not None else 0.0,
+        articulating=last is not None and last["nate_mode"] == "Articulate",
         min_sun_elevation_rad=float(params.get("min_sun_elevation_rad", MIN_SUN_ELEVATION_RAD)),
     )
 

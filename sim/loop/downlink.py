@@ -19,10 +19,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields
-from typing import Annotated, Any
+from typing import Annotated, Any, cast
+
+from typing_extensions import TypedDict  # pydantic validates it (tests) on Python 3.11
 
 from estimation.events import Event
-from sim.loop.records import Quat, Vec3, about, record_dict, record_fields, record_schema
+from sim.loop.records import (
+    EventDict,
+    Quat,
+    Vec3,
+    about,
+    record_dict,
+    record_fields,
+    record_schema,
+)
 
 # The estimators a rover may run, SAPP and those beside it whose poses the downlink carries:
 # what `--estimators` accepts; SAPP always runs (``sim.loop.side``).
@@ -89,9 +99,39 @@ class Downlink:
         ),
     ] = math.nan
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self) -> DownlinkDict:
         """The record as a JSON-ready dict (``sim.loop.records.record_dict``)."""
-        return record_dict(self, DOWNLINK_FIELDS)
+        return cast(DownlinkDict, record_dict(self, DOWNLINK_FIELDS))
+
+
+class DownlinkDict(TypedDict):
+    """A ``Downlink`` as the JSON-ready dict the server stores, sends and judges
+    (``Downlink.as_dict``): the same fields, a figure that does not exist ``None``
+    (``tests/sim/loop/test_record_dicts.py`` keeps the two in step)."""
+
+    t_s: float
+    sol: int
+    lmst_h: float
+    nate_mode: str
+    aqf: str
+    q_b_ll_est: Quat
+    p_s_est: Vec3
+    site_index: int
+    p_mission_est: Vec3
+    imu_integration_s: float
+    gyro_counter_s: float
+    tilt_est_deg: float | None
+    tilt_accel_deg: float | None
+    command: str
+    rocker_enc_deg: float
+    bogie_enc_deg: list[float]
+    steer_enc_deg: list[float]
+    hga_azimuth_deg: float | None
+    hga_elevation_deg: float | None
+    events: list[EventDict]
+    estimators: dict[str, dict[str, Any]]
+    vo_failures_in_row: int
+    hga_margin_predicted_deg: float | None
 
 
 DOWNLINK_FIELDS = tuple(f.name for f in fields(Downlink))

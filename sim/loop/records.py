@@ -15,11 +15,20 @@ from dataclasses import fields
 from typing import Any
 
 from pydantic import Field, TypeAdapter
+from typing_extensions import TypedDict  # pydantic validates it (tests) on Python 3.11
 
 from estimation.events import Event
 
 Vec3 = list[float]
 Quat = list[float]
+
+
+class EventDict(TypedDict):
+    """An ``estimation.events.Event`` in a JSON-ready record."""
+
+    text: str
+    kind: str
+    severity: str
 
 
 def about(text: str) -> Any:

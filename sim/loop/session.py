@@ -37,13 +37,13 @@ from estimation.vo.odometry import VisualOdometry
 from sequences import commands as cmd
 from sim.errors import InputError
 from sim.loop.context import CommandRefusedError, LoopContext
-from sim.loop.downlink import Downlink
+from sim.loop.downlink import Downlink, DownlinkDict
 from sim.loop.frames import FrameRecorder
 from sim.loop.handlers import HANDLERS
 from sim.loop.rover_sim import Placement, RoverSim
 from sim.loop.side.estimators import SideEstimators
 from sim.loop.vo_drive import VO_RIG, VoDriveOptions
-from sim.scoring.truth import Truth
+from sim.scoring.truth import Truth, TruthDict
 
 FloatArray = NDArray[np.float64]
 VoFactory = Callable[[RoverSim], VisualOdometry]
@@ -144,7 +144,7 @@ class RoverSession:
         for scoring, never for the ground."""
         return self.loop.recorder.truths
 
-    def take_frames(self) -> list[tuple[dict[str, Any], dict[str, Any]]]:
+    def take_frames(self) -> list[tuple[DownlinkDict, TruthDict]]:
         """The frames made so far as (downlink, truth) dict pairs, handed over: the lists
         are emptied (a checkpoint stays small)."""
         pairs = [

@@ -14,10 +14,21 @@ the loop made before the two were apart.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
-from typing import Annotated, Any
+from typing import Annotated, Any, cast
+
+from typing_extensions import TypedDict  # pydantic validates it (tests) on Python 3.11
 
 from estimation.events import Event
-from sim.loop.records import Quat, Vec3, about, record_dict, record_fields, record_schema
+from sim.loop.downlink import DownlinkDict
+from sim.loop.records import (
+    EventDict,
+    Quat,
+    Vec3,
+    about,
+    record_dict,
+    record_fields,
+    record_schema,
+)
 
 
 @dataclass(frozen=True)
@@ -62,9 +73,33 @@ class Truth:
         ),
     ] = field(default_factory=dict)
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self) -> TruthDict:
         """The record as a JSON-ready dict (``sim.loop.records.record_dict``)."""
-        return record_dict(self, TRUTH_FIELDS)
+        return cast(TruthDict, record_dict(self, TRUTH_FIELDS))
+
+
+class TruthDict(TypedDict):
+    """A ``Truth`` as the JSON-ready dict the server stores and sends to the truth view
+    (``Truth.as_dict``): the same fields, a figure that does not exist ``None``
+    (``tests/sim/loop/test_record_dicts.py`` keeps the two in step)."""
+
+    t_s: float
+    q_b_ll_true: Quat
+    p_s_true: Vec3
+    p_mission_true: Vec3
+    hga_error_deg: float | None
+    hga_margin_deg: float | None
+    earth_up: bool
+    attitude_error_deg: float | None
+    position_error_m: float | None
+    rocker_deg: float
+    bogie_deg: list[float]
+    steer_deg: list[float]
+    sun_ll_true: Vec3
+    earth_ll_true: Vec3
+    hga_boresight_ll_true: Vec3
+    events: list[EventDict]
+    estimators: dict[str, dict[str, Any]]
 
 
 TRUTH_FIELDS = tuple(f.name for f in fields(Truth))
@@ -80,7 +115,7 @@ def truth_schema() -> dict[str, Any]:
     return record_schema(Truth)
 
 
-def merged(downlink: dict[str, Any], truth: dict[str, Any]) -> dict[str, Any]:
+def merged(downlink: DownlinkDict, truth: TruthDict) -> dict[str, Any]:
     """A downlink record and its truth record (``as_dict``, the same ``t_s``) as one frame:
     every field of both; the events are the downlink's then the truth's, and each side
     estimator's entry holds its pose and its errors."""
