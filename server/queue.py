@@ -26,7 +26,7 @@ from server.errors import ConflictError
 class StepOutcome:
     """How a step of a queued sequence ended (its command report, in short)."""
 
-    status: str  # "completed", "failed" or "refused"
+    status: str  # "completed", "failed", "refused" or "halted"
     reason: str | None
     start_t_s: float
     end_t_s: float
@@ -42,7 +42,7 @@ class QueuedSequence:
     immediate: bool = False
     wait_left_s: float | None = None  # a WAIT under way in chunks: what is left of it
     problems: list[str] = field(default_factory=list)  # steps that failed or were refused
-    halted: bool = False  # a refused step stopped the sequence
+    stopped: bool = False  # a refused or halted step stopped the sequence
     started: bool = False  # its first step has been taken up: it keeps its place
     outcomes: list[StepOutcome] = field(default_factory=list)  # steps done, in order
 
@@ -69,7 +69,7 @@ class QueuedSequence:
             "immediate": self.immediate,
             "wait_left_s": self.wait_left_s,
             "problems": list(self.problems),
-            "halted": self.halted,
+            "stopped": self.stopped,
             "started": self.started,
             "outcomes": [asdict(o) for o in self.outcomes],
         }
@@ -84,7 +84,8 @@ class QueuedSequence:
             immediate=bool(state["immediate"]),
             wait_left_s=state["wait_left_s"],
             problems=list(state["problems"]),
-            halted=bool(state["halted"]),
+            # "halted" before a step status took the name (a drive halted by fault protection)
+            stopped=bool(state.get("stopped", state.get("halted", False))),
             started=bool(state["started"]),
             outcomes=[StepOutcome(**o) for o in state["outcomes"]],
         )
@@ -109,7 +110,7 @@ class QueueEntry:
     immediate: bool
     started: bool
     next_step: int
-    halted: bool
+    stopped: bool
     outcomes: tuple[StepOutcome, ...]
     running_step: int | None
     pinned: str | None
@@ -148,7 +149,7 @@ def snapshot(
             immediate=q.immediate,
             started=q.has_started,
             next_step=q.next_step,
-            halted=q.halted,
+            stopped=q.stopped,
             outcomes=tuple(q.outcomes),
             running_step=running[1] if running and running[0] == q.sequence_id else None,
             pinned=pinned(q),

@@ -77,7 +77,7 @@ def _step(
         out["reason"] = done.reason
         if out["status"] != "running":  # its frames still play out: it runs until then
             out["status"] = done.status
-    elif entry.halted:
+    elif entry.stopped:
         out["status"] = "skipped"
     elif index < entry.next_step:  # done before a restart from an older version's checkpoint
         out["status"] = "completed"

@@ -407,7 +407,7 @@ class RoverRuntime:
                 if item.next_step < len(item.sequence.steps):
                     return item, item.sequence.steps[item.next_step].time_tag
                 self.queue.popleft()
-                status = "failed" if item.halted else "completed"
+                status = "failed" if item.stopped else "completed"
                 detail = "; ".join(item.problems) or None
                 self._sequence_status(item.sequence_id, status, detail)
                 self._queue_changed()
@@ -476,9 +476,9 @@ class RoverRuntime:
                 StepOutcome(report.status, report.reason, report.start_t_s, report.end_t_s)
             )
             item.next_step += 1
-            if report.status == "refused":  # the rest assumed this step: stop the sequence
+            if report.status in ("refused", "halted"):  # the rest assumed this step: stop
                 item.next_step = len(item.sequence.steps)
-                item.halted = True
+                item.stopped = True
         if self.listener is not None:
             self.listener.command_reported(self.spec.name, CommandRecord(
                 item.sequence_id, index, step.command.describe(), report.status, report.reason,

@@ -13,7 +13,7 @@ import { mayAct } from "./lib/roles.js";
 const panel = $("queue-panel");
 const STATUS_WORDS = {
   pending: "pending", running: "running", completed: "done", failed: "failed",
-  refused: "refused", skipped: "skipped",
+  refused: "refused", halted: "halted", skipped: "skipped",
 };
 const view = { rover: null, me: null, queue: [], recent: [], key: "", open: new Set(), loading: false, again: false };
 

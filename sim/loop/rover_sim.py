@@ -182,38 +182,61 @@ class RoverSim:
         self.totals.idle_s_jumped += duration_s
         return samples
 
-    def drive_straight(self, distance_m: float) -> Segment:
-        """Drive ``distance_m`` (> 0) straight ahead; returns its truth and sensor samples."""
+    def drive_straight(self, distance_m: float, max_cycles: int | None = None) -> Segment:
+        """Drive ``distance_m`` (> 0) straight ahead; returns its truth and sensor samples.
+        ``max_cycles``: the drive halted after that many of its control cycles (``_drive``)."""
         steer = bool(np.any(self.drive_state.steer_rad != 0.0))
         return self._drive(
-            lambda start: drive.drive_straight(self.terrain, start, distance_m, self.slip), steer
+            lambda start, n: drive.drive_straight(
+                self.terrain, start, distance_m, self.slip, max_cycles=n
+            ),
+            steer,
+            max_cycles,
         )
 
-    def drive_arc(self, radius_m: float, angle_rad: float) -> Segment:
+    def drive_arc(
+        self, radius_m: float, angle_rad: float, max_cycles: int | None = None
+    ) -> Segment:
         """Drive along an arc (see ``sim.rover.drive.drive_arc`` for the signs)."""
         return self._drive(
-            lambda start: drive.drive_arc(self.terrain, start, radius_m, angle_rad, self.slip),
+            lambda start, n: drive.drive_arc(
+                self.terrain, start, radius_m, angle_rad, self.slip, max_cycles=n
+            ),
             True,
+            max_cycles,
         )
 
-    def turn_in_place(self, angle_rad: float) -> Segment:
+    def turn_in_place(self, angle_rad: float, max_cycles: int | None = None) -> Segment:
         """Turn in place by ``angle_rad`` (positive: clockwise seen from above, to the right)."""
         return self._drive(
-            lambda start: drive.turn_in_place(self.terrain, start, angle_rad, self.slip), True
+            lambda start, n: drive.turn_in_place(
+                self.terrain, start, angle_rad, self.slip, max_cycles=n
+            ),
+            True,
+            max_cycles,
         )
 
     def _drive(
         self,
-        primitive: Callable[[drive.DriveState], tuple[TruthTrajectory, drive.DriveState]],
+        primitive: Callable[
+            [drive.DriveState, int | None], tuple[TruthTrajectory, drive.DriveState]
+        ],
         steers: bool,
+        max_cycles: int | None = None,
     ) -> Segment:
         """Run a drive primitive. Steering the corner wheels at rest moves their contact
         points and so the body's attitude: when the wheels steer, one control cycle of
         steering comes first, from the pose at rest to the primitive's first (steered)
-        pose, so that the IMU and the truth see the change."""
+        pose, so that the IMU and the truth see the change.
+
+        ``max_cycles``: fault protection halted the drive after that many control cycles
+        of the segment (the steering cycle counted): loaded back to the state before the
+        drive, the simulator makes the same segment cut there (``sim.rover.drive.cut_cycles``).
+        """
         before = self.drive_state
         start = before.at_time(before.t_s + CONTROL_DT_S) if steers else before
-        traj, self.drive_state = primitive(start)
+        n = None if max_cycles is None else max(1, drive.cut_cycles(max_cycles) - int(steers))
+        traj, self.drive_state = primitive(start, n)
         if steers:
             traj = _prepend(before.as_trajectory(), traj)
         return self._sense(traj)

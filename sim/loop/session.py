@@ -52,7 +52,9 @@ VoFactory = Callable[[RoverSim], VisualOdometry]
 @dataclass
 class CommandReport:
     """What a command did: ``status`` is ``completed``, ``refused`` (nothing changed;
-    ``reason`` says why) or ``failed`` (it ran and its mode failed; ``reason``). ``events``
+    ``reason`` says why), ``failed`` (it ran and its mode failed; ``reason``) or ``halted``
+    (a mobility fault protection stopped the drive: ``reason``, and ``details["halt"]``
+    the check and the values that tripped it, ``estimation.protection.halt``). ``events``
     are the rover's (its downlink's), ``scores`` the truth records' (for scoring only)."""
 
     command: str
@@ -188,6 +190,9 @@ class RoverSession:
             failure = details.pop("failure", None)
             if failure:
                 report.status, report.reason = "failed", str(failure)
+            halt = details.get("halt")
+            if halt is not None:
+                report.status, report.reason = "halted", str(halt["reason"])
         report.end_t_s = loop.sim.t_s
         report.results = loop.results
         # with the events still waiting for a frame (a command that took no time comes at a

@@ -194,15 +194,28 @@ def _check(name: str, value: float, low: float, high: float) -> float:
     return v
 
 
-def _schedule(total: float, rate: float) -> FloatArray:
+def _schedule(total: float, rate: float, max_cycles: int | None = None) -> FloatArray:
     """Cumulative commanded amount at the control instants, ``min(k dt rate, total)``.
 
     Shape (K + 1,), from 0 to exactly ``total`` (K >= 1 steps of ``CONTROL_DT_S``).
+    ``max_cycles``: the drive was halted after that many cycles (``cut_cycles``): the
+    first ``max_cycles`` steps only, the same as the whole drive's.
     """
     steps = max(1, math.ceil(total / (rate * CONTROL_DT_S) - 1e-9))
     out: FloatArray = np.minimum(np.arange(steps + 1) * (CONTROL_DT_S * rate), total)
     out[-1] = total
+    if max_cycles is not None:
+        out = out[: cut_cycles(max_cycles) + 1]
     return out
+
+
+def cut_cycles(max_cycles: int) -> int:
+    """``max_cycles`` checked: a drive halted by fault protection after that many control
+    cycles. Its truth is the uncut drive's up to there (the slip noise is drawn step by
+    step, so its first draws are the same) and the rover stands where it stopped."""
+    if isinstance(max_cycles, bool) or not isinstance(max_cycles, int) or max_cycles < 1:
+        raise InputError("max_cycles", f"must be a whole number >= 1, got {max_cycles!r}")
+    return max_cycles
 
 
 def _slopes(
@@ -403,8 +416,10 @@ def drive_straight(
     distance_m: float,
     slip_model: SlipModel,
     speed_m_s: float = DEFAULT_SPEED_M_S,
+    max_cycles: int | None = None,
 ) -> tuple[TruthTrajectory, DriveState]:
-    """Drive ``distance_m`` (> 0, wheel odometry) straight ahead at ``speed_m_s``.
+    """Drive ``distance_m`` (> 0, wheel odometry) straight ahead at ``speed_m_s``
+    (``max_cycles``: halted after that many control cycles, ``cut_cycles``).
 
     >>> from sim.world.terrain import FlatTerrain
     >>> flat = FlatTerrain()
@@ -414,7 +429,7 @@ def drive_straight(
     """
     d = _check("distance_m", distance_m, 0.0, MAX_PATH_M)
     v = _check("speed_m_s", speed_m_s, 0.0, MAX_SPEED_M_S)
-    s_cmd = _schedule(d, v)
+    s_cmd = _schedule(d, v, max_cycles)
     ds = np.diff(s_cmd)
     motion = _integrate(start, ds.size, _path_increments(terrain, ds, 0.0, slip_model))
     r = slip_model.geometry.wheel_radius_m
@@ -429,6 +444,7 @@ def drive_arc(
     angle_rad: float,
     slip_model: SlipModel,
     speed_m_s: float = DEFAULT_SPEED_M_S,
+    max_cycles: int | None = None,
 ) -> tuple[TruthTrajectory, DriveState]:
     """Drive forwards along an arc of ``radius_m`` through a heading change ``angle_rad``.
 
@@ -446,7 +462,7 @@ def drive_arc(
     if length > MAX_PATH_M:
         raise InputError("angle_rad", f"the arc is {length:g} m long, more than {MAX_PATH_M:g}")
     steer, roll = _arc_wheels(geometry, radius)
-    s_cmd = _schedule(length, v)
+    s_cmd = _schedule(length, v, max_cycles)
     ds = np.diff(s_cmd)
     motion = _integrate(start, ds.size, _path_increments(terrain, ds, 1.0 / radius, slip_model))
     wheel = np.outer(s_cmd, roll) / geometry.wheel_radius_m
@@ -459,6 +475,7 @@ def turn_in_place(
     angle_rad: float,
     slip_model: SlipModel,
     rate_rad_s: float = DEFAULT_TURN_RATE_RAD_S,
+    max_cycles: int | None = None,
 ) -> tuple[TruthTrajectory, DriveState]:
     """Turn about the body origin by ``angle_rad`` (> 0 clockwise seen from above).
 
@@ -473,7 +490,7 @@ def turn_in_place(
     wxy = geometry.wheel_xy_b()
     sigma = np.arctan(-wxy[:, 0] / wxy[:, 1])  # velocity ∝ (-y, x): keep |σ| < 90°
     lever = -wxy[:, 1] * np.cos(sigma) + wxy[:, 0] * np.sin(sigma)  # roll per rad, signed
-    psi_cmd = math.copysign(1.0, angle) * _schedule(abs(angle), rate)
+    psi_cmd = math.copysign(1.0, angle) * _schedule(abs(angle), rate, max_cycles)
     dpsi = np.diff(psi_cmd)
     lever_m = float(np.mean(np.abs(lever)))
     motion = _integrate(start, dpsi.size, _turn_increments(terrain, dpsi, lever_m, slip_model))
