@@ -23,6 +23,9 @@ Defaults, and where they come from:
 - ``rocker_limit_rad`` 20 deg, ``bogie_limit_rad`` 30 deg: approximate suspension-angle
   limits of the MER class (the rocker-bogie's mechanical travel is larger).
 - ``drive_timeout_s`` 3600 s: a drive command's default time budget (approximate).
+- ``odometry_sigma_fraction`` 0.03: the 1σ of wheel odometry's position error as a fraction
+  of the distance driven (``estimation.protection.position_sigma``). MER's requirement was
+  10 % of the distance (Ali et al. 2005 sec. 1); 3 % takes it as about 3σ (approximate).
 """
 
 from __future__ import annotations
@@ -58,6 +61,7 @@ SPECS: dict[str, LimitSpec] = {
     "rocker_limit_rad": LimitSpec("rad", 0.0, math.radians(45.0), note="|rocker angle|"),
     "bogie_limit_rad": LimitSpec("rad", 0.0, math.radians(60.0), note="|bogie angle|"),
     "drive_timeout_s": LimitSpec("s", 1.0, 86400.0, note="a drive's default time budget"),
+    "odometry_sigma_fraction": LimitSpec("", 0.0, 1.0, note="odometry 1σ per m driven"),
 }
 
 
@@ -73,6 +77,7 @@ class MobilityLimits:
     rocker_limit_rad: float = math.radians(20.0)
     bogie_limit_rad: float = math.radians(30.0)
     drive_timeout_s: float = 3600.0
+    odometry_sigma_fraction: float = 0.03
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
