@@ -11,8 +11,10 @@ Kinds, by who makes them:
   ``sunfind``, ``sungaze``, ``suncheck``, ``gyrocompass``, and ``acquisition`` (an
   attitude acquisition command, e.g. GetFineAttitude, done or aborted);
 - the rover session (``sim.loop.session``): ``command`` (a command refused), ``site`` (a Site
-  planted), ``parameter`` (a NATE parameter set), ``hga`` (an HGA pass), ``vo`` (a visual
-  odometry step) and ``estimator`` (a comparison estimator stopped);
+  planted), ``parameter`` (a NATE parameter or a mobility limit set), ``hga`` (an HGA
+  pass), ``vo`` (a visual odometry step), ``estimator`` (a comparison estimator stopped),
+  ``mobility`` (mobility fault protection halted a drive, or the ground cleared the fault:
+  ``estimation.protection``) and ``keepout`` (a keep-out zone added or cleared);
 - the ground server (``server``): ``server`` (the server started, or restarted and the
   rover resumed from its checkpoint), ``sequence`` (a sequence started, completed or failed)
   and ``alarm`` (an alarm raised, escalated, cleared or acknowledged: ``error`` when
@@ -22,7 +24,7 @@ Severities, one rule for all kinds:
 
 - ``error``: what was commanded did not happen: a command refused, a mode that failed
   (the flag dropped or the estimate was not updated), an acquisition aborted, an HGA pass
-  whose margin went below zero;
+  whose margin went below zero, a drive halted by fault protection;
 - ``warning``: it happened, degraded: a Sungaze without its gravity average, an HGA pass
   without a Fine attitude or with Earth setting, a VO step that fell back on wheel
   odometry, a Nadir Check that could not judge, a comparison estimator stopped;
@@ -43,7 +45,9 @@ Severity = Literal["info", "warning", "error"]
 SEVERITIES: tuple[Severity, ...] = ("info", "warning", "error")  # in increasing order
 
 FLIGHT_KINDS = ("nadir", "sunfind", "sungaze", "suncheck", "gyrocompass", "acquisition")
-SESSION_KINDS = ("command", "site", "parameter", "hga", "vo", "estimator")
+SESSION_KINDS = (
+    "command", "site", "parameter", "hga", "vo", "estimator", "mobility", "keepout",
+)  # fmt: skip
 SERVER_KINDS = ("server", "sequence", "alarm")
 KINDS: tuple[str, ...] = FLIGHT_KINDS + SESSION_KINDS + SERVER_KINDS
 

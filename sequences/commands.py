@@ -37,6 +37,8 @@ from dataclasses import dataclass, fields
 from typing import ClassVar
 
 from estimation.geometry import FLIGHT_GEOMETRY
+from estimation.protection.keepout import parse_polygon
+from estimation.protection.limits import LIMITS, check_limit
 from estimation.sapp.nate_io import CONTROL_DT_S, NateParams
 from sequences.command_base import ArgKind as ArgKind
 from sequences.command_base import ArgSpec as ArgSpec
@@ -84,6 +86,49 @@ VO_SPECS: Mapping[str, ArgSpec] = {
 }
 
 
+# A drive's own mobility limits (``estimation.protection``): omitted, the rover's.
+PROTECTION_SPECS: Mapping[str, ArgSpec] = {
+    "slip_limit_pct": ArgSpec(
+        "number",
+        "%",
+        0.0,
+        100.0,
+        note=f"with vo=on: halt when the slip over a slip check exceeds it; omit: the "
+        f"rover's mobility.slip_limit ({100 * LIMITS.slip_limit:g} %)",
+    ),
+    "vo_fail": ArgSpec(
+        "string",
+        note=f"halt or continue: when VO fails mobility.vo_max_failures_in_row "
+        f"({LIMITS.vo_max_failures_in_row}) steps in a row; omit: halt",
+    ),
+    "timeout_s": ArgSpec(
+        "number",
+        "s",
+        0.0,
+        86400.0,
+        lo_open=True,
+        note=f"halt when the drive has not ended by then; omit: mobility.drive_timeout_s "
+        f"({LIMITS.drive_timeout_s:g} s)",
+    ),
+    "lmst_limit_h": ArgSpec(
+        "number",
+        "h",
+        0.0,
+        24.0,
+        note="halt when Local Mean Solar Time reaches it (e.g. 15.5 for 15:30); omit: none",
+    ),
+}
+
+
+def _check_protection(command: Command) -> None:
+    vo_fail = getattr(command, "vo_fail", None)
+    if vo_fail is not None and vo_fail not in ("halt", "continue"):
+        raise ValueError(f"vo_fail: must be halt or continue, got {shown(vo_fail)}")
+    lmst = getattr(command, "lmst_limit_h", None)
+    if lmst is not None and float(lmst) >= 24.0:
+        raise ValueError(f"lmst_limit_h: must be below 24 h, got {shown(lmst)}")
+
+
 def vo_step_count(
     length_m: float,
     turn_deg: float,
@@ -110,6 +155,7 @@ def vo_step_count(
 def _check_vo(command: Command) -> None:
     if getattr(command, "vo_attitude", False) and not getattr(command, "vo", False):
         raise ValueError("vo_attitude: needs vo=on")
+    _check_protection(command)
 
 
 @dataclass(frozen=True)
@@ -120,10 +166,15 @@ class DriveStraight(Command):
     specs: ClassVar[Mapping[str, ArgSpec]] = {
         "distance_m": ArgSpec("number", "m", 0.0, MAX_DRIVE_M, lo_open=True),
         **VO_SPECS,
+        **PROTECTION_SPECS,
     }
     distance_m: float
     vo: bool | None = None  # None: off
     vo_attitude: bool | None = None
+    slip_limit_pct: float | None = None  # None: the rover's limits (PROTECTION_SPECS)
+    vo_fail: str | None = None
+    timeout_s: float | None = None
+    lmst_limit_h: float | None = None
 
     def _check_rules(self) -> None:
         _check_vo(self)
@@ -153,11 +204,16 @@ class DriveArc(Command):
             note=f"the arc (|radius_m| × angle) at most {MAX_DRIVE_M:g} m long",
         ),
         **VO_SPECS,
+        **PROTECTION_SPECS,
     }
     radius_m: float
     angle_deg: float
     vo: bool | None = None  # None: off
     vo_attitude: bool | None = None
+    slip_limit_pct: float | None = None  # None: the rover's limits (PROTECTION_SPECS)
+    vo_fail: str | None = None
+    timeout_s: float | None = None
+    lmst_limit_h: float | None = None
 
     def _check_rules(self) -> None:
         _check_vo(self)
@@ -181,10 +237,15 @@ class TurnInPlace(Command):
             "number", "deg", -360.0, 360.0, note="not zero; > 0 clockwise seen from above"
         ),
         **VO_SPECS,
+        **PROTECTION_SPECS,
     }
     angle_deg: float
     vo: bool | None = None  # None: off
     vo_attitude: bool | None = None
+    slip_limit_pct: float | None = None  # None: the rover's limits (PROTECTION_SPECS)
+    vo_fail: str | None = None
+    timeout_s: float | None = None
+    lmst_limit_h: float | None = None
 
     def _check_rules(self) -> None:
         _check_vo(self)
@@ -204,11 +265,16 @@ class DriveTo(Command):
         "x_m": ArgSpec("number", "m", -1000.0, 1000.0, note=f"North in the Site; {_DRIVE_TO_NOTE}"),
         "y_m": ArgSpec("number", "m", -1000.0, 1000.0, note=f"East in the Site; {_DRIVE_TO_NOTE}"),
         **VO_SPECS,
+        **PROTECTION_SPECS,
     }
     x_m: float
     y_m: float
     vo: bool | None = None  # None: off
     vo_attitude: bool | None = None
+    slip_limit_pct: float | None = None  # None: the rover's limits (PROTECTION_SPECS)
+    vo_fail: str | None = None
+    timeout_s: float | None = None
+    lmst_limit_h: float | None = None
 
     def _check_rules(self) -> None:
         _check_vo(self)
@@ -377,11 +443,16 @@ class Wait(Command):
 
 @dataclass(frozen=True)
 class SetParam(Command):
-    """Set a NATE parameter by dotted name (``sungaze.timer_s``), SI units."""
+    """Set a NATE parameter by dotted name (``sungaze.timer_s``), or a mobility limit
+    (``mobility.slip_limit``: ``estimation.protection.limits``), SI units."""
 
     name: ClassVar[str] = "SET_PARAM"
     specs: ClassVar[Mapping[str, ArgSpec]] = {
-        "param": ArgSpec("string", note="a NATE parameter by dotted name, e.g. sungaze.timer_s"),
+        "param": ArgSpec(
+            "string",
+            note="a NATE parameter by dotted name, e.g. sungaze.timer_s, or a mobility "
+            "limit, e.g. mobility.slip_limit",
+        ),
         "value": ArgSpec("number_or_boolean", note="in the parameter's SI unit, or true/false"),
     }
     param: str
@@ -390,6 +461,76 @@ class SetParam(Command):
     def _check_rules(self) -> None:
         if not isinstance(self.param, str) or not self.param.strip():
             raise ValueError(f"param: must be a parameter name, got {shown(self.param)}")
+        if self.param.startswith("mobility."):  # the ground knows every mobility limit
+            try:
+                check_limit(self.param.removeprefix("mobility."), self.value)
+            except ValueError as exc:
+                raise ValueError(f"value: {exc}") from None
+
+
+_ZONE_NAME = "letters, digits and _ (1-64); KEEPOUT_CLEAR name=all clears every zone"
+
+
+@dataclass(frozen=True)
+class KeepoutAdd(Command):
+    """Add a keep-out zone in the current Site: a circle (``x_m``, ``y_m``, ``radius_m``)
+    or a polygon (``polygon_m="x1,y1 x2,y2 x3,y3"``). Drives halt before the rover's
+    position, grown by ``mobility.keepout_k_sigma`` times its uncertainty, touches it."""
+
+    name: ClassVar[str] = "KEEPOUT_ADD"
+    specs: ClassVar[Mapping[str, ArgSpec]] = {
+        "zone": ArgSpec("string", note=f"the zone's name: {_ZONE_NAME}"),
+        "x_m": ArgSpec("number", "m", -1e4, 1e4, note="North in the Site: a circle's centre"),
+        "y_m": ArgSpec("number", "m", -1e4, 1e4, note="East in the Site: a circle's centre"),
+        "radius_m": ArgSpec("number", "m", 0.0, 1e3, lo_open=True, note="a circle's radius"),
+        "polygon_m": ArgSpec(
+            "string", note='a polygon instead: "x1,y1 x2,y2 ..." (3 to 64 corners, m)'
+        ),
+    }
+    zone: str
+    x_m: float | None = None
+    y_m: float | None = None
+    radius_m: float | None = None
+    polygon_m: str | None = None
+
+    def _check_rules(self) -> None:
+        _check_zone_name(self.zone, allow_all=False)
+        circle = (self.x_m, self.y_m, self.radius_m)
+        if self.polygon_m is not None:
+            if any(v is not None for v in circle):
+                raise ValueError("polygon_m: give a polygon or x_m, y_m, radius_m, not both")
+            if not isinstance(self.polygon_m, str):
+                raise ValueError(f"polygon_m: must be text, got {shown(self.polygon_m)}")
+            parse_polygon(self.polygon_m)
+        elif any(v is None for v in circle):
+            raise ValueError("x_m, y_m, radius_m: a circle needs all three (or polygon_m)")
+
+
+@dataclass(frozen=True)
+class KeepoutClear(Command):
+    """Remove the keep-out zone ``zone`` (``all``: every zone)."""
+
+    name: ClassVar[str] = "KEEPOUT_CLEAR"
+    specs: ClassVar[Mapping[str, ArgSpec]] = {
+        "zone": ArgSpec("string", note=f"the zone's name: {_ZONE_NAME}"),
+    }
+    zone: str
+
+    def _check_rules(self) -> None:
+        _check_zone_name(self.zone, allow_all=True)
+
+
+@dataclass(frozen=True)
+class ClearMobilityFault(Command):
+    """Enable mobility again after a halt (drives are refused until then)."""
+
+    name: ClassVar[str] = "CLEAR_MOBILITY_FAULT"
+
+
+def _check_zone_name(zone: object, allow_all: bool) -> None:
+    ok = isinstance(zone, str) and 0 < len(zone) <= 64 and zone.replace("_", "").isalnum()
+    if not ok or (zone == "all" and not allow_all):
+        raise ValueError(f"zone: {_ZONE_NAME}, got {shown(zone)}")
 
 
 COMMANDS: dict[str, type[Command]] = {
@@ -415,6 +556,9 @@ COMMANDS: dict[str, type[Command]] = {
         HgaPass,
         Wait,
         SetParam,
+        KeepoutAdd,
+        KeepoutClear,
+        ClearMobilityFault,
     )
 }
 

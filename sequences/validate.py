@@ -162,6 +162,9 @@ _DURATION_S: dict[type[cmd.Command], Callable[[Any, float], float]] = {
     cmd.HgaPass: lambda c, _g: float(c.duration_min) * 60.0,
     cmd.Wait: lambda c, _g: float(c.duration_s),
     cmd.SetParam: _fixed(0.0),
+    cmd.KeepoutAdd: _fixed(0.0),
+    cmd.KeepoutClear: _fixed(0.0),
+    cmd.ClearMobilityFault: _fixed(0.0),
 }
 
 

@@ -18,6 +18,7 @@ Distances are signed: positive outside the zone, negative inside (the depth).
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from typing import Any
 
@@ -170,6 +171,57 @@ def parse_polygon(text: str) -> list[Point]:
     if len(corners) < 3:
         raise ValueError(f"polygon_m: at least 3 corners, got {len(corners)}")
     return corners
+
+
+# ---- what the rover says of its table (events), and the ground reads back ----------------
+
+_ADDED = re.compile(r"keep-out zone (\w+) added in Site (\d+): (.*)")
+_CLEARED = re.compile(r"keep-out zones? cleared: (.*)")
+
+
+def zone_added_text(zone: KeepOutZone) -> str:
+    """The event text of a zone added; ``reported_zone`` reads it back exactly."""
+    if zone.is_circle:
+        cx, cy = zone.centre_s
+        shape = f"circle x_m={cx!r} y_m={cy!r} radius_m={zone.radius_m!r}"
+    else:
+        shape = "polygon " + " ".join(f"{x!r},{y!r}" for x, y in zone.vertices_s)
+    return f"keep-out zone {zone.name} added in Site {zone.site_index}: {shape}"
+
+
+def zones_cleared_text(names: list[str]) -> str:
+    """The event text of zones cleared (``names`` may be empty)."""
+    return f"keep-out zones cleared: {', '.join(names) if names else 'none'}"
+
+
+def apply_reported(zones: dict[str, KeepOutZone], text: str) -> None:
+    """Update ``zones`` (name to zone) with what an event ``text`` reports, if it is a
+    keep-out event (the ground rebuilds the rover's table from its events).
+
+    >>> table: dict[str, KeepOutZone] = {}
+    >>> apply_reported(table, zone_added_text(KeepOutZone.circle("rock", 1, 2.0, 3.0, 0.5)))
+    >>> table["rock"].centre_s, table["rock"].site_index
+    ((2.0, 3.0), 1)
+    >>> apply_reported(table, zones_cleared_text(["rock"])); table
+    {}
+    """
+    added = _ADDED.fullmatch(text)
+    if added is not None:
+        name, site, shape = added[1], int(added[2]), added[3]
+        if shape.startswith("circle "):
+            values = dict(item.split("=") for item in shape.removeprefix("circle ").split())
+            zones[name] = KeepOutZone.circle(
+                name, site, float(values["x_m"]), float(values["y_m"]), float(values["radius_m"])
+            )
+        else:
+            zones[name] = KeepOutZone.polygon(
+                name, site, parse_polygon(shape.removeprefix("polygon "))
+            )
+        return
+    cleared = _CLEARED.fullmatch(text)
+    if cleared is not None:
+        for name in cleared[1].split(", "):
+            zones.pop(name, None)
 
 
 # ---- plane geometry ------------------------------------------------------------------------

@@ -22,7 +22,9 @@ Defaults, and where they come from:
   were capped near 30 deg, Biesiadecki and Maimone 2006 sec. 3.2).
 - ``rocker_limit_rad`` 20 deg, ``bogie_limit_rad`` 30 deg: approximate suspension-angle
   limits of the MER class (the rocker-bogie's mechanical travel is larger).
-- ``drive_timeout_s`` 3600 s: a drive command's default time budget (approximate).
+- ``drive_timeout_s`` 43200 s: a drive command's default time budget, half an Earth day:
+  longer than the longest drive the dictionary allows (100 m in VO steps, about 6.3 h with
+  VO's stands), so that only a drive's own ``timeout_s`` is a real budget (approximate).
 - ``odometry_sigma_fraction`` 0.03: the 1σ of wheel odometry's position error as a fraction
   of the distance driven (``estimation.protection.position_sigma``). MER's requirement was
   10 % of the distance (Ali et al. 2005 sec. 1); 3 % takes it as about 3σ (approximate).
@@ -76,7 +78,7 @@ class MobilityLimits:
     tilt_limit_rad: float = math.radians(30.0)
     rocker_limit_rad: float = math.radians(20.0)
     bogie_limit_rad: float = math.radians(30.0)
-    drive_timeout_s: float = 3600.0
+    drive_timeout_s: float = 43200.0
     odometry_sigma_fraction: float = 0.03
 
     def __post_init__(self) -> None:

@@ -43,6 +43,7 @@ from estimation.protection.position_sigma import PositionUncertainty
 from estimation.protection.slip_check import SlipWindow
 
 FloatArray = NDArray[np.float64]
+APPROACH_M = 0.005  # closer than a drive's start by this: approaching (estimate noise aside)
 VoFail = Literal["halt", "continue"]
 
 
@@ -165,6 +166,10 @@ class DriveMonitor:
         self.t_start_s = float(t_s)
         self.lmst_start_h = lmst_h(t_s, protection.lon_east_rad)
         self.window = SlipWindow()
+        # each zone's clearance when the drive first checked it: a drive that starts within
+        # a zone's margin (after a halt there) may move away, and halts only if it comes
+        # closer than that
+        self.start_clearance_m: dict[str, float] = {}
 
     @property
     def margin_m(self) -> float:
@@ -255,7 +260,8 @@ class DriveMonitor:
             for k in range(n):
                 clearance = zone.clearance_m((float(positions[k][0]), float(positions[k][1])))
                 margin = k_sigma * float(sigma[k])
-                if clearance <= margin:
+                start = self.start_clearance_m.setdefault(name, clearance)
+                if clearance <= margin and clearance < start - APPROACH_M:
                     at(
                         k,
                         "keepout",
@@ -288,7 +294,8 @@ class DriveMonitor:
         margin = self.margin_m
         for name, position in p_zone_s.items():
             clearance = p.zones[name].clearance_m((float(position[0]), float(position[1])))
-            if clearance <= margin:
+            start = self.start_clearance_m.setdefault(name, clearance)
+            if clearance <= margin and clearance < start - APPROACH_M:
                 return Halt(
                     "keepout",
                     f"keep-out zone {name}: {clearance:.2f} m away after the VO update, within "

@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from estimation.events import Event, Severity
+from estimation.protection.monitor import MobilityProtection
 from estimation.sapp.nate import EncoderSeries, ImuSample, ImuSeries, Nate, NateSeries
 from estimation.sapp.wheel_odometry import steer_six
 from estimation.vo.odometry import VisualOdometry
@@ -52,6 +53,7 @@ class LoopContext:
     side: SideEstimators
     vo: VisualOdometry
     vo_options: VoDriveOptions
+    protection: MobilityProtection
     results: list[Any] = field(default_factory=list)
 
     def event(self, text: str, kind: str, severity: Severity = "info") -> None:

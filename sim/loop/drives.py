@@ -16,12 +16,15 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from estimation.protection.monitor import DriveMonitor
 from estimation.sapp.nate import DriveCommand, NateMode
 from estimation.sapp.wheel_odometry import DriveKind
-from estimation.vo.odometry import VisualOdometry
+from estimation.vo.odometry import VisualOdometry, VoMotion
 from sequences import commands as cmd
 from sim.errors import InputError
+from sim.loop import guard
 from sim.loop.context import CommandRefusedError, LoopContext
+from sim.loop.rover_sim import Segment
 from sim.loop.vo_drive import (
     VO_MAST_AZ_RAD,
     VO_MAST_EL_RAD,
@@ -36,43 +39,83 @@ from sim.loop.vo_drive import (
 VoDrive = cmd.DriveStraight | cmd.DriveArc | cmd.TurnInPlace | cmd.DriveTo
 
 
-def drive(ctx: LoopContext, command: DriveCommand, kind: str, *args: float) -> dict[str, Any]:
+def drive(
+    ctx: LoopContext,
+    command: DriveCommand,
+    kind: str,
+    *args: float,
+    monitor: DriveMonitor | None = None,
+) -> dict[str, Any]:
     """One drive primitive (``kind`` ``straight`` (distance_m,), ``arc`` (radius_m,
-    angle_rad) or ``turn`` (angle_rad,)) on wheel odometry."""
+    angle_rad) or ``turn`` (angle_rad,)) on wheel odometry, watched by ``monitor``
+    (mobility fault protection, ``sim.loop.guard``); cut at the cycle where a check trips,
+    with ``details["halt"]``."""
     nate, sim = ctx.nate, ctx.sim
-    wheel0 = sim.wheel_angle_rad_now()
     if nate.mode is not NateMode.IDLE:  # checked before the rover moves
         raise CommandRefusedError(f"mobility: refused in mode {nate.mode.value}")
-    if kind == "straight":  # the simulator refuses bad sizes before anything moves
-        seg = sim.drive_straight(args[0])
-    elif kind == "arc":
-        seg = sim.drive_arc(args[0], args[1])
-    else:
-        seg = sim.turn_in_place(args[0])
+    if monitor is None:
+        monitor = guard.begin_drive(ctx, None)
+    wheel0 = sim.wheel_angle_rad_now()
+    sim_before, nate_before = sim.state(), nate.state()
+    seg = _primitive(ctx, kind, args, None)  # the simulator refuses bad sizes first
     start = ctx.mission_estimate()
+    p_before = nate.p_s.copy()
     nate.mobility(command, wheel_angle_rad=wheel0)
     series = ctx.step_segment(seg)
+    trip = guard.check_segment(ctx, monitor, seg, series, p_before)
+    if trip is not None:  # the world stops where the flight software decided
+        sim.load_state(sim_before)
+        nate.load_state(nate_before)
+        seg = _primitive(ctx, kind, args, trip.index + 1)
+        nate.mobility(command, wheel_angle_rad=wheel0)
+        series = ctx.step_segment(seg)
+    monitor.drove(float(np.sum(guard.odometry_steps_m(p_before, series))))
     nate.stop()
     side = ctx.side.drive(seg, kind, args, start, series, ctx.recorder.events)
+    details: dict[str, Any] = {}
+    if trip is not None:
+        details["halt"] = guard.halt(ctx, trip.halt)
     ctx.recorder.segment(seg, series, side)
     ctx.recorder.now(force=True)
     distance = float(np.sum(np.linalg.norm(np.diff(seg.truth.p_s, axis=0), axis=1)))
-    return {"distance_truth_m": distance}
+    return {"distance_truth_m": distance, **details}
+
+
+def _primitive(ctx: LoopContext, kind: str, args: tuple[float, ...], cut: int | None) -> Segment:
+    sim = ctx.sim
+    if kind == "straight":
+        return sim.drive_straight(args[0], max_cycles=cut)
+    if kind == "arc":
+        return sim.drive_arc(args[0], args[1], max_cycles=cut)
+    return sim.turn_in_place(args[0], max_cycles=cut)
 
 
 def move(
-    ctx: LoopContext, command: DriveCommand, kind: str, args: tuple[float, ...], c: VoDrive
+    ctx: LoopContext,
+    command: DriveCommand,
+    kind: str,
+    args: tuple[float, ...],
+    c: VoDrive,
+    monitor: DriveMonitor | None = None,
 ) -> dict[str, Any]:
-    """A drive primitive, stepped with visual odometry when the command says ``vo``."""
+    """A drive primitive, stepped with visual odometry when the command says ``vo``;
+    ``monitor`` the drive command's (a new one for ``c`` when not given)."""
+    if monitor is None:
+        monitor = guard.begin_drive(ctx, c)
     if c.vo:
-        return drive_vo(ctx, command, kind, args, attitude=bool(c.vo_attitude))
-    return drive(ctx, command, kind, *args)
+        return drive_vo(ctx, command, kind, args, bool(c.vo_attitude), monitor)
+    return drive(ctx, command, kind, *args, monitor=monitor)
 
 
 def drive_vo(
-    ctx: LoopContext, command: DriveCommand, kind: str, args: tuple[float, ...], attitude: bool
+    ctx: LoopContext,
+    command: DriveCommand,
+    kind: str,
+    args: tuple[float, ...],
+    attitude: bool,
+    monitor: DriveMonitor,
 ) -> dict[str, Any]:
-    """A drive in VO steps (module docstring)."""
+    """A drive in VO steps (module docstring), with the slip check after each."""
     nate = ctx.nate
     if nate.mode is not NateMode.IDLE:  # checked before the rover moves
         raise CommandRefusedError(f"mobility: refused in mode {nate.mode.value}")
@@ -83,22 +126,52 @@ def drive_vo(
     _vo_step(ctx, vo, before, before, 0, len(steps), attitude)  # the first pair
     distance = 0.0
     updates = 0
+    halted: dict[str, Any] | None = None
     for i, step in enumerate(steps, start=1):
-        distance += drive(ctx, command, kind, *step)["distance_truth_m"]
+        sigma_at_pair = ctx.protection.uncertainty.sigma_m
+        out = drive(ctx, command, kind, *step, monitor=monitor)
+        distance += out["distance_truth_m"]
+        if "halt" in out:
+            halted = out["halt"]
+            break
         after = ctx.estimate()
-        updates += _vo_step(ctx, vo, before, after, i, len(steps), attitude)
+        motion = _vo_step(ctx, vo, before, after, i, len(steps), attitude)
+        vo_s = None
+        if motion is not None:
+            updates += 1
+            ctx.protection.uncertainty.vo_update(sigma_at_pair, motion.covariance)
+            vo_s = ctx.nate.p_s.copy()
+        found = guard.vo_step_halt(
+            ctx, monitor, _commanded_m(kind, step), before.p_s, after.p_s, vo_s
+        )
+        if found is not None:
+            halted = guard.halt(ctx, found)
         # the rover stands while VO computes: the step's outcome is known at the stand's end,
         # so its events are reported there, the stand one jump (sim.loop.frames)
         ctx.wait(cmd.VO_PROCESSING_S, report_waiting_first=False)
         ctx.recorder.now(force=True)
+        if halted is not None:
+            break
         before = ctx.estimate()
     vo.reset()  # the last pair's images are not needed again (and checkpoints stay small)
-    return {
+    details: dict[str, Any] = {
         "distance_truth_m": distance,
         "vo_steps": len(steps),
         "vo_updates": updates,
         "vo_failures": len(steps) - updates,
     }
+    if halted is not None:
+        details["halt"] = halted
+    return details
+
+
+def _commanded_m(kind: str, step: tuple[float, ...]) -> float:
+    """The motion a step commands along its path, m (a turn in place: none)."""
+    if kind == "straight":
+        return abs(step[0])
+    if kind == "arc":
+        return abs(step[0] * step[1])
+    return 0.0
 
 
 def _vo_step(
@@ -109,8 +182,8 @@ def _vo_step(
     step: int,
     steps: int,
     attitude: bool,
-) -> int:
-    """Take a pair and run VO on it; adopt a converged update. 1 if adopted."""
+) -> VoMotion | None:
+    """Take a pair and run VO on it; adopt a converged update, and return its motion."""
     R_pred, p_pred = predicted_motion(before, after)
     try:
         pair = ctx.sim.navcam_pair(
@@ -129,19 +202,19 @@ def _vo_step(
         vo.reset()
         _vo_failed(ctx, step)
         ctx.event(f"VO step {step}/{steps} failed: {exc}; wheel odometry kept", "vo", "warning")
-        return 0
+        return None
     if step == 0:
-        return 0  # the first pair: nothing to compare with yet
+        return None  # the first pair: nothing to compare with yet
     if not result.converged or result.motion is None:
         _vo_failed(ctx, step)
         text = f"VO step {step}/{steps} failed: {result.reason}; wheel odometry kept"
         ctx.event(text, "vo", "warning")
-        return 0
+        return None
     ctx.recorder.vo_failures_in_row = 0
     p_s, q_b_ll = corrected_pose(before, result.motion)
     ctx.nate.visual_odometry_update(p_s, q_b_ll if attitude else None)
     ctx.event(update_text(step, steps, p_s - after.p_s, result.n_inliers, result.n_tracked), "vo")
-    return 1
+    return result.motion
 
 
 def _vo_failed(ctx: LoopContext, step: int) -> None:
@@ -163,15 +236,20 @@ def drive_to(ctx: LoopContext, c: cmd.DriveTo) -> dict[str, Any]:
             f"DRIVE_TO: the goal is {distance:.2f} m from the estimated position "
             f"(0.01-{cmd.MAX_DRIVE_M:g} m)"
         )
+    monitor = guard.begin_drive(ctx, c)
     details: dict[str, Any] = {"turn_deg": math.degrees(turn), "distance_m": distance}
     for _ in range(2):
         if abs(turn) <= math.radians(0.5):  # close enough for the straight drive
             break
-        move(ctx, DriveCommand(DriveKind.TURN_IN_PLACE), "turn", (turn,), c)
+        out = move(ctx, DriveCommand(DriveKind.TURN_IN_PLACE), "turn", (turn,), c, monitor)
+        if "halt" in out:
+            return {**details, "halt": out["halt"]}
         turn, distance = _aim(ctx, x_m, y_m)
     if distance >= 0.01:
-        out = move(ctx, DriveCommand(DriveKind.STRAIGHT), "straight", (distance,), c)
+        out = move(ctx, DriveCommand(DriveKind.STRAIGHT), "straight", (distance,), c, monitor)
         details["distance_truth_m"] = out["distance_truth_m"]
+        if "halt" in out:
+            details["halt"] = out["halt"]
     return details
 
 

@@ -22,6 +22,12 @@ from typing import Any
 
 from estimation.events import Event, Severity, parameter_text
 from estimation.ivp import earth_ll
+from estimation.protection.keepout import (
+    KeepOutZone,
+    parse_polygon,
+    zone_added_text,
+    zones_cleared_text,
+)
 from estimation.sapp.aqf import AttitudeQuality
 from estimation.sapp.hga_pointing import point_hga
 from estimation.sapp.nate import DriveCommand, Nate
@@ -66,8 +72,44 @@ def plant_site(ctx: LoopContext, c: cmd.PlantSite) -> Details:
 
 
 def set_param(ctx: LoopContext, c: cmd.SetParam) -> Details:
-    ctx.nate.set_param(c.param, c.value)
+    if c.param.startswith("mobility."):  # mobility fault protection's limits
+        if ctx.nate.busy:
+            raise CommandRefusedError(f"SET_PARAM: refused while {ctx.nate.mode.value} runs")
+        ctx.protection.set_limit(c.param.removeprefix("mobility."), c.value)
+    else:
+        ctx.nate.set_param(c.param, c.value)
     ctx.event(parameter_text(c.param, c.value), "parameter")
+    ctx.report()
+    return {}
+
+
+# ---- mobility fault protection's tables (estimation.protection) ----------------------------
+
+
+def keepout_add(ctx: LoopContext, c: cmd.KeepoutAdd) -> Details:
+    site = ctx.nate.sites.current.index
+    if c.polygon_m is not None:
+        zone = KeepOutZone.polygon(c.zone, site, parse_polygon(c.polygon_m))
+    else:
+        assert c.x_m is not None and c.y_m is not None and c.radius_m is not None
+        zone = KeepOutZone.circle(c.zone, site, c.x_m, c.y_m, c.radius_m)
+    ctx.protection.add_zone(zone)
+    ctx.event(zone_added_text(zone), "keepout")
+    ctx.report()
+    return {}
+
+
+def keepout_clear(ctx: LoopContext, c: cmd.KeepoutClear) -> Details:
+    cleared = ctx.protection.clear_zones(c.zone)
+    ctx.event(zones_cleared_text(cleared), "keepout")
+    ctx.report()
+    return {}
+
+
+def clear_mobility_fault(ctx: LoopContext, c: cmd.ClearMobilityFault) -> Details:
+    fault = ctx.protection.clear_fault()
+    said = "no mobility fault to clear" if fault is None else f"cleared the halt: {fault.reason}"
+    ctx.event(f"mobility enabled ({said})", "mobility")
     ctx.report()
     return {}
 
@@ -189,6 +231,9 @@ HANDLERS: Mapping[type[cmd.Command], Handler] = {
     cmd.ArticulateStop: articulate_stop,
     cmd.Wait: wait,
     cmd.HgaPass: hga_pass,
+    cmd.KeepoutAdd: keepout_add,
+    cmd.KeepoutClear: keepout_clear,
+    cmd.ClearMobilityFault: clear_mobility_fault,
     **{kind: acquisition for kind in ACQUISITIONS},
     cmd.SuncheckSungaze: suncheck_sungaze,
 }

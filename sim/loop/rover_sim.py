@@ -133,6 +133,10 @@ class RoverSim:
         self.steer_reading_rad: FloatArray = first.steer_rad[0].copy()
         rng_joints = np.random.default_rng([seed, 7010])
         self.joint_encoders = JointEncoders(JointEncoderParams(), rng_joints)
+        # The same sensors as mobility fault protection reads them every 8 Hz cycle of a
+        # drive: a stream of their own, so that the frames' readings drew nothing new.
+        rng_suspension = np.random.default_rng([seed, 7011])
+        self.suspension_encoders = JointEncoders(JointEncoderParams(), rng_suspension)
 
     # ---- checkpoint ---------------------------------------------------------------------
 
@@ -148,6 +152,7 @@ class RoverSim:
             "encoder_counts": np.asarray(self._encoder_counts).copy(),
             "steer_reading_rad": self.steer_reading_rad.copy(),
             "joint_encoders": self.joint_encoders.state(),
+            "suspension_encoders": self.suspension_encoders.state(),
             "slip": self.slip.state(),
             "rng_cam": self._rng_cam.bit_generator.state,
             "mast_bias_rad": self.mast_bias_rad.copy(),
@@ -163,6 +168,8 @@ class RoverSim:
         self._encoder_counts = np.array(state["encoder_counts"], dtype=np.int64)
         self.steer_reading_rad = np.array(state["steer_reading_rad"], dtype=np.float64)
         self.joint_encoders.load_state(state["joint_encoders"])
+        if "suspension_encoders" in state:  # a checkpoint from before fault protection
+            self.suspension_encoders.load_state(state["suspension_encoders"])
         self.slip.load_state(state["slip"])
         self._rng_cam.bit_generator.state = state["rng_cam"]
         self.mast_bias_rad = np.array(state["mast_bias_rad"], dtype=np.float64)
@@ -295,6 +302,12 @@ class RoverSim:
             el_rad=el_true,
             **kwargs,
         )
+
+    def suspension_readings(self, seg: Segment) -> tuple[FloatArray, FloatArray]:
+        """The rocker (N,) and bogie (N, 2) encoders' readings, rad, at each cycle of
+        ``seg`` after its start (what mobility fault protection reads)."""
+        traj = seg.truth
+        return self.suspension_encoders.read_angles(traj.rocker_rad[1:], traj.bogie_rad[1:])
 
     def wheel_angle_rad_now(self) -> FloatArray:
         """The wheel encoders' angles now (6,), rad since power-on, as the flight

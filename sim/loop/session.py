@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from estimation.events import Event
+from estimation.protection.monitor import MobilityProtection
 from estimation.sapp.nate import Nate, NateParams
 from estimation.vo.odometry import VisualOdometry
 from sequences import commands as cmd
@@ -114,6 +115,7 @@ class RoverSession:
             side=side,
             vo=vo,
             vo_options=vo_options if vo_options is not None else VoDriveOptions(),
+            protection=MobilityProtection(sim.lon_east_rad),
         )
         self.reports: list[CommandReport] = []
 
@@ -218,6 +220,7 @@ class RoverSession:
             "recorder": loop.recorder.state(),
             "side": loop.side.state(),
             "vo": loop.vo.state(),
+            "protection": loop.protection.state(),
         }
 
     def load_state(self, state: Mapping[str, Any]) -> None:
@@ -228,6 +231,8 @@ class RoverSession:
         loop.recorder.load_state(state["recorder"])
         loop.side.load_state(state["side"])
         loop.vo.load_state(state["vo"])
+        if "protection" in state:  # a checkpoint from before fault protection: its defaults
+            loop.protection.load_state(state["protection"])
 
     # ---- truth for the 3D view, benchmarks and tests -----------------------------------
 
