@@ -90,7 +90,7 @@ VO_SPECS: Mapping[str, ArgSpec] = {
 PROTECTION_SPECS: Mapping[str, ArgSpec] = {
     "slip_limit_pct": ArgSpec(
         "number",
-        "%",
+        "pct",
         0.0,
         100.0,
         note=f"with vo=on: halt when the slip over a slip check exceeds it; omit: the "
@@ -115,7 +115,7 @@ PROTECTION_SPECS: Mapping[str, ArgSpec] = {
         "h",
         0.0,
         24.0,
-        note="halt when Local Mean Solar Time reaches it (e.g. 15.5 for 15:30); omit: none",
+        note="halt when Local Mean Solar Time reaches it (15.5: 15:30; 24: midnight); omit: none",
     ),
 }
 
@@ -124,9 +124,6 @@ def _check_protection(command: Command) -> None:
     vo_fail = getattr(command, "vo_fail", None)
     if vo_fail is not None and vo_fail not in ("halt", "continue"):
         raise ValueError(f"vo_fail: must be halt or continue, got {shown(vo_fail)}")
-    lmst = getattr(command, "lmst_limit_h", None)
-    if lmst is not None and float(lmst) >= 24.0:
-        raise ValueError(f"lmst_limit_h: must be below 24 h, got {shown(lmst)}")
 
 
 def vo_step_count(

@@ -48,10 +48,12 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from estimation.geometry import DRIVE_SPEED_M_S, TURN_RATE_DEG_S
+from estimation.protection.keepout import KeepOutZone
 from estimation.sapp.nadir import NadirParams
 from estimation.sapp.nate_io import FINE_TO_COARSE_S, NateParams
 from estimation.sapp.sun_modes import SungazeParams
 from sequences import commands as cmd
+from sequences.drive_safety import DriveSafety
 from sequences.language import (
     Diagnostic,
     Sequence,
@@ -104,6 +106,11 @@ CODES: dict[str, str] = {
     "imu-time": "warning",
     "tag-next-sol": "warning",
     "tag-passed": "warning",
+    # from sequences.drive_safety
+    "keepout-crossing": "warning",
+    "drive-after-halt": "warning",
+    "drive-timeout": "warning",
+    "lmst-limit": "warning",
 }
 """Every diagnostic code and its severity; docs/sequences.md explains each."""
 
@@ -182,6 +189,10 @@ class ValidationContext:
     ``sun_elevation_deg(t_s)``: the sun above the horizon, when the context has it;
     ``min_sun_elevation_deg`` the lowest sun NATE's camera modes accept (the rover's
     ``min_sun_elevation_rad``), when known: with both, the walk warns ``sun-too-low``.
+    ``p_s_est`` (North, East, m in Site ``site_index``) and ``heading_rad`` the rover's
+    reported estimate, ``position_sigma_m`` its reported uncertainty, ``keepout_zones`` the
+    zones it reports holding and ``mobility_fault`` the halt that disabled its mobility, if
+    one did: the drives' checks (``sequences.drive_safety``).
     """
 
     start_t_s: float
@@ -195,6 +206,12 @@ class ValidationContext:
     ephemeris_end_t_s: float = math.inf
     sun_elevation_deg: Callable[[float], float] | None = None
     min_sun_elevation_deg: float | None = None
+    p_s_est: tuple[float, float] | None = None
+    heading_rad: float | None = None
+    site_index: int = 0
+    position_sigma_m: float = 0.0
+    keepout_zones: tuple[KeepOutZone, ...] = ()
+    mobility_fault: str | None = None
 
     def __post_init__(self) -> None:
         if self.aqf not in AQF_RANK:
@@ -413,6 +430,7 @@ class _Prediction:
         self.gyrocompass_s = GYROCOMPASS_S
         self.imu_warned = False
         self.min_sun_elevation_deg = context.min_sun_elevation_deg
+        self.safety = DriveSafety.start(self.warn, context)
 
     def warn(self, step: SequenceStep, code: str, text: str) -> None:
         self.result.warnings.append(_diag(step, "warning", code, text))
@@ -425,6 +443,7 @@ class _Prediction:
                 self.beyond_ephemeris(step, start, duration)
                 return  # nothing past the ephemeris can be predicted
             self.check_start(step, start, duration)
+            self.safety.step(step, start, duration)
             self.advance(step, duration)
             self.t_s = start + duration
 

@@ -40,11 +40,16 @@ def begin_drive(ctx: LoopContext, command: Any) -> DriveMonitor:
         slip_limit=None if pct is None else float(pct) / 100.0,
         vo_fail=getattr(command, "vo_fail", None),
         timeout_s=getattr(command, "timeout_s", None),
-        lmst_limit_h=getattr(command, "lmst_limit_h", None),
+        lmst_limit_h=_time_of_day(getattr(command, "lmst_limit_h", None)),
     )
     nate = ctx.nate
     heading_3sigma_deg = ctx.recorder.knowledge.three_sigma_deg(nate.imu_integration_s)
     return protection.begin_drive(nate.t_s, math.radians(heading_3sigma_deg), limits)
+
+
+def _time_of_day(hours: float | None) -> float | None:
+    """24:00 is midnight, 00:00."""
+    return None if hours is None else float(hours) % 24.0
 
 
 def zone_positions(ctx: LoopContext, p_s: FloatArray) -> dict[str, FloatArray]:

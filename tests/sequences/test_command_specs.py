@@ -32,6 +32,10 @@ from server.app import ServerConfig, create_app, data_dir_url
 COMPANIONS: dict[str, dict[str, Any]] = {
     "DRIVE_ARC": {"radius_m": 1.0, "angle_deg": 1.0},
     "DRIVE_TO": {"x_m": 3.0, "y_m": 4.0},
+    "DRIVE_STRAIGHT": {"distance_m": 1.0},
+    "TURN_IN_PLACE": {"angle_deg": 10.0},
+    # a circle needs its three numbers together
+    "KEEPOUT_ADD": {"zone": "rock", "x_m": 1.0, "y_m": 2.0, "radius_m": 0.5},
 }
 
 
@@ -50,7 +54,8 @@ def _arguments(command: str, args: list[dict[str, Any]], arg: str, value: float)
     """``arg=value`` plus every other required argument from ``COMPANIONS``."""
     out = {arg: value}
     for other in args:
-        if other["name"] != arg and other["required"]:
+        companion = other["name"] in COMPANIONS.get(command, {})
+        if other["name"] != arg and (other["required"] or companion):
             out[other["name"]] = COMPANIONS[command][other["name"]]
     return out
 
@@ -106,7 +111,7 @@ def test_every_published_range_is_the_one_validation_enforces(
     numeric = [
         (c["command"], a["name"]) for c in dictionary for a in c["args"] if a["type"] == "number"
     ]
-    assert len(numeric) == 13  # every numeric argument of the dictionary is covered
+    assert len(numeric) == 28  # every numeric argument of the dictionary is covered
     assert range_problems(dictionary) == []
 
 
