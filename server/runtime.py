@@ -38,7 +38,8 @@ takes effect; ``stop`` checkpoints the state the clock thread stopped in.
 
 What the runtime publishes is the rover's downlink with the truth beside it
 (``server.sinks.FrameBatch``); ``last_frame`` is the latest downlink record played out, and
-``reported_params`` the NATE parameters the rover's events report it set: the ground's view.
+``reported`` what the rover's events report of its onboard tables (NATE's parameters, its
+keep-out zones, its mobility fault): the ground's view (``server.validation.reported``).
 """
 
 from __future__ import annotations
@@ -53,7 +54,6 @@ from dataclasses import asdict, dataclass
 from datetime import UTC, datetime
 from typing import Any
 
-from estimation.events import reported_parameter
 from sequences import commands as cmd
 from sequences.language import Sequence, TimeTag
 from server.checkpoint import CheckpointFormatError, decode, encode
@@ -71,6 +71,7 @@ from server.queue import (
 )
 from server.sinks import FrameBatch, FrameSink, PlayedFrame, RuntimeListener, with_truth
 from server.storage.records import CommandRecord
+from server.validation.reported import ReportedState
 from sim.loop.downlink import DownlinkDict
 from sim.loop.session import RoverSession
 from sim.scoring.truth import TruthDict
@@ -167,7 +168,7 @@ class RoverRuntime:
         self._clock_changed = False  # since the clock thread's last checkpoint
         self.last_frame: DownlinkDict | None = None  # the latest downlink record played out
         self.last_truth: TruthDict | None = None  # and its truth record
-        self.reported_params: dict[str, float] = {}
+        self.reported = ReportedState()
         self.watermark_t_s = -math.inf  # frames up to here are stored already (restore)
 
     # ---- control ------------------------------------------------------------------
@@ -523,11 +524,8 @@ class RoverRuntime:
             sink.publish(self.spec.name, batch)
 
     def note_reported(self, events: Iterable[Mapping[str, Any]]) -> None:
-        """Keep what the rover's ``events`` report of its NATE parameters."""
-        for event in events:
-            got = reported_parameter(str(event.get("text", "")))
-            if event.get("kind") == "parameter" and got is not None:
-                self.reported_params[got[0]] = got[1]
+        """Keep what the rover's ``events`` report of its onboard tables."""
+        self.reported.note(events)
 
     def _sequence_status(self, sequence_id: int, status: str, detail: str | None) -> None:
         if self.listener is not None:

@@ -281,6 +281,13 @@ class DriveMonitor:
                 return k
         return None
 
+    def sigma_along(self, step_m: FloatArray) -> FloatArray:
+        """The position's 1σ at each of a segment's cycles (``step_m`` (N,), m each)."""
+        p = self.protection
+        sigma = p.uncertainty.sigma_at(np.cumsum(step_m), p.limits.odometry_sigma_fraction)
+        out: FloatArray = np.atleast_1d(np.asarray(sigma, dtype=np.float64))
+        return out
+
     def drove(self, distance_m: float) -> None:
         """A segment's (or its cut part's) odometry distance, m, grows the uncertainty."""
         p = self.protection

@@ -25,12 +25,15 @@ and counts the calls. The context also carries the ephemeris' last instant, past
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, cast
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
+from estimation.protection.keepout import KeepOutZone
 from estimation.sapp.nate import NateParams
 from sequences.validate import AqfName, ValidationContext
 from sim.world.ephemeris import C_KM_S, Body, astrometric_from_mars_j2000_km, coverage_t_s
@@ -48,6 +51,7 @@ from sim.world.sites import site
 if TYPE_CHECKING:  # the validation process (server.validation.pool) imports no runtime
     from server.runtime import RoverRuntime
     from server.storage import Store
+    from sim.loop.downlink import DownlinkDict
 
 MIN_SUN_ELEVATION_RAD = NateParams().min_sun_elevation_rad  # NATE's default (5 deg)
 COARSE_S = SOL_S / 4.0  # s between ephemeris samples
@@ -176,10 +180,17 @@ class RoverSite:
     imu_integration_s: float = 0.0
     articulating: bool = False
     min_sun_elevation_rad: float = MIN_SUN_ELEVATION_RAD
+    p_s_est: tuple[float, float] | None = None
+    heading_rad: float | None = None
+    site_index: int = 0
+    position_sigma_m: float = 0.0
+    keepout_zones: tuple[KeepOutZone, ...] = ()
+    mobility_fault: str | None = None
 
     def context(self) -> ValidationContext:
-        """The ``ValidationContext`` of this site (``site_context``)."""
-        return site_context(
+        """The ``ValidationContext`` of this site (``site_context``), with the drives'
+        state (``sequences.drive_safety``)."""
+        base = site_context(
             self.mission,
             self.lat_rad,
             self.lon_east_rad,
@@ -189,19 +200,33 @@ class RoverSite:
             articulating=self.articulating,
             min_sun_elevation_rad=self.min_sun_elevation_rad,
         )
+        return dataclasses.replace(
+            base,
+            p_s_est=self.p_s_est,
+            heading_rad=self.heading_rad,
+            site_index=self.site_index,
+            position_sigma_m=self.position_sigma_m,
+            keepout_zones=self.keepout_zones,
+            mobility_fault=self.mobility_fault,
+        )
 
 
 def rover_site(runtime: RoverRuntime) -> RoverSite:
     """A rover's ``RoverSite`` as the ground knows it now: the landing site's coordinates,
     and from the rover's last downlink record, read under the runtime's lock together with
     the played-out clock so that both are of one moment, its AQF, IMU time and mode, and
-    the NATE parameters it has reported setting (``reported_params``; NATE's defaults
-    otherwise). Never from the live session, which may be a command ahead of the clock."""
+    the NATE parameters it has reported setting (``reported``; NATE's defaults
+    otherwise), its estimated pose and position uncertainty, and the keep-out zones and
+    mobility fault its events report (``server.validation.reported``). Never from the live
+    session, which may be a command ahead of the clock."""
     landing = site(runtime.spec.site)
     with runtime.lock:
         last = runtime.last_frame  # a played-out record is never changed: no copy needed
         t_s = float(runtime.t_s)
-        params = dict(runtime.reported_params)
+        params = dict(runtime.reported.params)
+        zones = tuple(runtime.reported.zones.values())
+        fault = runtime.reported.mobility_fault
+    pose = _reported_pose(last)
     return RoverSite(
         runtime.spec.mission,
         math.radians(landing.lat_deg),
@@ -212,6 +237,28 @@ def rover_site(runtime: RoverRuntime) -> RoverSite:
         imu_integration_s=last["imu_integration_s"] if last is not None else 0.0,
         articulating=last is not None and last["nate_mode"] == "Articulate",
         min_sun_elevation_rad=float(params.get("min_sun_elevation_rad", MIN_SUN_ELEVATION_RAD)),
+        p_s_est=pose[0],
+        heading_rad=pose[1],
+        site_index=int(last["site_index"]) if last is not None else 0,
+        position_sigma_m=pose[2],
+        keepout_zones=zones,
+        mobility_fault=fault,
+    )
+
+
+def _reported_pose(
+    last: DownlinkDict | None,
+) -> tuple[tuple[float, float] | None, float | None, float]:
+    """The estimated position (North, East), heading and position 1σ a downlink reports."""
+    if last is None:
+        return None, None, 0.0
+    p, q = last["p_s_est"], last["q_b_ll_est"]
+    x_ll = Rotation.from_quat(q).inv().apply([1.0, 0.0, 0.0])  # body x in LL
+    sigma = last.get("position_sigma_m")
+    return (
+        (float(p[0]), float(p[1])),
+        math.atan2(float(x_ll[1]), float(x_ll[0])),
+        float(sigma) if sigma is not None and math.isfinite(sigma) else 0.0,
     )
 
 

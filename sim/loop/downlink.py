@@ -98,6 +98,19 @@ class Downlink:
             "(estimation.sapp.hga_pointing; no truth)"
         ),
     ] = math.nan
+    position_sigma_m: Annotated[
+        float,
+        about(
+            "the onboard position's 1-sigma uncertainty, m (estimation.protection."
+            "position_sigma: grown with distance on wheel odometry, shrunk by VO)"
+        ),
+    ] = math.nan
+    mobility_fault: Annotated[
+        str,
+        about(
+            "the halt that disabled mobility until CLEAR_MOBILITY_FAULT (empty: mobility enabled)"
+        ),
+    ] = ""
 
     def as_dict(self) -> DownlinkDict:
         """The record as a JSON-ready dict (``sim.loop.records.record_dict``)."""
@@ -132,6 +145,8 @@ class DownlinkDict(TypedDict):
     estimators: dict[str, dict[str, Any]]
     vo_failures_in_row: int
     hga_margin_predicted_deg: float | None
+    position_sigma_m: float | None
+    mobility_fault: str
 
 
 DOWNLINK_FIELDS = tuple(f.name for f in fields(Downlink))

@@ -69,14 +69,20 @@ def drive(
         seg = _primitive(ctx, kind, args, trip.index + 1)
         nate.mobility(command, wheel_angle_rad=wheel0)
         series = ctx.step_segment(seg)
-    monitor.drove(float(np.sum(guard.odometry_steps_m(p_before, series))))
+    steps_m = guard.odometry_steps_m(p_before, series)
+    recorder = ctx.recorder
+    recorder.segment_sigma_m = monitor.sigma_along(steps_m)
+    monitor.drove(float(np.sum(steps_m)))
     nate.stop()
-    side = ctx.side.drive(seg, kind, args, start, series, ctx.recorder.events)
+    side = ctx.side.drive(seg, kind, args, start, series, recorder.events)
+    recorder.segment(seg, series, side)
+    recorder.segment_sigma_m = None
     details: dict[str, Any] = {}
-    if trip is not None:
+    if trip is None:
+        recorder.now(force=True)
+    else:  # the halt is reported at once, in a frame of its own (the next cycle at rest)
         details["halt"] = guard.halt(ctx, trip.halt)
-    ctx.recorder.segment(seg, series, side)
-    ctx.recorder.now(force=True)
+        ctx.report()
     distance = float(np.sum(np.linalg.norm(np.diff(seg.truth.p_s, axis=0), axis=1)))
     return {"distance_truth_m": distance, **details}
 

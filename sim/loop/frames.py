@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 
 from estimation.events import Event
 from estimation.ivp import earth_ll
+from estimation.protection.monitor import MobilityProtection
 from estimation.sapp.hga_pointing import PointingKnowledge, point_hga_many
 from estimation.sapp.nate import Nate, NateOutput, NateSeries
 from estimation.sapp.sun_modes import SunResult
@@ -62,6 +63,10 @@ class FrameRecorder:
         self.events: list[Event] = []
         self.command = ""
         self.vo_failures_in_row = 0
+        # mobility fault protection, for its figures (set by the session), and the position
+        # uncertainty at each cycle of the drive segment being recorded (set by sim.loop.drives)
+        self.protection: MobilityProtection | None = None
+        self.segment_sigma_m: FloatArray | None = None
         self.knowledge = PointingKnowledge()
         self.scorer = Scorer(sim.lat_rad, sim.lon_east_rad, sim.drive_state.p_s)
         self._lon_west_deg = (360.0 - sim.site.lon_east_deg) % 360.0
@@ -145,6 +150,16 @@ class FrameRecorder:
             steer_read = seg.encoders.steer_rad[rows]
             self._append(series, kept, world, steer_read, (side, rows.tolist()))
         self.side.at_sample(None)
+
+    def _sigma_m(self, k: int) -> float:
+        """The onboard position uncertainty at cycle ``k`` of the series being recorded."""
+        if self.segment_sigma_m is not None:
+            return float(self.segment_sigma_m[k])
+        return math.nan if self.protection is None else self.protection.uncertainty.sigma_m
+
+    def _fault(self) -> str:
+        fault = None if self.protection is None else self.protection.fault
+        return "" if fault is None else fault.reason
 
     def _kept(self, series: NateSeries, force_completed: bool) -> list[int]:
         """The cycles of ``series`` that make frames (``keep``, cycle by cycle)."""
@@ -265,6 +280,8 @@ class FrameRecorder:
                     },
                     vo_failures_in_row=self.vo_failures_in_row,
                     hga_margin_predicted_deg=predicted,
+                    position_sigma_m=self._sigma_m(k),
+                    mobility_fault=self._fault(),
                 )
             )
             self._last_frame_t = t_j

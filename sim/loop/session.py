@@ -117,6 +117,7 @@ class RoverSession:
             vo_options=vo_options if vo_options is not None else VoDriveOptions(),
             protection=MobilityProtection(sim.lon_east_rad),
         )
+        self.loop.recorder.protection = self.loop.protection
         self.reports: list[CommandReport] = []
 
     # ---- the parts, for the runtime, benchmarks and tests -------------------------------

@@ -37,6 +37,8 @@
  * @property {Object<string, Object<string, any>>} [estimators] each side estimator's pose: p_mission (m) and q_b_ll (null for a position-only one)
  * @property {number} [vo_failures_in_row] VO steps failed since the last converged one (flight software's status)
  * @property {number|null} [hga_margin_predicted_deg] the HGA margin the rover predicts from its own attitude knowledge, deg (estimation.sapp.hga_pointing; no truth)
+ * @property {number|null} [position_sigma_m] the onboard position's 1-sigma uncertainty, m (estimation.protection.position_sigma: grown with distance on wheel odometry, shrunk by VO)
+ * @property {string} [mobility_fault] the halt that disabled mobility until CLEAR_MOBILITY_FAULT (empty: mobility enabled)
  */
 
 /**
