@@ -9,9 +9,10 @@ The rover is planted at the Site origin, heading North (``yaw_rad = 0``) by defa
   of this order and measured its slip with visual odometry (Cheng, Maimone and Matthies
   2005, sec. 4.1: the sol 304 drive). The crater is a bowl about ``CRATER_CENTRE_M`` to the
   South of the origin: its floor is level within ``FLOOR_M`` of the centre, the wall's
-  slope (its tangent) ramps up to 17° over 5 m and rises linearly in tangent to 24° at the
-  rim, ``RIM_M`` from the centre, then flattens over 5 m to the plains beyond. At the
-  origin the wall slopes 20.3° up to the North. Dimensions approximate (Endurance is about
+  slope (its tangent) ramps up to 18° over 5 m and rises linearly in tangent to 23° at the
+  rim, ``RIM_M`` from the centre, then flattens over 5 m to the plains beyond; with the
+  centimetre relief the slope over a rover's length stays within 17-24° on the wall. At
+  the origin the wall slopes 20.4° up to the North. Dimensions approximate (Endurance is about
   130 m across and 20 m deep; the wall here rises ~12 m). For visual odometry the slope
   carries centimetre relief and a sand-and-fragments albedo of more contrast than the
   plains (``ENDURANCE_ALBEDO``; Meridiani's plains are darker and more uniform).
@@ -44,8 +45,8 @@ CRATER_CENTRE_M = 45.0  # the crater's centre is this far South of the origin
 FLOOR_M = 25.0  # level floor out to this radius
 WALL_FOOT_M = 30.0  # the wall's slope reaches WALL_FOOT_DEG here ...
 RIM_M = 62.0  # ... and WALL_TOP_DEG here, the rim
-WALL_FOOT_DEG = 17.0
-WALL_TOP_DEG = 24.0
+WALL_FOOT_DEG = 18.0
+WALL_TOP_DEG = 23.0
 PLAINS_M = 67.0  # level plains beyond this radius
 
 PURGATORY_X_M = 4.0  # the ripple's crest, North of the origin
@@ -178,15 +179,17 @@ def place_patches(name: str) -> dict[str, SoilPatch]:
     return {}
 
 
-def make_place_terrain(name: str, seed: int) -> Terrain:
-    """The terrain of place ``name`` (in ``PLACES``) from a checked ``seed``."""
-    from sim.world.sites import MERIDIANI_ALBEDO, RipplePlainsGround
-
+def make_place_terrain(
+    name: str, seed: int, plains: GroundField, plains_albedo: AlbedoStyle
+) -> Terrain:
+    """The terrain of place ``name`` (in ``PLACES``) from a checked ``seed``; ``plains``
+    and ``plains_albedo`` are its site's ground and look (``sim.world.sites`` passes them:
+    the sites know the places, not the other way round)."""
     if name == "meridiani:endurance_slope":
         wall = CraterWallGround(seed)
         texture = AlbedoTexture(seed, ENDURANCE_ALBEDO)
         return HeightmapTerrain(name, MERIDIANI_SAND, wall, texture)
     if name == "meridiani:purgatory_ripple":
-        ground = RippleGround(RipplePlainsGround(seed))
-        return HeightmapTerrain(name, MERIDIANI_SAND, ground, AlbedoTexture(seed, MERIDIANI_ALBEDO))
+        ground = RippleGround(plains)
+        return HeightmapTerrain(name, MERIDIANI_SAND, ground, AlbedoTexture(seed, plains_albedo))
     raise KeyError(name)

@@ -32,6 +32,7 @@ from sim.errors import InputError
 from sim.world.albedo import AlbedoStyle, AlbedoTexture, GrainLayer
 from sim.world.heightmap import HeightmapTerrain
 from sim.world.noise import FractalNoise, derive_key, grid_axes, lattice_uniform
+from sim.world.places import PLACE_NAMES, PLACES, make_place_terrain
 from sim.world.rocks import RockField, RockPopulation
 from sim.world.terrain import (
     BEDROCK,
@@ -124,8 +125,6 @@ def site(name: str) -> Site:
     """The ``Site`` called ``name``, or the site of the scenario place ``name``
     (``sim.world.places``: ``meridiani:endurance_slope``, ...) under that name;
     InputError('site', ...) if there is none."""
-    from sim.world.places import PLACE_NAMES, PLACES
-
     if isinstance(name, str) and name in PLACES:
         return replace(_SITES[PLACES[name].site], name=name, description=PLACES[name].description)
     if not isinstance(name, str) or name not in _SITES:
@@ -277,10 +276,8 @@ def make_terrain(name: str, seed: int) -> Terrain:
     """
     where = site(name)
     s = _check_seed(seed)
-    if ":" in name:
-        from sim.world.places import make_place_terrain
-
-        return make_place_terrain(name, s)
+    if name in PLACES:  # on Meridiani: its plains and their look
+        return make_place_terrain(name, s, RipplePlainsGround(s), MERIDIANI_ALBEDO)
     if name == "flat":
         return TexturedTerrain(FlatTerrain(), AlbedoTexture(s, ANALYTIC_ALBEDO))
     if name == "eq22":
