@@ -186,7 +186,8 @@ class RoverSim:
         """Lay ``patch`` (a soil on a region of the Site frame) on top of the ground as
         ``name``, replacing a patch of that name: a sand trap a test conductor injects while
         the rover runs. It applies from the next drive on (the rover at rest keeps the
-        sinkage it settled with until it moves)."""
+        sinkage it settled with until it moves); with ``slip=False`` the wheels roll
+        ideally on any soil."""
         self.soil_map.add(name, patch)
 
     def remove_soil_patch(self, name: str) -> SoilPatch:

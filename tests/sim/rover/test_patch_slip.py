@@ -39,10 +39,15 @@ def _segments_digest(sim: RoverSim) -> str:
     return h.hexdigest()[:16]
 
 
-def test_without_patches_the_drives_are_those_of_the_commit_before_soil_patches() -> None:
+@pytest.mark.parametrize(
+    "site_name,digest", [("meridiani", "9a0d031bfec1cc1d"), ("gusev", "cc87de36c2a0b3c7")]
+)
+def test_without_patches_the_drives_are_those_of_the_commit_before_soil_patches(
+    site_name: str, digest: str
+) -> None:
     # Recorded on the base commit (453a1dd) with this very function: a straight, an arc and
-    # a turn in place on Meridiani, seed 11, truth for truth.
-    assert _segments_digest(RoverSim("meridiani", 11, START)) == "9a0d031bfec1cc1d"
+    # a turn in place, seed 11, truth for truth.
+    assert _segments_digest(RoverSim(site_name, 11, START)) == digest
 
 
 @pytest.mark.parametrize("far_patch", [False, True])
