@@ -27,6 +27,9 @@ ways, both of them what the base model's limits leave out:
   resistance, ch. 2), so on an embedding soil the creep law takes the cross-slope weight
   against the whole traction limit, ``ρ_c = W sin θ_c / H_max`` (assumption).
 
+In a patch's rim (``SoilPatch.rim_m``) each step takes its own graded soil
+(``sim.world.soil_patches.blend_soil``), so a rover sinks in over the rim.
+
 Shapes follow ``SlipModel``: the position arrays broadcast with the slopes.
 """
 
@@ -40,11 +43,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from estimation.mars_constants import MARS_GRAVITY_M_S2
 from sim.rover.slip import SlipModel, SlipSample, _shear_law, slip_curve, turn_slip_curve
-from sim.world.soil_patches import SoilMap
+from sim.world.soil_patches import SoilMap, blend_soil
 from sim.world.terrain import EMBEDDING_SINKAGE_FRACTION, Soil
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
 
 
 @dataclass
@@ -67,9 +71,26 @@ class PatchSlipModel(SlipModel):
         idx = np.broadcast_to(self.soil_map.index_at(x_m, y_m), shape)
         return idx if bool(np.any(idx)) else None
 
-    def _soil(self, k: int) -> Soil:
+    def _soils(self, idx: IntArray, x_m: ArrayLike, y_m: ArrayLike) -> list[tuple[Soil, BoolArray]]:
+        """The soils under the steps and which steps stand on each: a patch's own soil
+        where its weight is 1, a graded one (``blend_soil``) for each weight in a rim."""
         assert self.soil_map is not None
-        return self.soil if k == 0 else self.soil_map.soils()[k]
+        soils = self.soil_map.soils()
+        weight = self.soil_map.weight_at(x_m, y_m, idx)
+        out: list[tuple[Soil, BoolArray]] = []
+        for k in np.unique(idx):
+            on = idx == k
+            if k == 0:
+                out.append((self.soil, on))
+                continue
+            full = on & (weight >= 1.0)
+            if bool(np.any(full)):
+                out.append((soils[int(k)], full))
+            rim = on & ~full
+            for w in np.unique(weight[rim]):  # a rim's weights come in RIM_LEVELS steps
+                soil = blend_soil(self.soil, soils[int(k)], float(w))
+                out.append((soil, rim & (weight == w)))
+        return out
 
     def _traction(self, soil: Soil, cos_total: FloatArray) -> FloatArray:
         """The traction limit ``H_max = c A + W cos θ tan φ`` (N), as ``sim.rover.slip``."""
@@ -131,21 +152,20 @@ class PatchSlipModel(SlipModel):
 
     def _by_soil(
         self,
-        idx: IntArray,
+        soils: list[tuple[Soil, BoolArray]],
         along: FloatArray,
         cross: FloatArray,
         noise: FloatArray,
         turning: bool,
     ) -> SlipSample:
-        shape = idx.shape
+        shape = soils[0][1].shape
         a = np.broadcast_to(along, shape).reshape(-1)
         c = np.broadcast_to(cross, shape).reshape(-1)
         nz = np.broadcast_to(noise, (*shape, 2)).reshape(-1, 2)
-        flat = idx.reshape(-1)
-        out = np.empty((3, flat.size))
-        for k in np.unique(flat):
-            m = flat == k
-            out[:, m] = self._on_soil(self._soil(int(k)), a[m], c[m], nz[m], turning)
+        out = np.empty((3, a.size))
+        for soil, on in soils:
+            m = on.reshape(-1)
+            out[:, m] = self._on_soil(soil, a[m], c[m], nz[m], turning)
         slip, creep, sink = (v.reshape(shape) for v in out)
         return SlipSample(slip, creep, sink)
 
@@ -165,7 +185,8 @@ class PatchSlipModel(SlipModel):
         idx = None if self.no_slip else self._soil_index(x_m, y_m, shape)
         if idx is None:
             return super().drive(a, c, noise)
-        return self._by_soil(idx, a, c, np.asarray(noise, dtype=float), turning=False)
+        soils = self._soils(idx, x_m, y_m)  # type: ignore[arg-type]
+        return self._by_soil(soils, a, c, np.asarray(noise, dtype=float), turning=False)
 
     def turn(
         self,
@@ -181,7 +202,8 @@ class PatchSlipModel(SlipModel):
         idx = None if self.no_slip else self._soil_index(x_m, y_m, shape)
         if idx is None:
             return super().turn(slope_rad, noise)
-        return self._by_soil(idx, slope, np.zeros(()), np.asarray(noise, dtype=float), True)
+        soils = self._soils(idx, x_m, y_m)  # type: ignore[arg-type]
+        return self._by_soil(soils, slope, np.zeros(()), np.asarray(noise, dtype=float), True)
 
     def sinkage_m(
         self, slip: ArrayLike, *, x_m: ArrayLike | None = None, y_m: ArrayLike | None = None
@@ -192,7 +214,6 @@ class PatchSlipModel(SlipModel):
         if idx is None:
             return super().sinkage_m(s)
         out = np.empty(s.shape)
-        for k in np.unique(idx):
-            m = idx == k
-            out[m] = self._soil_sinkage(self._soil(int(k)), s[m])
+        for soil, on in self._soils(idx, x_m, y_m):  # type: ignore[arg-type]
+            out[on] = self._soil_sinkage(soil, s[on])
         return out

@@ -21,7 +21,12 @@ The rover is planted at the Site origin, heading North (``yaw_rad = 0``) by defa
   wide, its crest running East-West ``PURGATORY_X_M`` North of the origin, covered by a band
   of ``SAND_TRAP`` (``sim.world.soil_patches``): the Purgatory ripple, about 30 cm tall and
   2.5 m wide, where Opportunity dug its wheels in to the hubs on sol 446 (the MER mission's
-  sol reports). A rover driving North bogs down in it.
+  sol reports). A rover driving North bogs down in it. The band has a sharp edge: graded
+  in (a rim, ``SoilPatch.rim_m``), the rover would stall on the ripple's flank in the rim
+  with its wheels half sunk, since the model has no digging at a stall (a wheel spinning
+  in place excavates down to its hub over time); with the edge, the rover stops at the
+  ripple's foot sunk to the hubs, and drops by the extra sinkage (~10 cm) within one
+  control step as it enters.
 
 Every place's ground passes through elevation 0 at the Site origin, as the sites' do.
 """
@@ -175,7 +180,7 @@ def place_patches(name: str) -> dict[str, SoilPatch]:
     if name == "meridiani:purgatory_ripple":
         half = 0.5 * PURGATORY_LENGTH_M
         band = Band(PURGATORY_X_M, -half, PURGATORY_X_M, half, PURGATORY_HALF_WIDTH_M)
-        return {"purgatory": SoilPatch(SAND_TRAP, band)}
+        return {"purgatory": SoilPatch(SAND_TRAP, band)}  # a sharp edge: see the docstring
     return {}
 
 

@@ -132,20 +132,33 @@ def test_a_mixed_batch_takes_each_steps_soil() -> None:
 
 def test_a_drive_into_a_sand_trap_bogs_down_and_goes_on_once_it_is_lifted() -> None:
     sim = RoverSim("meridiani", 4, START)
-    sim.add_soil_patch("trap", sand_trap(2.0, 0.0, 1.0))
+    sim.add_soil_patch("trap", sand_trap(2.0, 0.0, 1.0))  # graded in over its outer 0.3 m
     seg = sim.drive_straight(2.5)
     x_end = float(sim.drive_state.p_s[0])
-    assert 1.0 <= x_end < 1.1  # the body stopped where it met the trap's rim, 1 m on
+    assert 1.0 <= x_end < 1.3  # the body stopped in the trap's rim, 1 m on
     assert seg.truth.slip[-10:].min() >= 0.9
-    assert sim.totals.distance_odometry_m > 2.0 * sim.totals.distance_truth_m
+    assert sim.totals.distance_odometry_m > 1.8 * sim.totals.distance_truth_m
+    sunk = sim.slip.sinkage_m(seg.truth.slip[-1], x_m=x_end, y_m=sim.drive_state.p_s[1])
+    assert float(sunk) >= 0.8 * R
+    # sinking in over the rim: never more than 2 cm lower in one control step ...
+    assert np.diff(seg.truth.p_s[:, 2]).max() < 0.02
     sim.remove_soil_patch("trap")
     sim.drive_straight(1.0)
     assert float(sim.drive_state.p_s[0]) - x_end > 0.9  # the plains' few % of slip again
 
 
+def test_without_a_rim_the_rover_drops_into_a_trap_in_one_step() -> None:
+    sim = RoverSim("meridiani", 4, START)
+    sim.add_soil_patch("trap", sand_trap(2.0, 0.0, 1.0, rim_m=0.0))
+    seg = sim.drive_straight(2.5)
+    assert 1.0 <= float(sim.drive_state.p_s[0]) < 1.01  # stopped at the edge
+    # ... where a sharp edge drops the body by the extra sinkage at once (0.9 r - 1 cm)
+    assert np.diff(seg.truth.p_s[:, 2]).max() == pytest.approx(0.9 * R - 0.01, abs=0.01)
+
+
 def test_soil_patches_survive_a_checkpoint() -> None:
     a = RoverSim("meridiani", 6, START)
-    a.add_soil_patch("trap", sand_trap(0.8, 0.0, 0.5))
+    a.add_soil_patch("trap", sand_trap(1.0, 0.0, 0.5))
     state = a.state()
     json.dumps(state["soil_patches"])  # plain data
     b = RoverSim("meridiani", 6, START)
@@ -154,4 +167,4 @@ def test_soil_patches_survive_a_checkpoint() -> None:
     a.drive_straight(1.5)
     b.drive_straight(1.5)
     np.testing.assert_array_equal(a.drive_state.p_s, b.drive_state.p_s)
-    assert float(a.drive_state.p_s[0]) < 0.4  # the trap held both
+    assert float(a.drive_state.p_s[0]) < 1.0  # the trap held both

@@ -91,6 +91,25 @@ def test_the_topmost_patch_wins_and_lifting_it_uncovers_the_one_below() -> None:
         m.remove("trap")
 
 
+def test_a_rim_grades_the_soil_in_from_the_base() -> None:
+    m = SoilMap(MERIDIANI_SAND, {"trap": sand_trap(0.0, 0.0, 1.0, rim_m=0.4)})
+    x = np.array([0.0, 0.55, 0.8, 0.98, 1.2])
+    idx = m.index_at(x, 0.0)
+    np.testing.assert_allclose(m.weight_at(x, np.zeros(5), idx), [1.0, 1.0, 0.5, 0.05, 1.0])
+    assert m.soil_at(0.3, 0.0) is SAND_TRAP  # deeper than the rim: the patch's own
+    mid = m.soil_at(0.8, 0.0)  # half way through the rim: half way between the soils
+    assert mid.embedding and mid.name == "sand_trap"
+    assert mid.friction_angle_deg == pytest.approx(0.5 * (30.0 + 18.0))
+    assert mid.sinkage_m == pytest.approx(0.5 * (0.01 + SAND_TRAP.sinkage_m))
+    # a band's and a polygon's depth: the distance to the nearest side
+    band = Band(0.0, 0.0, 4.0, 0.0, 1.0)
+    np.testing.assert_allclose(band.depth_m(np.array([2.0, 0.5, 2.0]), np.array([0.0, 0.0, 0.9])),
+                               [1.0, 0.5, 0.1])  # fmt: skip
+    square = Polygon(((0.0, 0.0), (2.0, 0.0), (2.0, 2.0), (0.0, 2.0)))
+    depth = square.depth_m(np.array([1.0, 0.25, 3.0]), np.array([1.0, 1.0, 1.0]))
+    np.testing.assert_allclose(depth, [1.0, 0.25, -1.0])
+
+
 def test_patches_are_plain_data_that_load_back() -> None:
     m = SoilMap(MERIDIANI_SAND)
     m.add("trap", sand_trap(5.0, -1.0, 1.5))
