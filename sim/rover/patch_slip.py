@@ -8,8 +8,8 @@ the slip-sinkage of Lyasko 2010 and Ding et al. 2011, linearised). Where no patc
 the rover the base model runs unchanged, draws and arithmetic alike, so a run without
 patches is bit for bit the run of ``SlipModel``.
 
-Embedding soils (``Soil.embedding``, a sand trap such as the Purgatory ripple) differ in two
-ways, both of them what the base model's limits leave out:
+Embedding soils (``Soil.embedding``, a sand trap such as the Purgatory ripple) differ in
+three ways, each of them something the base model's limits leave out:
 
 - Sinkage ``z = z0 (1 + k_z max(s, 0))`` is capped at ``EMBEDDING_SINKAGE_FRACTION`` (0.9)
   of the wheel radius, the hubs, instead of ``SlipParams.max_sinkage_fraction`` (0.3):
