@@ -83,7 +83,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="rest_1h, drive_100m, turn_360_eq22 or fine_drive_hga (SAPP in the loop)",
     )
     run.add_argument("--seed", type=non_negative_int("--seed"), default=0, help="random seed")
-    run.add_argument("--site", help="override the scenario's site: gusev, meridiani, eq22, flat")
+    run.add_argument(
+        "--site",
+        help="override the scenario's site: gusev, meridiani, eq22, flat, or a place:"
+        " meridiani:endurance_slope, meridiani:purgatory_ripple",
+    )
     run.add_argument("--duration-s", type=finite_float("--duration-s"), help="rest length, s")
     run.add_argument("--distance-m", type=finite_float("--distance-m"), help="drive length, m")
     run.add_argument("--angle-deg", type=finite_float("--angle-deg"), help="turn angle, deg")

@@ -31,6 +31,7 @@ from scipy.spatial.transform import Rotation
 from sim.errors import InputError
 from sim.rover import drive
 from sim.rover.geometry import MER_GEOMETRY
+from sim.rover.patch_slip import PatchSlipModel
 from sim.rover.slip import SlipModel
 from sim.rover.truth import CONTROL_DT_S, TruthTrajectory
 from sim.sensors.encoders import EncoderParams, EncoderSamples, MobilityEncoders
@@ -40,7 +41,10 @@ from sim.sensors.pancam import SunImage, render_sun_image
 from sim.world.local_level import q_ll_b_from_site
 from sim.world.mars_frames import earth_ll_truth, mars_rotation_ll, sun_ll_truth
 from sim.world.marsclock import utc_to_t_s
+from sim.world.places import place_patches
 from sim.world.sites import Site, make_terrain, site
+from sim.world.soil_patches import SoilMap, SoilPatch
+from sim.world.terrain import Soil
 
 if TYPE_CHECKING:  # sim.sensors.navcam.camera (numba) is imported when a pair is first rendered
     from sim.sensors.navcam.camera import NavcamPair
@@ -113,8 +117,13 @@ class RoverSim:
         self.t_s = utc_to_t_s(start_utc)
         self.imu = Ln200Imu(imu_params or Ln200Params(), rng_imu, t_on_s=self.t_s)
         self.encoders = MobilityEncoders(EncoderParams(), rng_encoders)
-        self.slip = (
-            SlipModel(self.terrain.soil, rng_slip) if slip else SlipModel.ideal(self.terrain.soil)
+        # The soil under the rover: the terrain's, with the place's patches and those a
+        # test conductor lays while the rover runs (``add_soil_patch``).
+        self.soil_map = SoilMap(self.terrain.soil, place_patches(site_name))
+        self.slip: SlipModel = (
+            PatchSlipModel(self.terrain.soil, rng_slip, soil_map=self.soil_map)
+            if slip
+            else SlipModel.ideal(self.terrain.soil)
         )
         self.drive_state = drive.initial_state(
             self.terrain, self.t_s, x_m=x_m, y_m=y_m, yaw_rad=yaw_rad, slip_model=self.slip
@@ -154,6 +163,7 @@ class RoverSim:
             "joint_encoders": self.joint_encoders.state(),
             "suspension_encoders": self.suspension_encoders.state(),
             "slip": self.slip.state(),
+            "soil_patches": self.soil_map.state(),
             "rng_cam": self._rng_cam.bit_generator.state,
             "mast_bias_rad": self.mast_bias_rad.copy(),
             "totals": {f.name: _plain(getattr(self.totals, f.name)) for f in fields(RunningTotals)},
@@ -171,9 +181,29 @@ class RoverSim:
         if "suspension_encoders" in state:  # a checkpoint from before fault protection
             self.suspension_encoders.load_state(state["suspension_encoders"])
         self.slip.load_state(state["slip"])
+        if "soil_patches" in state:  # checkpoints from before soil patches have none
+            self.soil_map.load_state(state["soil_patches"])
         self._rng_cam.bit_generator.state = state["rng_cam"]
         self.mast_bias_rad = np.array(state["mast_bias_rad"], dtype=np.float64)
         self.totals = RunningTotals(**_arrays(state["totals"]))
+
+    # ---- soil patches ---------------------------------------------------------------
+
+    def add_soil_patch(self, name: str, patch: SoilPatch) -> None:
+        """Lay ``patch`` (a soil on a region of the Site frame) on top of the ground as
+        ``name``, replacing a patch of that name: a sand trap a test conductor injects while
+        the rover runs. It applies from the next drive on (the rover at rest keeps the
+        sinkage it settled with until it moves); with ``slip=False`` the wheels roll
+        ideally on any soil."""
+        self.soil_map.add(name, patch)
+
+    def remove_soil_patch(self, name: str) -> SoilPatch:
+        """Lift the soil patch ``name``; InputError('name', ...) if there is none."""
+        return self.soil_map.remove(name)
+
+    def soil_at(self, x_m: float, y_m: float) -> Soil:
+        """The soil at Site ``(x_m, y_m)`` (m): the topmost patch there, else the terrain's."""
+        return self.soil_map.soil_at(x_m, y_m)
 
     # ---- commands -------------------------------------------------------------------
 

@@ -160,7 +160,7 @@ def initial_state(
         if not math.isfinite(value):
             raise InputError(name, "must be finite")
     geometry = MER_GEOMETRY if slip_model is None else slip_model.geometry
-    sinkage = None if slip_model is None else slip_model.sinkage_m(0.0)
+    sinkage = None if slip_model is None else slip_model.sinkage_m(0.0, x_m=x_m, y_m=y_m)
     s = settle(terrain, x_m, y_m, yaw_rad, sinkage_m=sinkage, geometry=geometry)
     traj = _trajectory(np.array([t_s]), s, np.zeros((1, 6)), np.zeros(4), np.zeros(1))
     return _state_from(traj, yaw_rad, s)
@@ -283,7 +283,7 @@ def _path_increments(
 
     def f(steps: slice, x: FloatArray, y: FloatArray, yaw: FloatArray) -> Step:
         ta, tc = _slopes(terrain, slip_model.geometry, x, y, yaw)
-        sample = slip_model.drive(np.arctan(ta), np.arctan(tc), noise[steps])
+        sample = slip_model.drive(np.arctan(ta), np.arctan(tc), noise[steps], x_m=x, y_m=y)
         # Slip is defined on the undeformed radius (Wong, ch. 2): the soil losses that
         # sinkage brings are already in the slip law, so sinkage only lowers the rover.
         rolled = ds[steps]
@@ -312,7 +312,7 @@ def _turn_increments(
         c, s = np.cos(yaw), np.sin(yaw)
         hx, hy = along * c - across * s, along * s + across * c  # back to North, East
         grade = np.hypot(hx, hy)
-        sample = slip_model.turn(np.arctan(grade), noise[steps])
+        sample = slip_model.turn(np.arctan(grade), noise[steps], x_m=x, y_m=y)
         creep = rolled_cmd[steps] * sample.creep / np.sqrt(1.0 + grade**2)
         down = np.where(grade > 0.0, creep / np.where(grade > 0.0, grade, 1.0), 0.0)
         turn = dpsi[steps] * (1.0 - sample.slip)  # slip on the undeformed radius, as above
@@ -333,7 +333,8 @@ def _finish(
     x, y, yaw, slip, sink = motion
     geometry = slip_model.geometry
     n = x.size
-    sinkage = np.concatenate([[float(slip_model.sinkage_m(start.slip))], sink])
+    at_start = slip_model.sinkage_m(start.slip, x_m=x[0], y_m=y[0])
+    sinkage = np.concatenate([[float(at_start)], sink])
     # The first pose is the start pose: settle it from the start's suspension, so the two
     # primitives join on the same solution; the rest as one path.
     guess = start.suspension()

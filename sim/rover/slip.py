@@ -297,9 +297,13 @@ class SlipModel:
             return out
         return np.clip(modelled + noise[..., 0], -self.params.slip_max, self.params.slip_max)
 
-    def sinkage_m(self, slip: ArrayLike) -> FloatArray:
+    def sinkage_m(
+        self, slip: ArrayLike, *, x_m: ArrayLike | None = None, y_m: ArrayLike | None = None
+    ) -> FloatArray:
         """Sinkage (m) of the wheels at slip ``slip``: the soil's static sinkage, deeper
-        with positive slip; zero in the no-slip mode."""
+        with positive slip; zero in the no-slip mode. ``x_m``, ``y_m``: where the rover is
+        (Site frame): one soil everywhere here, a model of soil patches uses them
+        (``sim.rover.patch_slip``); the same holds for ``drive`` and ``turn``."""
         s = np.asarray(slip, dtype=float)
         if self.no_slip:
             return np.zeros(s.shape)
@@ -309,7 +313,13 @@ class SlipModel:
         return out
 
     def drive(
-        self, along_slope_rad: ArrayLike, cross_slope_rad: ArrayLike, noise: FloatArray
+        self,
+        along_slope_rad: ArrayLike,
+        cross_slope_rad: ArrayLike,
+        noise: FloatArray,
+        *,
+        x_m: ArrayLike | None = None,
+        y_m: ArrayLike | None = None,
     ) -> SlipSample:
         """Slip while driving at the given slopes, with ``noise`` from :meth:`noise`."""
         a = np.asarray(along_slope_rad, dtype=float)
@@ -322,7 +332,14 @@ class SlipModel:
         c = np.clip(c + noise[..., 1], -cap, cap)
         return SlipSample(s, c, self.sinkage_m(s))
 
-    def turn(self, slope_rad: ArrayLike, noise: FloatArray) -> SlipSample:
+    def turn(
+        self,
+        slope_rad: ArrayLike,
+        noise: FloatArray,
+        *,
+        x_m: ArrayLike | None = None,
+        y_m: ArrayLike | None = None,
+    ) -> SlipSample:
         """Slip of a turn in place on a slope: turn-rate slip and downslope creep (>= 0)."""
         slope = np.asarray(slope_rad, dtype=float)
         if self.no_slip:

@@ -23,7 +23,7 @@ between dust, soil and dark basaltic granules.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -32,6 +32,7 @@ from sim.errors import InputError
 from sim.world.albedo import AlbedoStyle, AlbedoTexture, GrainLayer
 from sim.world.heightmap import HeightmapTerrain
 from sim.world.noise import FractalNoise, derive_key, grid_axes, lattice_uniform
+from sim.world.places import PLACE_NAMES, PLACES, make_place_terrain
 from sim.world.rocks import RockField, RockPopulation
 from sim.world.terrain import (
     BEDROCK,
@@ -121,9 +122,14 @@ SITE_NAMES: tuple[str, ...] = tuple(_SITES)
 
 
 def site(name: str) -> Site:
-    """The ``Site`` called ``name``; InputError('site', ...) if there is none."""
+    """The ``Site`` called ``name``, or the site of the scenario place ``name``
+    (``sim.world.places``: ``meridiani:endurance_slope``, ...) under that name;
+    InputError('site', ...) if there is none."""
+    if isinstance(name, str) and name in PLACES:
+        return replace(_SITES[PLACES[name].site], name=name, description=PLACES[name].description)
     if not isinstance(name, str) or name not in _SITES:
-        raise InputError("site", f"unknown site {name!r}; choose one of {', '.join(SITE_NAMES)}")
+        known = ", ".join((*SITE_NAMES, *PLACE_NAMES))
+        raise InputError("site", f"unknown site {name!r}; choose one of {known}")
     return _SITES[name]
 
 
@@ -261,7 +267,8 @@ def make_terrain(name: str, seed: int) -> Terrain:
 
     Raises InputError('site', ...) for an unknown name, InputError('seed', ...) for a bad
     seed. ``gusev`` and ``meridiani`` are ``HeightmapTerrain``s (unlimited extent, tiles
-    built on demand); ``eq22`` and ``flat`` are the analytic surfaces with a texture.
+    built on demand); ``eq22`` and ``flat`` are the analytic surfaces with a texture; a
+    scenario place (``sim.world.places``) builds its own.
 
     >>> t = make_terrain("flat", 0)
     >>> float(t.height_m(3.0, -2.0)), t.soil.name
@@ -269,6 +276,8 @@ def make_terrain(name: str, seed: int) -> Terrain:
     """
     where = site(name)
     s = _check_seed(seed)
+    if name in PLACES:  # on Meridiani: its plains and their look
+        return make_place_terrain(name, s, RipplePlainsGround(s), MERIDIANI_ALBEDO)
     if name == "flat":
         return TexturedTerrain(FlatTerrain(), AlbedoTexture(s, ANALYTIC_ALBEDO))
     if name == "eq22":

@@ -35,17 +35,34 @@ class Soil:
     ``cohesion_kpa`` adds traction independent of load. ``sinkage_m`` is the static sinkage
     of a MER wheel on level ground. Mars values from the MER soil-mechanics results
     (Sullivan et al. 2011 and Arvidson et al. 2004): friction 30-37 deg, cohesion 0-5 kPa.
+
+    ``embedding``: loose enough for the wheels to dig in to their hubs: sinkage may reach
+    ``EMBEDDING_SINKAGE_FRACTION`` of the wheel radius instead of the slip model's usual cap,
+    and where the soil cannot carry its own rolling resistance the wheels spin in place
+    (slip 100 %) rather than push the rover backwards (``sim.rover.patch_slip``).
     """
 
     name: str
     friction_angle_deg: float
     cohesion_kpa: float
     sinkage_m: float
+    embedding: bool = False
 
 
 BEDROCK = Soil("bedrock", friction_angle_deg=45.0, cohesion_kpa=10.0, sinkage_m=0.0)
 GUSEV_SOIL = Soil("gusev_soil", friction_angle_deg=35.0, cohesion_kpa=1.0, sinkage_m=0.005)
 MERIDIANI_SAND = Soil("meridiani_sand", friction_angle_deg=30.0, cohesion_kpa=0.2, sinkage_m=0.01)
+EMBEDDING_SINKAGE_FRACTION = 0.9  # wheel radii: a MER wheel sunk to its hub (Purgatory, sol 446)
+# A sand trap, after the Purgatory ripple where Opportunity dug its wheels in to the hubs
+# (the MER mission's sol reports, sol 446): loose, cohesionless, fluffy fines. The values are
+# assumptions chosen for that behaviour, not measurements: a static sinkage of 0.45 wheel
+# radii (5.85 cm) gives Bekker's compaction resistance f_r = 0.75 sqrt(z / 2r) = 0.36 of the
+# weight, more than a friction angle of 18 deg can hold (tan 18 deg = 0.32), so on level
+# ground the wheels spin in place; the slip-sinkage law doubles the sinkage at 100 % slip,
+# to 0.9 wheel radii, the hubs.
+SAND_TRAP = Soil(
+    "sand_trap", friction_angle_deg=18.0, cohesion_kpa=0.0, sinkage_m=0.0585, embedding=True
+)
 
 
 class Terrain(Protocol):
