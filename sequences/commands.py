@@ -38,7 +38,7 @@ from collections.abc import Mapping
 from dataclasses import MISSING, dataclass, fields
 from typing import ClassVar, Literal
 
-from estimation.geometry import FLIGHT_GEOMETRY
+from estimation.geometry import FLIGHT_GEOMETRY, WHEEL_KEYS
 from estimation.sapp.nate_io import CONTROL_DT_S, NateParams
 
 # The shared limits, re-exported: the dictionary's users read them as ``cmd.MAX_DRIVE_M``.
@@ -241,6 +241,7 @@ VO_SPECS: Mapping[str, ArgSpec] = {
         f"{VO_STEP_MAX_DEG:g} deg, a Navcam pair after each, SAPP's position updated",
     ),
     "vo_attitude": ArgSpec("boolean", note="with vo=on: VO updates the attitude too"),
+    "drag_wheel": ArgSpec("string", note=f"{'|'.join(WHEEL_KEYS)}: not driven but dragged"),
 }
 
 
@@ -270,6 +271,8 @@ def vo_step_count(
 def _check_vo(command: Command) -> None:
     if getattr(command, "vo_attitude", False) and not getattr(command, "vo", False):
         raise ValueError("vo_attitude: needs vo=on")
+    if (drag := getattr(command, "drag_wheel", None)) not in (None, *WHEEL_KEYS):
+        raise ValueError(f"drag_wheel: must be one of {', '.join(WHEEL_KEYS)}, got {shown(drag)}")
 
 
 @dataclass(frozen=True)
@@ -284,6 +287,7 @@ class DriveStraight(Command):
     distance_m: float
     vo: bool | None = None  # None: off
     vo_attitude: bool | None = None
+    drag_wheel: str | None = None  # None: all six wheels driven
 
     def _check_rules(self) -> None:
         _check_vo(self)
@@ -318,6 +322,7 @@ class DriveArc(Command):
     angle_deg: float
     vo: bool | None = None  # None: off
     vo_attitude: bool | None = None
+    drag_wheel: str | None = None  # None: all six wheels driven
 
     def _check_rules(self) -> None:
         _check_vo(self)
@@ -345,6 +350,7 @@ class TurnInPlace(Command):
     angle_deg: float
     vo: bool | None = None  # None: off
     vo_attitude: bool | None = None
+    drag_wheel: str | None = None  # None: all six wheels driven
 
     def _check_rules(self) -> None:
         _check_vo(self)
@@ -369,6 +375,7 @@ class DriveTo(Command):
     y_m: float
     vo: bool | None = None  # None: off
     vo_attitude: bool | None = None
+    drag_wheel: str | None = None  # None: all six wheels driven
 
     def _check_rules(self) -> None:
         _check_vo(self)

@@ -43,12 +43,13 @@ def drive(ctx: LoopContext, command: DriveCommand, kind: str, *args: float) -> d
     wheel0 = sim.wheel_angle_rad_now()
     if nate.mode is not NateMode.IDLE:  # checked before the rover moves
         raise CommandRefusedError(f"mobility: refused in mode {nate.mode.value}")
+    drag = command.drag_wheel  # the simulator also drags a failed motor's wheel
     if kind == "straight":  # the simulator refuses bad sizes before anything moves
-        seg = sim.drive_straight(args[0])
+        seg = sim.drive_straight(args[0], drag_wheel=drag)
     elif kind == "arc":
-        seg = sim.drive_arc(args[0], args[1])
+        seg = sim.drive_arc(args[0], args[1], drag_wheel=drag)
     else:
-        seg = sim.turn_in_place(args[0])
+        seg = sim.turn_in_place(args[0], drag_wheel=drag)
     start = ctx.mission_estimate()
     nate.mobility(command, wheel_angle_rad=wheel0)
     series = ctx.step_segment(seg)
@@ -167,10 +168,13 @@ def drive_to(ctx: LoopContext, c: cmd.DriveTo) -> dict[str, Any]:
     for _ in range(2):
         if abs(turn) <= math.radians(0.5):  # close enough for the straight drive
             break
-        move(ctx, DriveCommand(DriveKind.TURN_IN_PLACE), "turn", (turn,), c)
+        move(
+            ctx, DriveCommand(DriveKind.TURN_IN_PLACE, drag_wheel=c.drag_wheel), "turn", (turn,), c
+        )
         turn, distance = _aim(ctx, x_m, y_m)
     if distance >= 0.01:
-        out = move(ctx, DriveCommand(DriveKind.STRAIGHT), "straight", (distance,), c)
+        straight = DriveCommand(DriveKind.STRAIGHT, drag_wheel=c.drag_wheel)
+        out = move(ctx, straight, "straight", (distance,), c)
         details["distance_truth_m"] = out["distance_truth_m"]
     return details
 
