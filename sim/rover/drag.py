@@ -45,7 +45,14 @@ traction limit (``h_w = H_max / 6``, rolling resistance ``r_w = R / 6``):
   distance): the turn slips more. Its lateral push on the body is not modelled.
 
 Lateral creep and sinkage follow the driven wheels' slip as in ``sim.rover.slip``; the
-traction ellipse between a wheel's pull and its side force is not applied here.
+traction ellipse between a wheel's pull and its side force is not applied here. A commanded
+slip (``SlipParams.slip_range``, benchmarks) gets the drag's extra slip added too.
+
+What it gives: on level Gusev soil one dragged wheel adds about 5.5 % to the six-wheel
+2.2 % slip and veers the rover about 3° per metre towards it; on bedrock 4 % and 2.3° per
+metre. Our sources give no figure for Spirit's veer or slip while dragging, so these are
+the model's figures, not a calibration. With the ideal rolling of ``SlipModel.ideal`` there
+is no slip, so no extra slip or veer either: the dragged wheel still rolls little.
 
 Wheel order: ``sim.rover.truth.WHEEL_NAMES``; commands name wheels as
 ``estimation.geometry.WHEEL_KEYS`` (lower case, the same order).
