@@ -15,7 +15,9 @@ sec. 2.5: about 3.75 cm/s; sec. 2.4.2: turns at about 2.1 deg/s): the simulator 
 them and the ground's validator predicts durations with them.
 
 Frames (docs/CONVENTIONS.md): body ``b`` x forward, y right, z down. Wheel order LF, LM, LR,
-RF, RM, RR; steered wheels LF, LR, RF, RR.
+RF, RM, RR; steered wheels LF, LR, RF, RR. Commands name a wheel in lower case, ``WHEEL_KEYS``
+(``drag_wheel=rf``: a wheel not driven and dragged, as Spirit's right front from sol 125,
+Cheng, Maimone and Matthies 2005 sec. 4.2).
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ FloatArray = NDArray[np.float64]
 
 N_WHEELS = 6
 STEERED_INDEX = (0, 2, 3, 5)  # LF, LR, RF, RR in the wheel order (module docstring)
+WHEEL_KEYS = ("lf", "lm", "lr", "rf", "rm", "rr")  # the wheels as commands name them, in order
 
 DRIVE_SPEED_M_S = 0.0375  # Ali et al. 2005 sec. 2.5: MER drives at ~3.75 cm/s
 TURN_RATE_DEG_S = 2.1  # Ali et al. 2005 sec. 2.4.2: turns at ~2.1 deg/s
@@ -78,3 +81,28 @@ class FlightGeometry:
 
 
 FLIGHT_GEOMETRY = FlightGeometry()
+
+
+def wheel_index(key: str, name: str = "drag_wheel") -> int:
+    """The index in the wheel order of the wheel ``key`` names (``WHEEL_KEYS``);
+    ``ValueError`` naming the parameter ``name`` otherwise.
+
+    >>> wheel_index("rf")
+    3
+    """
+    if not isinstance(key, str) or key not in WHEEL_KEYS:
+        raise ValueError(f"{name}: must be one of {', '.join(WHEEL_KEYS)}, got {key!r}")
+    return WHEEL_KEYS.index(key)
+
+
+def driven_wheels(drag_wheel: str | None) -> NDArray[np.bool_]:
+    """Which wheels are driven (6,) when ``drag_wheel`` (a ``WHEEL_KEYS`` name or None)
+    is dragged: all but that one.
+
+    >>> driven_wheels("rf").tolist()
+    [True, True, True, False, True, True]
+    """
+    out = np.ones(N_WHEELS, dtype=bool)
+    if drag_wheel is not None:
+        out[wheel_index(drag_wheel)] = False
+    return out

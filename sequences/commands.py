@@ -36,7 +36,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from typing import ClassVar
 
-from estimation.geometry import FLIGHT_GEOMETRY
+from estimation.geometry import FLIGHT_GEOMETRY, WHEEL_KEYS
 from estimation.protection.keepout import parse_polygon
 from estimation.protection.limits import LIMITS, check_limit
 from estimation.sapp.nate_io import CONTROL_DT_S, NateParams
@@ -83,6 +83,7 @@ VO_SPECS: Mapping[str, ArgSpec] = {
         f"{VO_STEP_MAX_DEG:g} deg, a Navcam pair after each, SAPP's position updated",
     ),
     "vo_attitude": ArgSpec("boolean", note="with vo=on: VO updates the attitude too"),
+    "drag_wheel": ArgSpec("string", note=f"{'|'.join(WHEEL_KEYS)}: not driven but dragged"),
 }
 
 
@@ -152,6 +153,8 @@ def vo_step_count(
 def _check_vo(command: Command) -> None:
     if getattr(command, "vo_attitude", False) and not getattr(command, "vo", False):
         raise ValueError("vo_attitude: needs vo=on")
+    if (drag := getattr(command, "drag_wheel", None)) not in (None, *WHEEL_KEYS):
+        raise ValueError(f"drag_wheel: must be one of {', '.join(WHEEL_KEYS)}, got {shown(drag)}")
     _check_protection(command)
 
 
@@ -168,6 +171,7 @@ class DriveStraight(Command):
     distance_m: float
     vo: bool | None = None  # None: off
     vo_attitude: bool | None = None
+    drag_wheel: str | None = None  # None: all six wheels driven
     slip_limit_pct: float | None = None  # None: the rover's limits (PROTECTION_SPECS)
     vo_fail: str | None = None
     timeout_s: float | None = None
@@ -207,6 +211,7 @@ class DriveArc(Command):
     angle_deg: float
     vo: bool | None = None  # None: off
     vo_attitude: bool | None = None
+    drag_wheel: str | None = None  # None: all six wheels driven
     slip_limit_pct: float | None = None  # None: the rover's limits (PROTECTION_SPECS)
     vo_fail: str | None = None
     timeout_s: float | None = None
@@ -239,6 +244,7 @@ class TurnInPlace(Command):
     angle_deg: float
     vo: bool | None = None  # None: off
     vo_attitude: bool | None = None
+    drag_wheel: str | None = None  # None: all six wheels driven
     slip_limit_pct: float | None = None  # None: the rover's limits (PROTECTION_SPECS)
     vo_fail: str | None = None
     timeout_s: float | None = None
@@ -268,6 +274,7 @@ class DriveTo(Command):
     y_m: float
     vo: bool | None = None  # None: off
     vo_attitude: bool | None = None
+    drag_wheel: str | None = None  # None: all six wheels driven
     slip_limit_pct: float | None = None  # None: the rover's limits (PROTECTION_SPECS)
     vo_fail: str | None = None
     timeout_s: float | None = None

@@ -3,7 +3,8 @@
 Ali et al. 2005, sec. 2.4.2 and 2.5: each Mobility cycle propagates the attitude with the
 gyros (``estimation.sapp.gyro_propagation``, sec. 2.4.1's Mars-rotation subtraction), or in
 the off-nominal submode from the wheels' heading change, then adds the wheel-odometry step
-(eqs. 5-7, ``estimation.sapp.wheel_odometry``) turned into the Site frame with the freshly
+(eqs. 5-7, ``estimation.sapp.wheel_odometry``, over the driven wheels: a drive command that
+drags a wheel leaves it out) turned into the Site frame with the freshly
 propagated attitude, ``Δp_s = R_s_b Δp_b``. The gyro counter grows by each cycle's ``dt``
 and a Fine flag drops to Coarse once it passes ``fine_to_coarse_s`` (sec. 2.4).
 
@@ -77,7 +78,9 @@ def mobility_cycles(
         has_step[:] = True
         has_step[0] = last_wheel_rad is not None
         centre = arc_centre_b(drive.radius_m) if drive.kind is DriveKind.ARC else None
-        dp_b, heading = odometry_deltas(drive.kind, wheel - before, encoders.steer_rad, centre)
+        dp_b, heading = odometry_deltas(
+            drive.kind, wheel - before, encoders.steer_rad, centre, drag_wheel=drive.drag_wheel
+        )
         last_wheel_rad = wheel[-1].copy()
 
     # the attitude, cycle by cycle: the gyros (sec. 2.4.1) or the wheels' heading (2.4.2)

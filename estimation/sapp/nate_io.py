@@ -22,6 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from estimation.checks import is_real_number
 from estimation.events import Event
+from estimation.geometry import wheel_index
 from estimation.sapp.aqf import AttitudeQuality
 from estimation.sapp.gyrocompass import GyrocompassParams, GyrocompassResult
 from estimation.sapp.nadir import (
@@ -147,10 +148,14 @@ class EncoderSample:
 class DriveCommand:
     """What the driving software commands (sec. 2.5): ``kind`` and, for ``ARC``, the signed
     radius of the body origin's path ``radius_m`` (> 0 centre on the right, as
-    ``wheel_odometry.arc_centre_b``)."""
+    ``wheel_odometry.arc_centre_b``); ``drag_wheel`` the wheel the command leaves undriven
+    and drags (``estimation.geometry.WHEEL_KEYS``; None: all six driven), which wheel
+    odometry then leaves out (Cheng, Maimone and Matthies 2005 sec. 4.2: Spirit's right
+    front wheel from sol 125)."""
 
     kind: DriveKind = DriveKind.STRAIGHT
     radius_m: float = 0.0
+    drag_wheel: str | None = None
 
 
 @dataclass(frozen=True)
@@ -232,6 +237,8 @@ def checked_drive(drive: DriveCommand) -> DriveCommand:
         raise ValueError(f"drive: radius_m must be finite, got {drive.radius_m!r}")
     if drive.kind is DriveKind.ARC and drive.radius_m == 0.0:
         raise ValueError("drive: an ARC needs a non-zero radius_m (use TURN_IN_PLACE)")
+    if drive.drag_wheel is not None:
+        wheel_index(drive.drag_wheel, "drive.drag_wheel")
     return drive
 
 

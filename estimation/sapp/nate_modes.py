@@ -168,6 +168,7 @@ class NateProcedures:
             "q_entry_b_ll": self._q_entry_b_ll.copy(),
             "drive_kind": self._drive.kind.name,
             "drive_radius_m": self._drive.radius_m,
+            "drive_drag_wheel": self._drive.drag_wheel,
             "use_gyros": self._use_gyros,
             "last_wheel_rad": array_copy(self._last_wheel_rad),
             "procedure": None if procedure is None else procedure.state(),
@@ -198,7 +199,8 @@ class NateProcedures:
         self._ref_down_ll = array_copy(state["ref_down_ll"])
         self._q_entry_b_ll = np.array(state["q_entry_b_ll"], dtype=np.float64)
         kind = DriveKind[state["drive_kind"]]
-        self._drive = DriveCommand(kind, float(state["drive_radius_m"]))
+        drag = state.get("drive_drag_wheel")  # absent in checkpoints before wheel drag
+        self._drive = DriveCommand(kind, float(state["drive_radius_m"]), drag)
         self._use_gyros = bool(state["use_gyros"])
         self._last_wheel_rad = array_copy(state["last_wheel_rad"])
         self._procedure = None
@@ -544,7 +546,9 @@ class NateProcedures:
             return  # first reading: the reference only
         drive = self._drive
         centre = arc_centre_b(drive.radius_m) if drive.kind is DriveKind.ARC else None
-        step = odometry_step(drive.kind, wheel_rad - last, steer_rad, centre)  # eqs. (5)-(7)
+        step = odometry_step(  # eqs. (5)-(7), over the driven wheels
+            drive.kind, wheel_rad - last, steer_rad, centre, drag_wheel=drive.drag_wheel
+        )
         q_s_b = self._q_s_b()
         if not self._use_gyros:  # sec. 2.4.2 off-nominal submode: attitude from odometry
             q_s_b = propagate_heading(q_s_b, step.delta_heading_rad)

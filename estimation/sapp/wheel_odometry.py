@@ -41,6 +41,13 @@ Site update (Ali et al. 2005 §2.5, first paragraph): each control cycle the att
 first, then the body-frame change is "converted to Site frame using the freshly propagated
 attitude estimate" (the end-of-step attitude) and added: ``Δp_s = R_s_b Δp_b``.
 
+A dragged wheel (``drag_wheel``, the drive command's: a wheel the drive leaves undriven
+and drags, as Spirit's right front wheel from sol 125, Cheng, Maimone and Matthies 2005
+sec. 4.2) slides more than it rolls, so its encoder says little of the motion: eqs. (5)
+and (6)-(7) then average over the five driven wheels (eq. 5's ``1/6`` becomes ``1/5``, and
+the dragged wheel is left out of ``ψ_ave`` like a wheel at the centre). Without one the
+arithmetic is the six-wheel one, unchanged.
+
 Bad input raises ``ValueError`` naming the parameter.
 """
 
@@ -58,6 +65,7 @@ from estimation.geometry import (
     N_WHEELS,
     STEERED_INDEX,
     FlightGeometry,
+    driven_wheels,
 )
 from estimation.quaternion import quat_from_rotvec, quat_multiply, quat_rotate
 
@@ -171,16 +179,26 @@ def is_straight(steer_rad: ArrayLike, tol_rad: float = math.radians(1.0)) -> boo
     return bool(np.max(np.abs(d)) <= tol_rad)
 
 
-def straight_step(arc_m: ArrayLike, steer_rad: ArrayLike) -> FloatArray:
+def straight_step(
+    arc_m: ArrayLike, steer_rad: ArrayLike, drag_wheel: str | None = None
+) -> FloatArray:
     """Eq. (5): body-frame position change (m, (3,)) of a straight or near-straight drive.
 
-    ``arc_m`` (6,) the arc lengths ``a_i``, ``steer_rad`` (6,) the steering angles ``σ_i``.
+    ``arc_m`` (6,) the arc lengths ``a_i``, ``steer_rad`` (6,) the steering angles ``σ_i``;
+    ``drag_wheel`` a dragged wheel left out of the average (module docstring).
 
     >>> straight_step([0.01] * 6, [0.0] * 6).tolist()
+    [0.01, 0.0, 0.0]
+    >>> straight_step([0.01, 0.01, 0.01, 0.0, 0.01, 0.01], [0.0] * 6, "rf").tolist()
     [0.01, 0.0, 0.0]
     """
     a = _vector("arc_m", arc_m, (N_WHEELS,))
     sigma = _vector("steer_rad", steer_rad, (N_WHEELS,))
+    if drag_wheel is not None:
+        on = driven_wheels(drag_wheel)
+        dx = float(np.sum(a[on] * np.cos(sigma[on]))) / 5.0  # eq. (5), the driven wheels
+        dy = float(np.sum(a[on] * np.sin(sigma[on]))) / 5.0  # eq. (5)
+        return np.array([dx, dy, 0.0])
     dx = float(np.sum(a * np.cos(sigma))) / 6.0  # eq. (5)
     dy = float(np.sum(a * np.sin(sigma))) / 6.0  # eq. (5)
     return np.array([dx, dy, 0.0])  # eq. (5): Δz = 0
@@ -192,11 +210,13 @@ def arc_step(
     centre_b: ArrayLike,
     geometry: FlightGeometry = FLIGHT_GEOMETRY,
     centre_tol_m: float = DEFAULT_CENTRE_TOL_M,
+    drag_wheel: str | None = None,
 ) -> tuple[FloatArray, float, FloatArray, BoolArray]:
     """Eqs. (6)-(7): ``(Δp_b (3,), ψ_ave, ψ_i (6,), used (6,))`` for an arc about ``centre_b``.
 
     ``centre_b`` is ``C^B = (C_x, C_y)`` in the body XY plane (m). Wheels within
-    ``centre_tol_m`` of C are excluded (eq. 6 would divide by ~0); their ``ψ_i`` is NaN.
+    ``centre_tol_m`` of C are excluded (eq. 6 would divide by ~0); their ``ψ_i`` is NaN,
+    and so is a dragged wheel's (``drag_wheel``, module docstring).
     See the module docstring for the signs.
     """
     a = _vector("arc_m", arc_m, (N_WHEELS,))
@@ -207,6 +227,8 @@ def arc_step(
     r = geometry.wheel_xy_b() - c  # r_i, from C to wheel i
     r_norm = np.hypot(r[:, 0], r[:, 1])  # |r_i|
     used: BoolArray = r_norm >= centre_tol_m
+    if drag_wheel is not None:
+        used &= driven_wheels(drag_wheel)
     if not np.any(used):
         raise ValueError("centre_b: every wheel is at the arc centre")
     tangent = np.stack([-r[:, 1], r[:, 0]], axis=1)  # ẑ × r_i (z down, x × y = z)
@@ -226,6 +248,7 @@ def odometry_step(
     centre_b: ArrayLike | None = None,
     geometry: FlightGeometry = FLIGHT_GEOMETRY,
     centre_tol_m: float = DEFAULT_CENTRE_TOL_M,
+    drag_wheel: str | None = None,
 ) -> OdometryStep:
     """One control cycle of §2.5 for the commanded ``kind`` of drive.
 
@@ -233,6 +256,7 @@ def odometry_step(
     ``steer_rad`` (6,) steering (rad; ``steer_six`` expands the four corner angles),
     ``centre_b`` (2,) the arc centre for ``ARC`` (``arc_centre_b`` from the commanded
     radius); ``TURN_IN_PLACE`` uses the body origin, ``STRAIGHT`` ignores it.
+    ``drag_wheel``: the command's dragged wheel, left out (module docstring).
 
     >>> s = odometry_step(DriveKind.STRAIGHT, [0.1] * 6, [0.0] * 6)
     >>> s.delta_p_b.round(6).tolist(), s.delta_heading_rad
@@ -241,17 +265,18 @@ def odometry_step(
     if not isinstance(kind, DriveKind):
         raise ValueError(f"kind: must be a DriveKind, got {kind!r}")
     a = arc_lengths_m(wheel_rotation_rad, geometry)
+    used_wheels = driven_wheels(drag_wheel)  # checks drag_wheel
     if kind is DriveKind.STRAIGHT:
-        dp_b = straight_step(a, steer_rad)
+        dp_b = straight_step(a, steer_rad, drag_wheel)
         none = np.full(N_WHEELS, np.nan)
-        return OdometryStep(kind, dp_b, 0.0, none, np.ones(N_WHEELS, dtype=bool))
+        return OdometryStep(kind, dp_b, 0.0, none, used_wheels)
     if kind is DriveKind.TURN_IN_PLACE:
         c = np.zeros(2)
     elif centre_b is None:
         raise ValueError("centre_b: required for an ARC step")
     else:
         c = _vector("centre_b", centre_b, (2,))
-    dp_b, psi_ave, psi, used = arc_step(a, steer_rad, c, geometry, centre_tol_m)
+    dp_b, psi_ave, psi, used = arc_step(a, steer_rad, c, geometry, centre_tol_m, drag_wheel)
     return OdometryStep(kind, dp_b, psi_ave, psi, used)
 
 
@@ -297,13 +322,20 @@ def odometry_deltas(
     centre_b: FloatArray | None = None,
     geometry: FlightGeometry = FLIGHT_GEOMETRY,
     centre_tol_m: float = DEFAULT_CENTRE_TOL_M,
+    drag_wheel: str | None = None,
 ) -> tuple[FloatArray, FloatArray]:
     """``odometry_step`` over ``N`` cycles at once: ``(Δp_b (N, 3), ψ_ave (N,))`` from the
     encoder changes ``wheel_rotation_rad`` and steering ``steer_rad`` (N, 6) each, finite
-    (the caller has checked them). The same eqs. (5)-(7), row by row."""
+    (the caller has checked them). The same eqs. (5)-(7), row by row, over the driven
+    wheels (``drag_wheel``: the command's dragged wheel, left out)."""
     a = wheel_rotation_rad * geometry.wheel_radius_m  # a_i, §2.5
     n = len(a)
     dp_b = np.zeros((n, 3))
+    on = driven_wheels(drag_wheel)
+    if kind is DriveKind.STRAIGHT and drag_wheel is not None:
+        dp_b[:, 0] = np.sum((a * np.cos(steer_rad))[:, on], axis=1) / 5.0  # eq. (5), driven
+        dp_b[:, 1] = np.sum((a * np.sin(steer_rad))[:, on], axis=1) / 5.0  # eq. (5)
+        return dp_b, np.zeros(n)
     if kind is DriveKind.STRAIGHT:
         dp_b[:, 0] = np.sum(a * np.cos(steer_rad), axis=1) / 6.0  # eq. (5)
         dp_b[:, 1] = np.sum(a * np.sin(steer_rad), axis=1) / 6.0  # eq. (5)
@@ -316,7 +348,7 @@ def odometry_deltas(
         c = np.asarray(centre_b, dtype=np.float64)
     r = geometry.wheel_xy_b() - c  # r_i, from C to wheel i (the same every cycle)
     r_norm = np.hypot(r[:, 0], r[:, 1])
-    used = r_norm >= centre_tol_m
+    used = (r_norm >= centre_tol_m) & on
     if not np.any(used):
         raise ValueError("centre_b: every wheel is at the arc centre")
     # sgn(d_i · t_i) with d_i = (cos σ_i, sin σ_i) and t_i = ẑ × r_i = (-r_y, r_x)

@@ -57,7 +57,7 @@ def drive(
         monitor = guard.begin_drive(ctx, None)
     wheel0 = sim.wheel_angle_rad_now()
     sim_before, nate_before = sim.state(), nate.state()
-    seg = _primitive(ctx, kind, args, None)  # the simulator refuses bad sizes first
+    seg = _primitive(ctx, kind, args, None, command.drag_wheel)  # bad sizes refused first
     start = ctx.mission_estimate()
     p_before = nate.p_s.copy()
     nate.mobility(command, wheel_angle_rad=wheel0)
@@ -66,7 +66,7 @@ def drive(
     if trip is not None:  # the world stops where the flight software decided
         sim.load_state(sim_before)
         nate.load_state(nate_before)
-        seg = _primitive(ctx, kind, args, trip.index + 1)
+        seg = _primitive(ctx, kind, args, trip.index + 1, command.drag_wheel)
         nate.mobility(command, wheel_angle_rad=wheel0)
         series = ctx.step_segment(seg)
     steps_m = guard.odometry_steps_m(p_before, series)
@@ -87,13 +87,17 @@ def drive(
     return {"distance_truth_m": distance, **details}
 
 
-def _primitive(ctx: LoopContext, kind: str, args: tuple[float, ...], cut: int | None) -> Segment:
+def _primitive(
+    ctx: LoopContext, kind: str, args: tuple[float, ...], cut: int | None, drag: str | None
+) -> Segment:
+    """The simulator's primitive, cut after ``cut`` cycles, dragging ``drag`` (the
+    simulator also drags a failed motor's wheel)."""
     sim = ctx.sim
     if kind == "straight":
-        return sim.drive_straight(args[0], max_cycles=cut)
+        return sim.drive_straight(args[0], max_cycles=cut, drag_wheel=drag)
     if kind == "arc":
-        return sim.drive_arc(args[0], args[1], max_cycles=cut)
-    return sim.turn_in_place(args[0], max_cycles=cut)
+        return sim.drive_arc(args[0], args[1], max_cycles=cut, drag_wheel=drag)
+    return sim.turn_in_place(args[0], max_cycles=cut, drag_wheel=drag)
 
 
 def move(
@@ -247,12 +251,14 @@ def drive_to(ctx: LoopContext, c: cmd.DriveTo) -> dict[str, Any]:
     for _ in range(2):
         if abs(turn) <= math.radians(0.5):  # close enough for the straight drive
             break
-        out = move(ctx, DriveCommand(DriveKind.TURN_IN_PLACE), "turn", (turn,), c, monitor)
+        turn_command = DriveCommand(DriveKind.TURN_IN_PLACE, drag_wheel=c.drag_wheel)
+        out = move(ctx, turn_command, "turn", (turn,), c, monitor)
         if "halt" in out:
             return {**details, "halt": out["halt"]}
         turn, distance = _aim(ctx, x_m, y_m)
     if distance >= 0.01:
-        out = move(ctx, DriveCommand(DriveKind.STRAIGHT), "straight", (distance,), c, monitor)
+        straight = DriveCommand(DriveKind.STRAIGHT, drag_wheel=c.drag_wheel)
+        out = move(ctx, straight, "straight", (distance,), c, monitor)
         details["distance_truth_m"] = out["distance_truth_m"]
         if "halt" in out:
             details["halt"] = out["halt"]

@@ -47,17 +47,20 @@ HGA_FRAME_S = 60.0  # one frame a minute during an Idle HGA pass
 
 
 def drive_straight(ctx: LoopContext, c: cmd.DriveStraight) -> Details:
-    return drives.move(ctx, DriveCommand(DriveKind.STRAIGHT), "straight", (c.distance_m,), c)
+    command = DriveCommand(DriveKind.STRAIGHT, drag_wheel=c.drag_wheel)
+    return drives.move(ctx, command, "straight", (c.distance_m,), c)
 
 
 def drive_arc(ctx: LoopContext, c: cmd.DriveArc) -> Details:
     arc = (c.radius_m, math.radians(c.angle_deg))
-    return drives.move(ctx, DriveCommand(DriveKind.ARC, c.radius_m), "arc", arc, c)
+    command = DriveCommand(DriveKind.ARC, c.radius_m, c.drag_wheel)
+    return drives.move(ctx, command, "arc", arc, c)
 
 
 def turn_in_place(ctx: LoopContext, c: cmd.TurnInPlace) -> Details:
     turn = (math.radians(c.angle_deg),)
-    return drives.move(ctx, DriveCommand(DriveKind.TURN_IN_PLACE), "turn", turn, c)
+    command = DriveCommand(DriveKind.TURN_IN_PLACE, drag_wheel=c.drag_wheel)
+    return drives.move(ctx, command, "turn", turn, c)
 
 
 # ---- NATE's settings and modes at once ----------------------------------------------------

@@ -14,6 +14,12 @@ The Pancam mast points where it is commanded plus a fixed per-rover bias in azim
 elevation (``mast_bias_sigma_deg``, 1σ per axis, default 0.05 deg: approximate, a
 calibrated pan/tilt actuator's absolute knowledge), which the flight software does not
 know: it enters every sun vector as an unmodelled systematic error.
+
+A drive may drag a wheel (``sim.rover.drag``): the one its command names (``drag_wheel``,
+the flight software knows it), and the one whose motor the test conductor has failed
+(``failed_wheel``, a fault injected at run time that the flight software is not told of:
+every drive then drags it while the flight software still averages the wheels the command
+told it). Wheels are named as ``estimation.geometry.WHEEL_KEYS``.
 """
 
 from __future__ import annotations
@@ -28,8 +34,10 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from estimation.geometry import WHEEL_KEYS
 from sim.errors import InputError
 from sim.rover import drive
+from sim.rover.drag import Drag
 from sim.rover.geometry import MER_GEOMETRY
 from sim.rover.patch_slip import PatchSlipModel
 from sim.rover.slip import SlipModel
@@ -146,6 +154,19 @@ class RoverSim:
         # drive: a stream of their own, so that the frames' readings drew nothing new.
         rng_suspension = np.random.default_rng([seed, 7011])
         self.suspension_encoders = JointEncoders(JointEncoderParams(), rng_suspension)
+        self._failed_wheel: str | None = None
+
+    @property
+    def failed_wheel(self) -> str | None:
+        """The wheel whose motor has failed (``WHEEL_KEYS``), dragged on every drive; None:
+        all motors work. The test conductor sets it; the flight software is not told."""
+        return self._failed_wheel
+
+    @failed_wheel.setter
+    def failed_wheel(self, key: str | None) -> None:
+        if key is not None and (not isinstance(key, str) or key not in WHEEL_KEYS):
+            raise InputError("failed_wheel", f"must be one of {', '.join(WHEEL_KEYS)} or None")
+        self._failed_wheel = key
 
     # ---- checkpoint ---------------------------------------------------------------------
 
@@ -167,6 +188,7 @@ class RoverSim:
             "rng_cam": self._rng_cam.bit_generator.state,
             "mast_bias_rad": self.mast_bias_rad.copy(),
             "totals": {f.name: _plain(getattr(self.totals, f.name)) for f in fields(RunningTotals)},
+            "failed_wheel": self._failed_wheel,
         }
 
     def load_state(self, state: Mapping[str, Any]) -> None:
@@ -186,6 +208,7 @@ class RoverSim:
         self._rng_cam.bit_generator.state = state["rng_cam"]
         self.mast_bias_rad = np.array(state["mast_bias_rad"], dtype=np.float64)
         self.totals = RunningTotals(**_arrays(state["totals"]))
+        self.failed_wheel = state.get("failed_wheel")  # absent before wheel drag
 
     # ---- soil patches ---------------------------------------------------------------
 
@@ -219,39 +242,55 @@ class RoverSim:
         self.totals.idle_s_jumped += duration_s
         return samples
 
-    def drive_straight(self, distance_m: float, max_cycles: int | None = None) -> Segment:
+    def drive_straight(
+        self, distance_m: float, max_cycles: int | None = None, drag_wheel: str | None = None
+    ) -> Segment:
         """Drive ``distance_m`` (> 0) straight ahead; returns its truth and sensor samples.
-        ``max_cycles``: the drive halted after that many of its control cycles (``_drive``)."""
+        ``max_cycles``: the drive halted after that many of its control cycles (``_drive``);
+        ``drag_wheel``: the wheel the command leaves undriven (module docstring)."""
         steer = bool(np.any(self.drive_state.steer_rad != 0.0))
+        drag = self.drag(drag_wheel)
         return self._drive(
             lambda start, n: drive.drive_straight(
-                self.terrain, start, distance_m, self.slip, max_cycles=n
+                self.terrain, start, distance_m, self.slip, max_cycles=n, drag=drag
             ),
             steer,
             max_cycles,
         )
 
     def drive_arc(
-        self, radius_m: float, angle_rad: float, max_cycles: int | None = None
+        self,
+        radius_m: float,
+        angle_rad: float,
+        max_cycles: int | None = None,
+        drag_wheel: str | None = None,
     ) -> Segment:
         """Drive along an arc (see ``sim.rover.drive.drive_arc`` for the signs)."""
+        drag = self.drag(drag_wheel)
         return self._drive(
             lambda start, n: drive.drive_arc(
-                self.terrain, start, radius_m, angle_rad, self.slip, max_cycles=n
+                self.terrain, start, radius_m, angle_rad, self.slip, max_cycles=n, drag=drag
             ),
             True,
             max_cycles,
         )
 
-    def turn_in_place(self, angle_rad: float, max_cycles: int | None = None) -> Segment:
+    def turn_in_place(
+        self, angle_rad: float, max_cycles: int | None = None, drag_wheel: str | None = None
+    ) -> Segment:
         """Turn in place by ``angle_rad`` (positive: clockwise seen from above, to the right)."""
+        drag = self.drag(drag_wheel)
         return self._drive(
             lambda start, n: drive.turn_in_place(
-                self.terrain, start, angle_rad, self.slip, max_cycles=n
+                self.terrain, start, angle_rad, self.slip, max_cycles=n, drag=drag
             ),
             True,
             max_cycles,
         )
+
+    def drag(self, drag_wheel: str | None = None) -> Drag | None:
+        """The wheels a drive drags: the command's ``drag_wheel`` and the failed motor's."""
+        return Drag.of(drag_wheel, self._failed_wheel)
 
     def _drive(
         self,

@@ -41,6 +41,10 @@ Signs: ``drive_arc`` with ``radius_m > 0`` turns about a centre on the rover's r
 right turn, heading increasing), ``radius_m < 0`` about one on its left; ``angle_rad > 0``
 is the heading change driven forwards. ``turn_in_place`` with ``angle_rad > 0`` turns
 clockwise seen from above (to the right, heading increasing).
+
+A dragged wheel (``drag``, ``sim.rover.drag``: a wheel the command leaves undriven, or
+whose motor failed) adds its slip and yaw to each step and rolls little; without one the
+arithmetic here is what it was.
 """
 
 from __future__ import annotations
@@ -57,6 +61,7 @@ from scipy.spatial.transform import Rotation
 from estimation.geometry import DRIVE_SPEED_M_S, TURN_RATE_RAD_S
 from sequences.limits import MAX_DRIVE_M
 from sim.errors import InputError
+from sim.rover.drag import Drag
 from sim.rover.geometry import MER_GEOMETRY, STEERED_INDEX, RoverGeometry
 from sim.rover.settle import Settled, settle
 from sim.rover.slip import SlipModel
@@ -276,10 +281,15 @@ def _integrate(start: DriveState, k_steps: int, increments: Increments) -> tuple
 
 
 def _path_increments(
-    terrain: Terrain, ds: FloatArray, curvature: float, slip_model: SlipModel
+    terrain: Terrain,
+    ds: FloatArray,
+    curvature: float,
+    slip_model: SlipModel,
+    drag: Drag | None = None,
 ) -> Increments:
     """Increments of a drive along a path of ``curvature`` (1/m) in steps ``ds`` (m)."""
     noise = slip_model.noise(ds)
+    dragging = drag is not None and not slip_model.no_slip
 
     def f(steps: slice, x: FloatArray, y: FloatArray, yaw: FloatArray) -> Step:
         ta, tc = _slopes(terrain, slip_model.geometry, x, y, yaw)
@@ -287,9 +297,15 @@ def _path_increments(
         # Slip is defined on the undeformed radius (Wong, ch. 2): the soil losses that
         # sinkage brings are already in the slip law, so sinkage only lowers the rover.
         rolled = ds[steps]
+        veer: FloatArray | float = 0.0
+        if dragging:  # the dragged wheel: more slip, and a yaw towards it (sim.rover.drag)
+            assert drag is not None
+            sample, veer = drag.path_sample(slip_model, ta, tc, sample)
         along = rolled * (1.0 - sample.slip) / np.sqrt(1.0 + ta**2)  # horizontal
         side = rolled * sample.creep / np.sqrt(1.0 + tc**2)
         turn = curvature * along
+        if dragging:
+            turn = turn + veer * rolled
         mid = yaw + 0.5 * turn
         chord = along * np.sinc(turn / (2.0 * np.pi))  # exact chord of the arc step
         dx = chord * np.cos(mid) - side * np.sin(mid)
@@ -300,12 +316,17 @@ def _path_increments(
 
 
 def _turn_increments(
-    terrain: Terrain, dpsi: FloatArray, mean_lever_m: float, slip_model: SlipModel
+    terrain: Terrain,
+    dpsi: FloatArray,
+    mean_lever_m: float,
+    slip_model: SlipModel,
+    drag: Drag | None = None,
 ) -> Increments:
     """Increments of a turn in place in heading steps ``dpsi`` (rad): the turn slips, and
     the body creeps down the fall line by the creep fraction of the mean wheel travel."""
     rolled_cmd = np.abs(dpsi) * mean_lever_m
     noise = slip_model.noise(rolled_cmd)
+    dragging = drag is not None and not slip_model.no_slip
 
     def f(steps: slice, x: FloatArray, y: FloatArray, yaw: FloatArray) -> Step:
         along, across = _slopes(terrain, slip_model.geometry, x, y, yaw)
@@ -313,6 +334,9 @@ def _turn_increments(
         hx, hy = along * c - across * s, along * s + across * c  # back to North, East
         grade = np.hypot(hx, hy)
         sample = slip_model.turn(np.arctan(grade), noise[steps], x_m=x, y_m=y)
+        if dragging:  # turning the dragged wheel round too (sim.rover.drag)
+            assert drag is not None
+            sample = drag.turn_sample(slip_model, np.arctan(grade), sample)
         creep = rolled_cmd[steps] * sample.creep / np.sqrt(1.0 + grade**2)
         down = np.where(grade > 0.0, creep / np.where(grade > 0.0, grade, 1.0), 0.0)
         turn = dpsi[steps] * (1.0 - sample.slip)  # slip on the undeformed radius, as above
@@ -328,9 +352,13 @@ def _finish(
     steer: FloatArray,
     wheel_rad: FloatArray,
     slip_model: SlipModel,
+    drag: Drag | None = None,
 ) -> tuple[TruthTrajectory, DriveState]:
-    """Settle the planar motion and assemble the truth and the end state."""
+    """Settle the planar motion and assemble the truth and the end state (a dragged
+    wheel's rotation is what it rolls, ``Drag.wheel_rad``)."""
     x, y, yaw, slip, sink = motion
+    if drag is not None:
+        wheel_rad = drag.wheel_rad(wheel_rad, slip)
     geometry = slip_model.geometry
     n = x.size
     at_start = slip_model.sinkage_m(start.slip, x_m=x[0], y_m=y[0])
@@ -418,9 +446,11 @@ def drive_straight(
     slip_model: SlipModel,
     speed_m_s: float = DEFAULT_SPEED_M_S,
     max_cycles: int | None = None,
+    drag: Drag | None = None,
 ) -> tuple[TruthTrajectory, DriveState]:
     """Drive ``distance_m`` (> 0, wheel odometry) straight ahead at ``speed_m_s``
-    (``max_cycles``: halted after that many control cycles, ``cut_cycles``).
+    (``max_cycles``: halted after that many control cycles, ``cut_cycles``; ``drag``: the
+    dragged wheels, ``sim.rover.drag``; the drive ends when the driven wheels have turned).
 
     >>> from sim.world.terrain import FlatTerrain
     >>> flat = FlatTerrain()
@@ -432,10 +462,10 @@ def drive_straight(
     v = _check("speed_m_s", speed_m_s, 0.0, MAX_SPEED_M_S)
     s_cmd = _schedule(d, v, max_cycles)
     ds = np.diff(s_cmd)
-    motion = _integrate(start, ds.size, _path_increments(terrain, ds, 0.0, slip_model))
+    motion = _integrate(start, ds.size, _path_increments(terrain, ds, 0.0, slip_model, drag))
     r = slip_model.geometry.wheel_radius_m
     wheel = np.outer(s_cmd, np.ones(6)) / r
-    return _finish(terrain, start, motion, np.zeros(4), wheel, slip_model)
+    return _finish(terrain, start, motion, np.zeros(4), wheel, slip_model, drag)
 
 
 def drive_arc(
@@ -446,8 +476,10 @@ def drive_arc(
     slip_model: SlipModel,
     speed_m_s: float = DEFAULT_SPEED_M_S,
     max_cycles: int | None = None,
+    drag: Drag | None = None,
 ) -> tuple[TruthTrajectory, DriveState]:
-    """Drive forwards along an arc of ``radius_m`` through a heading change ``angle_rad``.
+    """Drive forwards along an arc of ``radius_m`` through a heading change ``angle_rad``
+    (``drag`` as ``drive_straight``'s).
 
     ``radius_m`` > 0: centre on the right (heading increases); < 0: on the left. Its size
     is the radius of the body origin's path, at least half the track. ``angle_rad`` > 0.
@@ -465,9 +497,10 @@ def drive_arc(
     steer, roll = _arc_wheels(geometry, radius)
     s_cmd = _schedule(length, v, max_cycles)
     ds = np.diff(s_cmd)
-    motion = _integrate(start, ds.size, _path_increments(terrain, ds, 1.0 / radius, slip_model))
+    increments = _path_increments(terrain, ds, 1.0 / radius, slip_model, drag)
+    motion = _integrate(start, ds.size, increments)
     wheel = np.outer(s_cmd, roll) / geometry.wheel_radius_m
-    return _finish(terrain, start, motion, steer, wheel, slip_model)
+    return _finish(terrain, start, motion, steer, wheel, slip_model, drag)
 
 
 def turn_in_place(
@@ -477,8 +510,10 @@ def turn_in_place(
     slip_model: SlipModel,
     rate_rad_s: float = DEFAULT_TURN_RATE_RAD_S,
     max_cycles: int | None = None,
+    drag: Drag | None = None,
 ) -> tuple[TruthTrajectory, DriveState]:
-    """Turn about the body origin by ``angle_rad`` (> 0 clockwise seen from above).
+    """Turn about the body origin by ``angle_rad`` (> 0 clockwise seen from above;
+    ``drag`` as ``drive_straight``'s).
 
     Each corner wheel steers tangent to its circle about the origin, the middle ones roll
     straight; the left wheels roll forwards on a right turn.
@@ -494,6 +529,8 @@ def turn_in_place(
     psi_cmd = math.copysign(1.0, angle) * _schedule(abs(angle), rate, max_cycles)
     dpsi = np.diff(psi_cmd)
     lever_m = float(np.mean(np.abs(lever)))
-    motion = _integrate(start, dpsi.size, _turn_increments(terrain, dpsi, lever_m, slip_model))
+    increments = _turn_increments(terrain, dpsi, lever_m, slip_model, drag)
+    motion = _integrate(start, dpsi.size, increments)
     wheel = np.outer(psi_cmd, lever) / geometry.wheel_radius_m
-    return _finish(terrain, start, motion, sigma[list(STEERED_INDEX)], wheel, slip_model)
+    steer = sigma[list(STEERED_INDEX)]
+    return _finish(terrain, start, motion, steer, wheel, slip_model, drag)
