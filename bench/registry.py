@@ -46,6 +46,10 @@ BENCHES: dict[str, Bench] = {
         "bench.fusion:bench_fusion",
         "the kinematic and radio EKFs: accuracy, NEES, and beside SAPP in rover sessions",
     ),
+    "faults": Bench(
+        "bench.faults:bench_faults",
+        "mobility fault protection: keep-out, sand trap, tilt, wheel drag, position 1-sigma",
+    ),
     "server": Bench(
         "bench.server:bench_server",
         "the live server: a sol's wall time, WebSocket clients, validation, event-loop stalls",
