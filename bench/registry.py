@@ -47,7 +47,7 @@ BENCHES: dict[str, Bench] = {
         "the kinematic and radio EKFs: accuracy, NEES, and beside SAPP in rover sessions",
     ),
     "faults": Bench(
-        "bench.faults:bench_faults",
+        "bench.faults.report:bench_faults",
         "mobility fault protection: keep-out, sand trap, tilt, wheel drag, position 1-sigma",
     ),
     "server": Bench(

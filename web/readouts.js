@@ -1,5 +1,5 @@
 // The Rover panel: the readouts of the newest frame (NATE mode, AQF, IMU time, the HGA
-// margin the rover predicts, its position estimate), the sol clock, what runs and what is
+// margin the rover predicts, its position estimate and uncertainty, mobility), the sol clock, what runs and what is
 // queued, and the rover's own events since the page opened.
 import { api } from "./lib/api.js";
 import { bus } from "./lib/bus.js";
@@ -36,8 +36,18 @@ function showFrame(f) {
 // believes it is). The error accumulated over the whole mission, scored against the
 // simulator's truth, is the Truth panel's (truth.js), never one number for both.
 const xy = (p) => `(${p[0].toFixed(2)}, ${p[1].toFixed(2)})`;
+// with the rover's own 2σ (estimation.protection.position_sigma): what its keep-out check uses
 function showPosition(f) {
-  $("position").textContent = `Site ${f.site_index}: est ${xy(f.p_s_est)} m`;
+  const sigma = f.position_sigma_m;
+  const known = sigma !== null && sigma !== undefined;
+  $("position").textContent =
+    `Site ${f.site_index}: est ${xy(f.p_s_est)} m` + (known ? ` ± ${(2 * sigma).toFixed(2)} m (2σ)` : "");
+  // after a halt the rover refuses drives until the ground clears the fault
+  const mobility = $("mobility");
+  const fault = f.mobility_fault || "";
+  mobility.textContent = fault ? `HALTED: ${fault}` : "enabled";
+  mobility.className = fault ? "bad" : "good";
+  mobility.title = fault ? "send CLEAR_MOBILITY_FAULT to drive again" : "";
 }
 
 function showState(s) {

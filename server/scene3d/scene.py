@@ -59,6 +59,7 @@ import numpy as np
 import viser
 
 from server.runtime import RoverRuntime
+from server.scene3d.marks import Marks
 from server.scene3d.model import (
     ALBEDO_BANDS,
     GHOST_RGB,
@@ -292,6 +293,7 @@ class RoverScene:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._tracks = {"true": Track(), "est": Track()} if truth else {"est": Track()}
+        self.marks = Marks(self.terrain, self.origin_world, truth)  # keep-out zones, halts
         self._sites: dict[int, FloatArray] = {}
         self._new_sites: list[int] = []
         self._terrain_centre: FloatArray | None = None
@@ -408,6 +410,7 @@ class RoverScene:
 
     def _take(self, f: Mapping[str, Any]) -> None:
         self._latest = f
+        self.marks.take(f)
         if self.truth:
             self._tracks["true"].add(f["p_mission_true"])
         self._tracks["est"].add(f["p_mission_est"])
@@ -459,6 +462,8 @@ class RoverScene:
         self._recut_terrain(pose.p_w)
         with server.atomic():
             self.model.show(pose)
+            with self._lock:
+                self.marks.draw(server.scene, dict(self._sites))
             if self.ghost is not None:  # the truth view: the estimate beside the truth
                 self.ghost.show(RoverPose.from_frame(frame, "est"))
                 draw_vectors(server.scene, frame, pose)

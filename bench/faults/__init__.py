@@ -1,0 +1,1 @@
+"""``roverops bench faults``: mobility fault protection and injected faults."""
