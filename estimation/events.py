@@ -13,6 +13,8 @@ Kinds, by who makes them:
 - the rover session (``sim.loop.session``): ``command`` (a command refused), ``site`` (a Site
   planted), ``parameter`` (a NATE parameter set), ``hga`` (an HGA pass), ``vo`` (a visual
   odometry step) and ``estimator`` (a comparison estimator stopped);
+- the simulator (``sim.faults``): ``fault`` (a fault the test conductor injected, in the
+  truth record only, never the downlink);
 - the ground server (``server``): ``server`` (the server started, or restarted and the
   rover resumed from its checkpoint), ``sequence`` (a sequence started, completed or failed)
   and ``alarm`` (an alarm raised, escalated, cleared or acknowledged: ``error`` when
@@ -44,8 +46,9 @@ SEVERITIES: tuple[Severity, ...] = ("info", "warning", "error")  # in increasing
 
 FLIGHT_KINDS = ("nadir", "sunfind", "sungaze", "suncheck", "gyrocompass", "acquisition")
 SESSION_KINDS = ("command", "site", "parameter", "hga", "vo", "estimator")
+SIMULATOR_KINDS = ("fault",)
 SERVER_KINDS = ("server", "sequence", "alarm")
-KINDS: tuple[str, ...] = FLIGHT_KINDS + SESSION_KINDS + SERVER_KINDS
+KINDS: tuple[str, ...] = FLIGHT_KINDS + SESSION_KINDS + SERVER_KINDS + SIMULATOR_KINDS
 
 
 @dataclass(frozen=True)

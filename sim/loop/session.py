@@ -36,6 +36,7 @@ from estimation.sapp.nate import Nate, NateParams
 from estimation.vo.odometry import VisualOdometry
 from sequences import commands as cmd
 from sim.errors import InputError
+from sim.faults.plan import FaultPlan
 from sim.loop.context import CommandRefusedError, LoopContext
 from sim.loop.downlink import Downlink, DownlinkDict
 from sim.loop.frames import FrameRecorder
@@ -116,6 +117,7 @@ class RoverSession:
             vo_options=vo_options if vo_options is not None else VoDriveOptions(),
         )
         self.reports: list[CommandReport] = []
+        self.faults = FaultPlan()  # the conductor's faults, applied as commands start
 
     # ---- the parts, for the runtime, benchmarks and tests -------------------------------
 
@@ -175,6 +177,7 @@ class RoverSession:
         if handler is None:  # a command added to the dictionary without its handler
             raise InputError("command", f"{command.name} has no handler in sim.loop.handlers")
         loop, recorder = self.loop, self.loop.recorder
+        self.faults.apply_due(loop)  # the faults due by now (sim.faults.plan)
         recorder.command = command.describe() if label is None else label
         report = CommandReport(recorder.command, "completed", loop.sim.t_s, loop.sim.t_s)
         first_frame, waited = len(recorder.downlinks), len(recorder.events)
@@ -218,6 +221,7 @@ class RoverSession:
             "recorder": loop.recorder.state(),
             "side": loop.side.state(),
             "vo": loop.vo.state(),
+            "faults": self.faults.state(),
         }
 
     def load_state(self, state: Mapping[str, Any]) -> None:
@@ -228,6 +232,7 @@ class RoverSession:
         loop.recorder.load_state(state["recorder"])
         loop.side.load_state(state["side"])
         loop.vo.load_state(state["vo"])
+        self.faults.load_state(state.get("faults", []))  # none before faults existed
 
     # ---- truth for the 3D view, benchmarks and tests -----------------------------------
 
