@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 import threading
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -43,8 +43,9 @@ from sim.faults.records import (
     NavcamFailure,
     PancamDust,
     SandTrap,
+    ScheduledFault,
+    UnsupportedFaultError,
     WheelFault,
-    fault_from_dict,
 )
 from sim.sensors.imu import DEG_PER_H_TO_RAD_S, STANDARD_GRAVITY_M_S2
 
@@ -56,37 +57,6 @@ if TYPE_CHECKING:
 NEEDS: dict[type[Fault], str] = {SandTrap: "add_soil_patch", WheelFault: "failed_wheel"}
 
 
-@dataclass(frozen=True)
-class ScheduledFault:
-    """A fault of the plan: ``fault_id`` (1, 2, ... per rover), the ``fault``, when it is due
-    (``at_t_s``, TT s), when it was applied (``applied_t_s``; ``None`` while pending), why it
-    could not be (``error``, else ``None``) and whether it is ``revealed``."""
-
-    fault_id: int
-    fault: Fault
-    at_t_s: float
-    applied_t_s: float | None = None
-    error: str | None = None
-    revealed: bool = False
-
-    @property
-    def applied(self) -> bool:
-        return self.applied_t_s is not None
-
-    def as_dict(self) -> dict[str, Any]:
-        """Plain data (checkpoints, the server's answers)."""
-        return {"fault_id": self.fault_id, "fault": self.fault.as_dict(), "at_t_s": self.at_t_s,
-                "applied_t_s": self.applied_t_s, "error": self.error,
-                "revealed": self.revealed}  # fmt: skip
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> ScheduledFault:
-        applied = data["applied_t_s"]
-        return cls(int(data["fault_id"]), fault_from_dict(data["fault"]), float(data["at_t_s"]),
-                   None if applied is None else float(applied), data["error"],
-                   bool(data["revealed"]))  # fmt: skip
-
-
 def unsupported(fault: Fault, sim: RoverSim) -> str | None:
     """Why ``sim`` cannot take ``fault`` (it lacks the method the fault needs), or ``None``."""
     method = NEEDS.get(type(fault))
@@ -96,18 +66,24 @@ def unsupported(fault: Fault, sim: RoverSim) -> str | None:
 
 
 class FaultPlan:
-    """A rover's faults (module docstring)."""
+    """A rover's faults (module docstring), for the simulator ``sim`` (``None``: any; else
+    a fault it cannot take is refused when added)."""
 
-    def __init__(self) -> None:
+    def __init__(self, sim: RoverSim | None = None) -> None:
         self._lock = threading.Lock()
         self._entries: list[ScheduledFault] = []
+        self._sim = sim
 
     def add(self, fault: Fault, at_t_s: float) -> ScheduledFault:
-        """Schedule ``fault`` at ``at_t_s`` (TT s; a time already past: at once)."""
+        """Schedule ``fault`` at ``at_t_s`` (TT s; a time already past: at once);
+        ``UnsupportedFaultError`` when the simulator cannot take it (``unsupported``)."""
         if not isinstance(fault, Fault):
             raise InputError("fault", f"must be a sim.faults.records.Fault, got {fault!r}")
         if not math.isfinite(at_t_s):
             raise InputError("at_t_s", f"must be finite, got {at_t_s}")
+        reason = None if self._sim is None else unsupported(fault, self._sim)
+        if reason is not None:
+            raise UnsupportedFaultError(reason)
         with self._lock:
             entry = ScheduledFault(len(self._entries) + 1, fault, float(at_t_s))
             self._entries.append(entry)
@@ -166,7 +142,7 @@ def apply_fault(fault: Fault, loop: LoopContext) -> None:
     sim = loop.sim
     reason = unsupported(fault, sim)
     if reason is not None:
-        raise InputError("kind", reason)
+        raise UnsupportedFaultError(reason)
     if isinstance(fault, GyroBias):
         step = _axis(fault.axis) * fault.bias_deg_per_h * DEG_PER_H_TO_RAD_S
         sim.imu.add_bias_step(gyro_rad_s=step)

@@ -18,6 +18,9 @@ checkpoint carry it as JSON. The kinds (issue 22, "Fault injection"):
   start, the truth's ``p_mission_true`` axes);
 - ``hga_stuck``: the HGA gimbal stuck at the angles it has when the fault is applied.
 
+A ``ScheduledFault`` is a fault in a rover's plan (``sim.faults.plan``): its id, when it is
+due, when it was applied and whether the conductor has revealed it.
+
 >>> fault_from_dict({"kind": "gyro_bias", "axis": "z", "bias_deg_per_h": 10.0})
 GyroBias(axis='z', bias_deg_per_h=10.0)
 >>> fault_from_dict({"kind": "pancam_dust", "tau": 12})
@@ -43,6 +46,13 @@ MAX_ACCEL_BIAS_UG = 100_000.0  # 0.1 g: far beyond the LN-200's 300 ug turn-on b
 MAX_TAU = 10.0  # beyond a global dust storm's optical depth (approximate: about 5)
 MAX_SAND_TRAP_RADIUS_M = 50.0
 MAX_SAND_TRAP_DISTANCE_M = 10_000.0  # a traverse's reach from the start
+
+
+class UnsupportedFaultError(InputError):
+    """A fault the simulator has not the parts for (``sim.faults.plan.unsupported``)."""
+
+    def __init__(self, reason: str) -> None:
+        super().__init__("kind", reason)
 
 
 def _finite(name: str, value: Any, low: float, high: float) -> float:
@@ -212,3 +222,34 @@ def fault_from_dict(data: Mapping[str, Any]) -> Fault:
     if missing:
         raise InputError(missing[0], f"is required for {kind}")
     return cls(**given)
+
+
+@dataclass(frozen=True)
+class ScheduledFault:
+    """A fault of the plan: ``fault_id`` (1, 2, ... per rover), the ``fault``, when it is due
+    (``at_t_s``, TT s), when it was applied (``applied_t_s``; ``None`` while pending), why it
+    could not be (``error``, else ``None``) and whether it is ``revealed``."""
+
+    fault_id: int
+    fault: Fault
+    at_t_s: float
+    applied_t_s: float | None = None
+    error: str | None = None
+    revealed: bool = False
+
+    @property
+    def applied(self) -> bool:
+        return self.applied_t_s is not None
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain data (checkpoints, the server's answers)."""
+        return {"fault_id": self.fault_id, "fault": self.fault.as_dict(), "at_t_s": self.at_t_s,
+                "applied_t_s": self.applied_t_s, "error": self.error,
+                "revealed": self.revealed}  # fmt: skip
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> ScheduledFault:
+        applied = data["applied_t_s"]
+        return cls(int(data["fault_id"]), fault_from_dict(data["fault"]), float(data["at_t_s"]),
+                   None if applied is None else float(applied), data["error"],
+                   bool(data["revealed"]))  # fmt: skip

@@ -117,7 +117,7 @@ class RoverSession:
             vo_options=vo_options if vo_options is not None else VoDriveOptions(),
         )
         self.reports: list[CommandReport] = []
-        self.faults = FaultPlan()  # the conductor's faults, applied as commands start
+        self.faults = FaultPlan(sim)  # the conductor's faults, applied as commands start
 
     # ---- the parts, for the runtime, benchmarks and tests -------------------------------
 

@@ -23,6 +23,8 @@ from sim.faults.records import (
     NavcamFailure,
     PancamDust,
     SandTrap,
+    ScheduledFault,
+    UnsupportedFaultError,
     WheelFault,
     fault_from_dict,
 )
@@ -185,10 +187,16 @@ def test_sand_traps_and_wheels_wait_for_their_simulator_parts() -> None:
         if hasattr(s.sim, {"sand_trap": "add_soil_patch", "wheel": "failed_wheel"}[fault.kind]):
             continue  # merged: the other parts' own tests cover it
         assert "not supported by this simulator" in (unsupported(fault, s.sim) or "")
-        entry = s.faults.add(fault, at_t_s=s.sim.t_s)
+        with pytest.raises(UnsupportedFaultError, match="not supported by this simulator"):
+            s.faults.add(fault, at_t_s=s.sim.t_s)
+        # a plan loaded onto a simulator without the part: refused when due, said in the truth
+        s.faults.load_state([*s.faults.state(), ScheduledFault(9, fault, s.sim.t_s).as_dict()])
+        s.take_frames()
         s.execute(cmd.Wait(1.0))
-        done = s.faults.entries()[entry.fault_id - 1]
+        done = s.faults.entries()[-1]
         assert done.applied and "not supported" in (done.error or "")
+        texts = [e["text"] for _, t in s.take_frames() for e in t["events"]]
+        assert any("fault #9 not applied" in t for t in texts), texts
 
 
 def test_the_plan_and_the_condition_survive_a_checkpoint() -> None:
