@@ -10,7 +10,9 @@ from typing import Any
 
 import pytest
 
+from cli.faults import KINDS
 from server.app import ServerConfig, data_dir_url
+from sim.faults.records import KINDS as RECORD_KINDS
 from tests.cli.test_cli import _run
 from tests.server.access.test_truth_view import _serve
 
@@ -83,3 +85,7 @@ def test_bad_options_and_refusals_are_one_line_and_exit_2(
     err = _refused(capsys, "list", "--rover", "curiosity", *where[2:])
     assert "--rover" in err and "404" in err
     assert "http://" in _refused(capsys, "list", "--rover", "spirit", "--server", "localhost:1")
+
+
+def test_the_cli_offers_every_kind_of_fault() -> None:
+    assert sorted(KINDS) == sorted(RECORD_KINDS)
