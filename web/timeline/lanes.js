@@ -244,12 +244,12 @@ export const alarmLane = {
 const faultLane = {
   id: "lane-faults",
   draw(timeline) {
-    $(this.id).replaceChildren(...(timeline.faults || []).filter((f) => f.applied).map((f) => {
-      const mark = marked("tl-fault", f.applied.lmst_h);
+    $(this.id).replaceChildren(...(timeline.faults || []).filter((fault) => fault.applied).map((fault) => {
+      const mark = marked("tl-fault", fault.applied.lmst_h);
       mark.dataset.testid = "timeline-fault";
-      mark.dataset.faultId = String(f.fault_id);
-      mark.title = `${lmstText(f.applied.lmst_h)} LMST: fault #${f.fault_id}, ${f.description}` +
-        `${f.error ? ` (not applied: ${f.error})` : ""}${f.revealed ? "\nrevealed" : "\nnot revealed yet"}`;
+      mark.dataset.faultId = String(fault.fault_id);
+      mark.title = `${lmstText(fault.applied.lmst_h)} LMST: fault #${fault.fault_id}, ${fault.description}` +
+        `${fault.error ? ` (not applied: ${fault.error})` : ""}${fault.revealed ? "\nrevealed" : "\nnot revealed yet"}`;
       return mark;
     }));
   },
