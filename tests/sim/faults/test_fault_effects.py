@@ -221,3 +221,15 @@ def test_the_plan_and_the_condition_survive_a_checkpoint() -> None:
 def test_a_plan_refuses_a_time_that_is_not_finite() -> None:
     with pytest.raises(InputError, match="at_t_s"):
         FaultPlan().add(NavcamFailure(), math.inf)
+
+
+def test_thick_dust_makes_sunfind_fail_where_the_clear_sky_finds_the_sun() -> None:
+    noon = datetime(2004, 4, 14, 19, 0, tzinfo=UTC)  # Gusev, about 12:30 LMST
+    found = {}
+    for tau in (0.0, 4.0):
+        s = RoverSession("gusev", 3, noon, frame_every_s=1.0)
+        if tau:
+            s.faults.add(PancamDust(tau), at_t_s=s.sim.t_s)
+        s.execute(cmd.NadirUpdate())
+        found[tau] = s.execute(cmd.Sunfind()).status
+    assert found == {0.0: "completed", 4.0: "failed"}
