@@ -1,7 +1,7 @@
 """The ``roverops`` command line: ``serve``, ``ephem``, ``run``, ``validate``, ``users``,
-``bench`` and ``web-types``, one module each where they are more than a call (``cli.serve``,
-``cli.validate``, ``cli.bench``, ``cli.web_types``), their shared argument types in
-``cli.arguments``.
+``faults``, ``bench`` and ``web-types``, one module each where they are more than a call
+(``cli.serve``, ``cli.validate``, ``cli.faults``, ``cli.bench``, ``cli.web_types``), their
+shared argument types in ``cli.arguments``.
 
 Every argument from outside is validated; a bad one ends the command with a one-line
 message naming the parameter and exit status 2, never a traceback.
@@ -17,6 +17,7 @@ from typing import Any
 
 from cli.arguments import estimator_names, finite_float, non_negative_int
 from cli.bench import add_bench
+from cli.faults import add_faults
 from cli.output import print_result
 from cli.run_report import print_run
 from cli.serve import add_serve, add_users
@@ -103,6 +104,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_validate(sub)
     add_serve(sub)
     add_users(sub)
+    add_faults(sub)
     add_bench(sub)
     add_web_types(sub)
     return parser

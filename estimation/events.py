@@ -15,6 +15,8 @@ Kinds, by who makes them:
   pass), ``vo`` (a visual odometry step), ``estimator`` (a comparison estimator stopped),
   ``mobility`` (mobility fault protection halted a drive, or the ground cleared the fault:
   ``estimation.protection``) and ``keepout`` (a keep-out zone added or cleared);
+- the simulator (``sim.faults``): ``fault`` (a fault the test conductor injected, in the
+  truth record only, never the downlink);
 - the ground server (``server``): ``server`` (the server started, or restarted and the
   rover resumed from its checkpoint), ``sequence`` (a sequence started, completed or failed)
   and ``alarm`` (an alarm raised, escalated, cleared or acknowledged: ``error`` when
@@ -48,8 +50,9 @@ FLIGHT_KINDS = ("nadir", "sunfind", "sungaze", "suncheck", "gyrocompass", "acqui
 SESSION_KINDS = (
     "command", "site", "parameter", "hga", "vo", "estimator", "mobility", "keepout",
 )  # fmt: skip
+SIMULATOR_KINDS = ("fault",)
 SERVER_KINDS = ("server", "sequence", "alarm")
-KINDS: tuple[str, ...] = FLIGHT_KINDS + SESSION_KINDS + SERVER_KINDS
+KINDS: tuple[str, ...] = FLIGHT_KINDS + SESSION_KINDS + SERVER_KINDS + SIMULATOR_KINDS
 
 
 @dataclass(frozen=True)

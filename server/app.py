@@ -3,7 +3,8 @@
 This module only wires: ``create_app(config)`` makes the ``Server`` (``server.state``: the
 runtimes and where their frames go, runtime -> sinks: storage, alarms, the WebSocket hub,
 the 3D view), the middleware, and one router per resource (``server.api``: rovers,
-sequences, queue, telemetry, events, channels, alarms, viewer, users, audit).
+sequences, queue, telemetry, events, channels, alarms, viewer, users, audit; and the
+conductor's faults, ``server.faults.api``).
 
 ``roverops serve`` runs it with uvicorn. Each route needs a role
 (``server.access.accounts``: viewer, operator, conductor, admin; ``server.access.auth``):
@@ -43,6 +44,7 @@ from server.api import (
 )
 from server.api.deps import AUTH_ERRORS, install_error_handlers
 from server.api.routing import AuthFirstRoute, allow_every_method, document_public_reads
+from server.faults import api as faults
 from server.state import Server, ServerConfig
 from server.storage import data_dir_url
 
@@ -85,6 +87,6 @@ def create_app(config: ServerConfig) -> FastAPI:
 
     app.mount("/static", StaticFiles(directory=WEB_DIR), name="static")
     for api in (rovers, sequences, queue, telemetry, events, channels, alarms, viewer, users,
-                audit):  # fmt: skip
+                audit, faults):  # fmt: skip
         app.include_router(api.routes)
     return app

@@ -68,6 +68,7 @@ from server.queue import (
     merged,
     moved,
     snapshot,
+    start_time,
 )
 from server.sinks import FrameBatch, FrameSink, PlayedFrame, RuntimeListener, with_truth
 from server.storage.records import CommandRecord
@@ -80,7 +81,6 @@ from sim.world.marsclock import (
     get_mission,
     lmst_h_from_t_s,
     sol_number_t_s,
-    t_s_for_sol_lmst,
     t_s_to_utc,
 )
 
@@ -415,20 +415,14 @@ class RoverRuntime:
             return None
 
     def _start_time(self, tag: TimeTag) -> float:
-        now = self.session.sim.t_s
-        if tag.kind == "relative":
-            return self._last_done_t_s + float(tag.after_s or 0.0)
-        if tag.kind == "sol_lmst":
-            return t_s_for_sol_lmst(self.spec.mission, int(tag.sol or 0), float(tag.lmst_h or 0.0))
-        if tag.kind == "lmst":
-            sol = self.sol(now)
-            t = t_s_for_sol_lmst(self.spec.mission, sol, float(tag.lmst_h or 0.0))
-            return (
-                t
-                if t >= now - 1e-6
-                else t_s_for_sol_lmst(self.spec.mission, sol + 1, float(tag.lmst_h or 0.0))
-            )
-        return now
+        return start_time(tag, self.spec.mission, self.session.sim.t_s, self._last_done_t_s)
+
+    def session_changed(self) -> None:
+        """Checkpoint at the next tick: the session changed outside the clock thread (a
+        fault injected or revealed, ``server.faults``; its plan has a lock of its own)."""
+        with self.lock:
+            self._clock_changed = True
+        self._wake.set()
 
     def _idle(self, duration_s: float) -> None:
         if duration_s <= 0.0:

@@ -1,6 +1,7 @@
 """A sol's timeline for review, from storage: what ran, in which NATE mode and with which
 Attitude Quality Flag, what happened, and (in its ``truth`` part, from the truth records) how
-good the estimate was.
+good the estimate was; and the faults the conductor injected, for a reader in the truth view
+or once revealed (``server.faults``).
 
 Alarms (``server.alarms``) listed are those active at some time of the sol.
 Intervals are built from the stored frames (a new interval wherever the mode or flag
@@ -22,6 +23,7 @@ import numpy as np
 from server.access.truth_view import ground_channels, ground_events
 from server.alarms import alarm_json
 from server.eventlog import rest_event
+from server.faults.service import timeline_faults
 from server.runtime import RoverRuntime
 from server.storage import CommandRecord, Store
 from sim.world.marsclock import t_s_for_sol_lmst, t_s_to_utc
@@ -133,6 +135,7 @@ def sol_timeline(
         # alarms raised by the sol's end and not cleared before its start, oldest first
         "alarms": alarms,
         "distance_m": distance,
+        "faults": timeline_faults(runtime, t0, t1, truth),
         "summary": {
             "frames": len(frames),
             "commands": len(commands),

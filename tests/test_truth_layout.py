@@ -44,6 +44,13 @@ TRUTH_CARRIERS = frozenset({
     "server.scene3d.scene",  # the 3D view's truth layer
 })  # fmt: skip
 SIMULATOR_HOSTS = frozenset({"server.runtime"})  # hosts the rover sessions
+# The conductor's faults as data (what can fail, with which parameters): read only by the
+# modules that serve the conductor's fault routes, never by the ground's.
+FAULT_RECORDS = "sim.faults.records"
+FAULT_CONDUCTORS = frozenset({
+    "server.faults.service",  # hands a fault to a rover's session, lists and reveals them
+    "server.faults.api",  # the conductor's routes
+})  # fmt: skip
 
 
 def truth_violations(graph: Mapping[str, set[str]]) -> list[str]:
@@ -56,6 +63,7 @@ def truth_violations(graph: Mapping[str, set[str]]) -> list[str]:
             allowed = (
                 target in GROUND_KNOWLEDGE
                 or (target == TRUTH and importer in TRUTH_CARRIERS)
+                or (target == FAULT_RECORDS and importer in FAULT_CONDUCTORS)
                 or importer in SIMULATOR_HOSTS
             )
             if not allowed:
@@ -70,7 +78,8 @@ def test_the_ground_imports_only_ground_knowledge_of_the_simulator() -> None:
 
 def test_the_named_modules_exist() -> None:
     graph = import_graph(ROOT, ("server", "sim"))
-    missing = sorted((GROUND_KNOWLEDGE | TRUTH_CARRIERS | SIMULATOR_HOSTS | {TRUTH}) - set(graph))
+    named = GROUND_KNOWLEDGE | TRUTH_CARRIERS | SIMULATOR_HOSTS | FAULT_CONDUCTORS
+    missing = sorted((named | {TRUTH, FAULT_RECORDS}) - set(graph))
     assert not missing, f"the lists name modules that are gone: {missing}"
 
 
@@ -80,9 +89,12 @@ def test_the_check_sees_the_simulator_imported_into_validation() -> None:
         "server.timeline": {"sim.scoring.truth"},
         "server.hub": {"sim.scoring.truth"},
         "server.runtime": {"sim.loop.session"},
+        "server.faults.api": {"sim.faults.records"},
+        "server.alarms": {"sim.faults.records"},
         "sim.loop.session": {"sim.scoring.truth"},
     }
     assert truth_violations(graph) == [
+        "server.alarms -> sim.faults.records",
         "server.timeline -> sim.scoring.truth",
         "server.validation.context -> sim.loop.session",
     ]

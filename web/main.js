@@ -7,6 +7,7 @@ import "./readouts.js";
 import "./commanding.js";
 import "./sequences.js";
 import "./truth.js";
+import "./faults.js";
 import "./view3d.js";
 import "./timeline/panel.js";
 import "./plot.js";

@@ -461,6 +461,32 @@ class Alarm(Answer):
     shelved: Shelf | None = None
 
 
+class FaultEntry(Answer):
+    """A fault the conductor injected (``server.faults``): its id, kind and parameters (units
+    in their names), in words, when it is due (``at``) and was applied (``applied``; null
+    while pending), its ``state`` (pending, applied, or failed: ``error`` says why) and
+    whether it is ``revealed`` to every reader."""
+
+    fault_id: int
+    kind: str
+    parameters: dict[str, str | float]
+    description: str
+    at: When
+    applied: When | None
+    state: Literal["pending", "applied", "failed"]
+    error: str | None
+    revealed: bool
+
+
+class Faults(Answer):
+    """A rover's faults in the order injected (the conductor's list); after a reveal,
+    ``revealed`` says how many the reveal made visible."""
+
+    rover: str
+    faults: list[FaultEntry]
+    revealed: int | None = None
+
+
 class Timeline(Answer):
     """One sol: commands, NATE mode and AQF intervals, events, alarms, distance, summary,
     and in the truth view its ``truth`` part."""
@@ -476,6 +502,10 @@ class Timeline(Answer):
     alarms: list[Alarm]
     distance_m: float
     summary: SolSummary
+    faults: list[FaultEntry] = Field(
+        default_factory=list,
+        description="the faults applied in the sol: all in the truth view, else the revealed",
+    )
     truth: SolTruth | None = None
 
 

@@ -31,7 +31,7 @@ from numpy.typing import NDArray
 from estimation.events import Event
 from estimation.ivp import earth_ll
 from estimation.protection.monitor import MobilityProtection
-from estimation.sapp.hga_pointing import PointingKnowledge, point_hga_many
+from estimation.sapp.hga_pointing import PointingKnowledge, hga_boresights_b, point_hga_many
 from estimation.sapp.nate import Nate, NateOutput, NateSeries
 from estimation.sapp.sun_modes import SunResult
 from sim.loop.downlink import Downlink
@@ -61,6 +61,8 @@ class FrameRecorder:
         self.downlinks: list[Downlink] = []
         self.truths: list[Truth] = []
         self.events: list[Event] = []
+        # truth events waiting for the next frame's truth record (a fault applied: sim.faults)
+        self.truth_events: list[Event] = []
         self.command = ""
         self.vo_failures_in_row = 0
         # mobility fault protection, for its figures (set by the session), and the position
@@ -286,6 +288,10 @@ class FrameRecorder:
             )
             self._last_frame_t = t_j
             self._last_mode = series.mode[k].value
+        stuck = sim.condition.hga_stuck_rad  # the true gimbal angles, a fault (sim.faults)
+        if stuck is not None:
+            hga_az, hga_el = np.full(len(t), stuck[0]), np.full(len(t), stuck[1])
+            boresight_b = hga_boresights_b(hga_az, hga_el)
         figures = DownlinkFigures(
             t_s=t,
             q_b_ll_est=q_est,
@@ -296,7 +302,11 @@ class FrameRecorder:
             hga_boresight_b=boresight_b,
             side=side_poses,
         )
-        self.truths.extend(self.scorer.score(figures, world))
+        truths = self.scorer.score(figures, world)
+        if self.truth_events:
+            truths[0].events.extend(self.truth_events)
+            self.truth_events = []
+        self.truths.extend(truths)
 
     # ---- checkpoint -----------------------------------------------------------------------
 
@@ -305,6 +315,7 @@ class FrameRecorder:
         part of it: a checkpoint is taken between commands, when they have been handed on)."""
         return {
             "events": [e.as_dict() for e in self.events],
+            "truth_events": [e.as_dict() for e in self.truth_events],
             "vo_failures_in_row": self.vo_failures_in_row,
             "knowledge": self.knowledge.state(),
             "scorer": self.scorer.state(),
@@ -316,6 +327,8 @@ class FrameRecorder:
     def load_state(self, state: Mapping[str, Any]) -> None:
         """Load ``state`` (``state()``) onto a recorder built from the same configuration."""
         self.events = [Event(e["text"], e["kind"], e["severity"]) for e in state["events"]]
+        waiting = state.get("truth_events", [])  # none in a checkpoint from before faults
+        self.truth_events = [Event(e["text"], e["kind"], e["severity"]) for e in waiting]
         self.vo_failures_in_row = int(state["vo_failures_in_row"])
         self.knowledge.load_state(state["knowledge"])
         self.scorer.load_state(state["scorer"])

@@ -36,6 +36,7 @@ from scipy.spatial.transform import Rotation
 
 from estimation.geometry import WHEEL_KEYS
 from sim.errors import InputError
+from sim.faults.condition import FaultCondition, NavcamFailedError
 from sim.rover import drive
 from sim.rover.drag import Drag
 from sim.rover.geometry import MER_GEOMETRY
@@ -167,6 +168,7 @@ class RoverSim:
         if key is not None and (not isinstance(key, str) or key not in WHEEL_KEYS):
             raise InputError("failed_wheel", f"must be one of {', '.join(WHEEL_KEYS)} or None")
         self._failed_wheel = key
+        self.condition = FaultCondition()  # healthy until a fault is applied (sim.faults)
 
     # ---- checkpoint ---------------------------------------------------------------------
 
@@ -189,6 +191,7 @@ class RoverSim:
             "mast_bias_rad": self.mast_bias_rad.copy(),
             "totals": {f.name: _plain(getattr(self.totals, f.name)) for f in fields(RunningTotals)},
             "failed_wheel": self._failed_wheel,
+            "condition": self.condition.state(),
         }
 
     def load_state(self, state: Mapping[str, Any]) -> None:
@@ -209,6 +212,9 @@ class RoverSim:
         self.mast_bias_rad = np.array(state["mast_bias_rad"], dtype=np.float64)
         self.totals = RunningTotals(**_arrays(state["totals"]))
         self.failed_wheel = state.get("failed_wheel")  # absent before wheel drag
+        self.condition = FaultCondition()  # a checkpoint from before faults: healthy
+        if "condition" in state:
+            self.condition.load_state(state["condition"])
 
     # ---- soil patches ---------------------------------------------------------------
 
@@ -334,10 +340,17 @@ class RoverSim:
         return samples
 
     def pancam_sun_image(self, az_rad: float, el_rad: float) -> SunImage:
-        """A Pancam solar-filter frame now, the mast commanded to ``(az_rad, el_rad)``."""
-        sun_b = Rotation.from_quat(self.q_ll_b()).inv().apply(self.sun_ll())
+        """A Pancam solar-filter frame now, the mast commanded to ``(az_rad, el_rad)``. Dust
+        (``condition.pancam_tau``, a fault) dims and blurs it along the slant path: the
+        optical depth over the cosine of the sun's zenith angle (at least 0.05)."""
+        sun_ll = self.sun_ll()
+        sun_b = Rotation.from_quat(self.q_ll_b()).inv().apply(sun_ll)
         az_true = az_rad + float(self.mast_bias_rad[0])
         el_true = el_rad + float(self.mast_bias_rad[1])
+        tau = self.condition.pancam_tau
+        if tau > 0.0:  # LL z is Down: the sun's zenith cosine is -sun_ll[2]
+            slant = tau / max(-float(sun_ll[2]), 0.05)
+            return render_sun_image(sun_b, az_true, el_true, self._rng_cam, dust_slant_tau=slant)
         return render_sun_image(sun_b, az_true, el_true, self._rng_cam)
 
     def navcam_pair(
@@ -350,8 +363,11 @@ class RoverSim:
         pointing. ``options`` go to the renderer (``rig``, ``shadows``, ``rover_shadow``,
         ``noise``, ...); the noise draws from the simulator's camera generator unless an
         ``rng`` is given. The Sun's LL direction is used as Site axes (they differ by the
-        rover's distance over the Mars radius, ~1e-5 rad here).
+        rover's distance over the Mars radius, ~1e-5 rad here). Failed Navcams (a fault,
+        ``condition.navcam_failed``) give no pair: ``NavcamFailedError`` (an ``InputError``).
         """
+        if self.condition.navcam_failed:
+            raise NavcamFailedError()
         from sim.sensors.navcam.camera import DEFAULT_EL_RAD, render_navcam_pair
 
         el_cmd = DEFAULT_EL_RAD if el_rad is None else el_rad

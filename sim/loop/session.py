@@ -37,6 +37,7 @@ from estimation.sapp.nate import Nate, NateParams
 from estimation.vo.odometry import VisualOdometry
 from sequences import commands as cmd
 from sim.errors import InputError
+from sim.faults.plan import FaultPlan
 from sim.loop.context import CommandRefusedError, LoopContext
 from sim.loop.downlink import Downlink, DownlinkDict
 from sim.loop.frames import FrameRecorder
@@ -119,6 +120,7 @@ class RoverSession:
         )
         self.loop.recorder.protection = self.loop.protection
         self.reports: list[CommandReport] = []
+        self.faults = FaultPlan()  # the conductor's faults, applied as commands start
 
     # ---- the parts, for the runtime, benchmarks and tests -------------------------------
 
@@ -178,6 +180,7 @@ class RoverSession:
         if handler is None:  # a command added to the dictionary without its handler
             raise InputError("command", f"{command.name} has no handler in sim.loop.handlers")
         loop, recorder = self.loop, self.loop.recorder
+        self.faults.apply_due(loop)  # the faults due by now (sim.faults.plan)
         recorder.command = command.describe() if label is None else label
         report = CommandReport(recorder.command, "completed", loop.sim.t_s, loop.sim.t_s)
         first_frame, waited = len(recorder.downlinks), len(recorder.events)
@@ -222,6 +225,7 @@ class RoverSession:
             "side": loop.side.state(),
             "vo": loop.vo.state(),
             "protection": loop.protection.state(),
+            "faults": self.faults.state(),
         }
 
     def load_state(self, state: Mapping[str, Any]) -> None:
@@ -234,6 +238,7 @@ class RoverSession:
         loop.vo.load_state(state["vo"])
         if "protection" in state:  # a checkpoint from before fault protection: its defaults
             loop.protection.load_state(state["protection"])
+        self.faults.load_state(state.get("faults", []))  # none before faults existed
 
     # ---- truth for the 3D view, benchmarks and tests -----------------------------------
 

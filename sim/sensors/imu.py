@@ -165,6 +165,17 @@ class Ln200Imu:
         """Truth: the accelerometer bias, m/s^2 (3,)."""
         return self._accel_bias_m_s2.copy()
 
+    def add_bias_step(
+        self, gyro_rad_s: ArrayLike = (0.0, 0.0, 0.0), accel_m_s2: ArrayLike = (0.0, 0.0, 0.0)
+    ) -> None:
+        """A step in the biases from now on (a fault, ``sim.faults``): ``gyro_rad_s`` (3,)
+        added to the gyros' constant bias, rad/s, ``accel_m_s2`` (3,) to the
+        accelerometers', m/s^2, IMU axes. Both are part of ``state()``."""
+        gyro = _vector3(gyro_rad_s, "gyro_rad_s")
+        accel = _vector3(accel_m_s2, "accel_m_s2")
+        self._gyro_bias_on_rad_s = self._gyro_bias_on_rad_s + gyro
+        self._accel_bias_m_s2 = self._accel_bias_m_s2 + accel
+
     def measure(
         self,
         t_s: ArrayLike,

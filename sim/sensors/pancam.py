@@ -53,6 +53,10 @@ AU_M = 149_597_870_700.0  # IAU 2012 Resolution B2
 MARS_MEAN_SUN_DISTANCE_AU = 1.52367934  # Mars semi-major axis (Mars24 D-2 constant)
 PLANCK_J_S = 6.62607015e-34  # SI 2019 exact
 LIGHT_SPEED_M_S = 299_792_458.0  # SI exact
+# Dust (a fault, sim.faults): the blur of the light it scatters forward, approximate (the
+# aureole of a dusty sky widens with optical depth), and its cap.
+DUST_BLUR_PX_PER_TAU = 2.0
+DUST_BLUR_MAX_PX = 20.0
 SOLAR_IRRADIANCE_880NM_1AU_W_M2_NM = 0.95  # approximate, ASTM E-490 AM0 spectrum at 880 nm
 
 
@@ -248,12 +252,20 @@ def render_sun_image(
     limb_darkening_u: float = 0.45,
     atmos_transmission: float = 0.6,
     peak_fraction: float = 0.7,
+    dust_slant_tau: float = 0.0,
 ) -> SunImage:
     """A Pancam solar-filter frame of the sun at body direction ``sun_b`` (3,).
 
     The mast points the camera at ``(az_rad, el_rad)`` (see ``R_b_pancam``). Returns the
     12-bit image as uint16 and the truth (see :class:`SunImage`). If the sun is outside the
     field of view the image is dark offset plus noise.
+
+    ``dust_slant_tau``: the optical depth of dust along the line of sight (a fault,
+    ``sim.faults``; 0 in a healthy simulation, which then takes no other path). The sun's
+    signal is dimmed by Beer-Lambert's ``exp(-dust_slant_tau)`` and blurred by the light the
+    dust scatters forward (a Gaussian of ``DUST_BLUR_PX_PER_TAU`` pixels per unit of optical
+    depth, approximate), while the exposure stays the one for the clear sun: dimmer, wider
+    disks, and with enough dust no sun at all for Sunfind.
     """
     det = detector if detector is not None else PancamDetector()
     opt = optics if optics is not None else SolarFilter()
@@ -269,6 +281,8 @@ def render_sun_image(
         raise InputError("atmos_transmission", "must be in (0, 1]")
     if not 0.0 < peak_fraction <= 1.0:
         raise InputError("peak_fraction", "must be in (0, 1]")
+    if not (math.isfinite(dust_slant_tau) and dust_slant_tau >= 0.0):
+        raise InputError("dust_slant_tau", f"must be finite and >= 0, got {dust_slant_tau}")
 
     rho = sun_angular_radius_rad(sun_distance_au)
     disk_rate = sun_disk_rate_e_s(sun_distance_au, atmos_transmission, opt)
@@ -280,6 +294,8 @@ def render_sun_image(
     if peak_rate <= 0.0:
         peak_rate = _boresight_peak_rate(camera, det, rho, limb_darkening_u, disk_rate)
     exposure_s = peak_fraction * det.full_well_e / peak_rate
+    if stamp is not None and dust_slant_tau > 0.0:
+        stamp = _dusted(stamp, dust_slant_tau)
 
     # Detector: dark offset and read noise everywhere, Poisson shot noise on the signal.
     # (numba, like the Navcam renderer's kernels, is imported with the first frame only.)
@@ -313,6 +329,21 @@ def render_sun_image(
     uv = camera.project(sun_cam)
     truth_uv = None if sun_cam[2] <= 0.0 else np.array([float(uv[0]), float(uv[1])])
     return SunImage(image, truth_uv, sun_cam, exposure_s, peak_e)
+
+
+def _dusted(stamp: SunStamp, slant_tau: float) -> SunStamp:
+    """``stamp`` seen through dust of optical depth ``slant_tau`` on the line of sight:
+    dimmed by ``exp(-slant_tau)`` (Beer-Lambert) and blurred by a Gaussian of
+    ``DUST_BLUR_PX_PER_TAU * slant_tau`` pixels (at most ``DUST_BLUR_MAX_PX``), the stamp
+    grown by three of them on each side so no light is cut off."""
+    from scipy.ndimage import gaussian_filter
+
+    sigma = min(DUST_BLUR_PX_PER_TAU * slant_tau, DUST_BLUR_MAX_PX)
+    pad = math.ceil(3.0 * sigma)
+    rate = np.pad(stamp.rate_e_s * math.exp(-slant_tau), pad)
+    if sigma > 0.0:
+        rate = gaussian_filter(rate, sigma, mode="constant")
+    return SunStamp(stamp.row0 - pad, stamp.col0 - pad, rate)
 
 
 @functools.lru_cache(maxsize=8)

@@ -1,4 +1,4 @@
-// The sol timeline's lanes: commands, NATE modes, AQF bands, events, VO steps and alarms
+// The sol timeline's lanes: commands, NATE modes, AQF bands, events, VO steps, alarms, faults
 // as absolutely positioned divs over the sol's LMST span, and the LMST axis under them.
 import { $, el } from "../lib/dom.js";
 import { LMST_HOUR_S, lmstAt, lmstText } from "../lib/marstime.js";
@@ -239,6 +239,23 @@ export const alarmLane = {
   reconcile(timeline) { view.timeline.alarms = timeline.alarms; this.draw(timeline); },
 };
 
+// The Faults lane (server/faults): a mark where each fault the conductor injected took
+// effect; the timeline lists them in the truth view, and to everyone once revealed.
+const faultLane = {
+  id: "lane-faults",
+  draw(timeline) {
+    $(this.id).replaceChildren(...(timeline.faults || []).filter((fault) => fault.applied).map((fault) => {
+      const mark = marked("tl-fault", fault.applied.lmst_h);
+      mark.dataset.testid = "timeline-fault";
+      mark.dataset.faultId = String(fault.fault_id);
+      mark.title = `${lmstText(fault.applied.lmst_h)} LMST: fault #${fault.fault_id}, ${fault.description}` +
+        `${fault.error ? ` (not applied: ${fault.error})` : ""}${fault.revealed ? "\nrevealed" : "\nnot revealed yet"}`;
+      return mark;
+    }));
+  },
+  reconcile(timeline) { view.timeline.faults = timeline.faults; this.draw(timeline); },
+};
+
 // The lanes, top to bottom. Each draws itself from a sol's timeline (draw), and may take
 // live frames (frame), events (event: those it wants), commands (command) and storage's
 // word after live updates (reconcile). A new lane is one more entry.
@@ -249,6 +266,7 @@ export const LANES = {
   events: eventLane,
   vo: voLane,
   alarms: alarmLane,
+  faults: faultLane,
 };
 
 // Events already drawn (by time and text): a live event storage also gave is not redrawn.

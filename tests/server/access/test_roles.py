@@ -57,6 +57,9 @@ ROUTES: list[tuple[str, str, str, dict[str, Any]]] = [
     ("POST", "/api/alarms/1/acknowledge", "operator", {}),  # none raised: 404 once allowed
     ("POST", "/api/alarms/1/shelve", "operator", {"json": {"duration_s": 60}}),  # 404 once allowed
     ("POST", "/api/alarms/1/unshelve", "operator", {}),
+    ("GET", "/api/rovers/spirit/faults", "conductor", {}),
+    ("POST", "/api/rovers/spirit/faults", "conductor", {"json": {"kind": "navcam"}}),
+    ("POST", "/api/rovers/spirit/faults/reveal", "conductor", {}),
     ("GET", "/api/users", "admin", {}),
     ("POST", "/api/users", "admin", {"json": {"name": "newcomer", "role": "viewer"}}),
     ("PATCH", "/api/users/victim", "admin", {"json": {"role": "operator"}}),

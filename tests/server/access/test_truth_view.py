@@ -10,7 +10,9 @@ and the telemetry as CSV. In all that it looks for the truth record's field name
 (``truth_schema()``'s properties but ``t_s``, ``events`` and ``estimators``) and for the
 true mission positions of the drive (read from the conductor's telemetry, written as JSON
 writes them). A tight limit on ``position_error_m``, set by the conductor, makes sure a
-truth alarm, its events and its notices exist to be hidden.
+truth alarm, its events and its notices exist to be hidden; a gyro bias fault the conductor
+injects before the drive (``server.faults``) is looked for by its parameter, which no one
+below the truth view may be told of.
 """
 
 from __future__ import annotations
@@ -41,6 +43,8 @@ BOOTSTRAP = "truth-view-bootstrap"
 ROVER = "spirit"
 DRIVE_S = 30.0  # simulated seconds of the drive the WebSockets follow
 SPEED = 50.0  # the drive's 30 s in well under a wall second of simulation
+FAULT_BIAS = 12.3456  # the injected fault's parameter: its mark wherever it is shown
+FAULT_MARK = "bias step +12.3456"
 TRUTH_NAMES = sorted(set(truth_schema()["properties"]) - {"t_s", "events", "estimators"})
 ROLES = ("anonymous", "viewer", "operator", "conductor")
 WAIT_S = 120.0  # a condition waited for on a busy machine; never a fixed sleep
@@ -158,6 +162,10 @@ def crawl(tmp_path: Any, truth_view: str) -> Iterator[Crawl]:
             headers=conductor,
         )
         assert answer.status_code == 200, answer.text
+        # a fault to hide (server.faults): injected now, applied as the drive starts
+        fault = {"kind": "gyro_bias", "parameters": {"axis": "z", "bias_deg_per_h": FAULT_BIAS}}
+        answer = httpx.post(f"{base}/api/rovers/{ROVER}/faults", json=fault, headers=conductor)
+        assert answer.status_code == 201, answer.text
         sockets = {
             role: TelemetrySocket(f"ws://{host}/ws/rovers/{ROVER}/telemetry", token)
             for role, token in tokens.items()
@@ -243,7 +251,11 @@ def test_the_truth_reaches_only_the_truth_view(crawled: Crawl, role: str) -> Non
     if not _sees(crawled, role):
         leaks = {where: sorted(f)[:5] for where, f in found.items() if f}
         assert not leaks, f"{role} received the truth under --truth-view conductor: {leaks}"
+        told = [where for where, text in got.items() if "12.3456" in text]
+        assert not told, f"{role} was told of the unrevealed fault: {told}"
         return
+    # the fault is the truth view's: its truth event (the timeline) and the conductor's list
+    assert any(FAULT_MARK in text for text in got.values()), f"{role}: the fault nowhere"
     # in the truth view: every truth field name, and the true positions, everywhere they go
     union = set().union(*found.values())
     assert set(TRUTH_NAMES) <= union, set(TRUTH_NAMES) - union
