@@ -156,6 +156,7 @@ class RoverSim:
         rng_suspension = np.random.default_rng([seed, 7011])
         self.suspension_encoders = JointEncoders(JointEncoderParams(), rng_suspension)
         self._failed_wheel: str | None = None
+        self.condition = FaultCondition()  # healthy until a fault is applied (sim.faults)
 
     @property
     def failed_wheel(self) -> str | None:
@@ -168,7 +169,6 @@ class RoverSim:
         if key is not None and (not isinstance(key, str) or key not in WHEEL_KEYS):
             raise InputError("failed_wheel", f"must be one of {', '.join(WHEEL_KEYS)} or None")
         self._failed_wheel = key
-        self.condition = FaultCondition()  # healthy until a fault is applied (sim.faults)
 
     # ---- checkpoint ---------------------------------------------------------------------
 
