@@ -5,8 +5,10 @@ The cases of the drive-safety issue, each ``RUNS`` runs on fixed seeds (0..RUNS-
 with GET_FINE_ATTITUDE (the heading known to MER's Fine budget), then:
 
 - **Wopmay** (Cheng, Maimone and Matthies 2005 sec. 4.1): on the Endurance-like slope of
-  loose sand (``meridiani:endurance_slope``, ~20°), a 6 m drive East across it, a keep-out
-  circle of 1 m radius whose edge is 1 m downslope (South) of the nominal path at its middle.
+  loose sand (``meridiani:endurance_slope``), 12 m up the wall from its Site origin (about
+  22°), a 6 m drive East across it, a keep-out circle of 1 m radius whose edge is 1 m
+  downslope (South) of the nominal path, 5 m along it (the rover creeps about 1 m down over
+  the 6 m there: at the path's middle it would not reach the circle with or without VO).
   A *true entry* is the true body origin inside the circle at any cycle. VO steps of 0.5 m
   (``WOPMAY_VO_STEP_M``): MER's 0.75 m steps lose VO across this slope.
   ``keepout_true_entry_pct_vo`` with ``vo=on`` (target ≤ 2 %), ``_no_vo`` on wheel odometry
@@ -47,7 +49,8 @@ GUSEV_START = datetime(2004, 4, 14, 16, 30, tzinfo=UTC)  # mid-morning at Gusev
 MERIDIANI_START = datetime(2004, 10, 1, 18, 0, tzinfo=UTC)  # 10:15 LMST at Meridiani
 SLOPE = "meridiani:endurance_slope"
 WOPMAY_RADIUS_M = 1.0
-WOPMAY_CENTRE_S = (-(1.0 + WOPMAY_RADIUS_M), 3.0)  # its edge 1 m South of the path's middle
+WOPMAY_CENTRE_S = (-(1.0 + WOPMAY_RADIUS_M), 5.0)  # its edge 1 m South of the path, 5 m on
+WOPMAY_START_X_M = 12.0  # up the wall from the Site origin: ~22°, where the sand creeps most
 TRAP_CENTRE_S, TRAP_RADIUS_M = (3.5, 0.0), 1.5  # its edge 2 m ahead
 TILT_LIMIT_DEG = 21.0
 # VO steps on the slope: MER's 0.75 m steps lose VO there (fewer than 12 RANSAC inliers on
@@ -63,11 +66,18 @@ def runs_from_env() -> int:
 
 
 def _session(
-    site: str, seed: int, start: datetime, yaw_rad: float = 0.0, vo_step_m: float = VO_STEP_MAX_M
+    site: str,
+    seed: int,
+    start: datetime,
+    yaw_rad: float = 0.0,
+    vo_step_m: float = VO_STEP_MAX_M,
+    x_m: float = 0.0,
 ) -> RoverSession:
     """A rover with a Fine attitude, every cycle a frame (its truth, for the scoring)."""
     options = VoDriveOptions(step_max_m=vo_step_m)
-    s = RoverSession(site, seed, start, frame_every_s=0.0, yaw_rad=yaw_rad, vo_options=options)
+    s = RoverSession(
+        site, seed, start, frame_every_s=0.0, yaw_rad=yaw_rad, vo_options=options, x_m=x_m
+    )
     report = s.execute(cmd.GetFineAttitude())
     if report.status != "completed":
         raise RuntimeError(f"GET_FINE_ATTITUDE {report.status}: {report.reason}")
@@ -81,7 +91,7 @@ def _true_path_s(s: RoverSession) -> np.ndarray:
 
 
 def wopmay_run(seed: int, vo: bool) -> dict[str, Any]:
-    s = _session(SLOPE, seed, MERIDIANI_START, math.pi / 2.0, WOPMAY_VO_STEP_M)  # East
+    s = _session(SLOPE, seed, MERIDIANI_START, math.pi / 2.0, WOPMAY_VO_STEP_M, WOPMAY_START_X_M)
     x_c, y_c = WOPMAY_CENTRE_S
     s.execute(cmd.KeepoutAdd(zone="wopmay", x_m=x_c, y_m=y_c, radius_m=WOPMAY_RADIUS_M))
     report = s.execute(cmd.DriveStraight(distance_m=6.0, vo=vo))

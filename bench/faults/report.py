@@ -19,6 +19,7 @@ from bench.faults.cases import (
     tilt_run,
     wopmay_run,
 )
+from bench.faults.injected import dust_run, gyro_step_run, navcam_run
 from bench.result import bench_result
 from estimation.protection.limits import LIMITS
 from sequences.limits import VO_STEP_MAX_M
@@ -42,6 +43,9 @@ def bench_faults() -> dict[str, Any]:
         drag_vo = _map(pool, drag_run, seeds, [True] * runs)
         n_cov = max(COVERAGE_DRIVES * runs // RUNS, 2)
         coverage = _map(pool, coverage_run, list(range(n_cov)))
+        gyro = _map(pool, gyro_step_run, seeds)
+        navcam = _map(pool, navcam_run, seeds + seeds, ["halt"] * runs + ["continue"] * runs)
+        dust = _map(pool, dust_run, seeds)
     metrics = {
         "runs_per_case": runs,
         "keepout_true_entry_pct_vo": _pct(r["entered"] for r in wopmay_vo),
@@ -58,6 +62,12 @@ def bench_faults() -> dict[str, Any]:
         "position_sigma_coverage_pct_vo": _pct(r["inside"] for r in coverage if r["vo"]),
         "position_sigma_coverage_pct_no_vo": _pct(r["inside"] for r in coverage if not r["vo"]),
         "coverage_drives": len(coverage),
+        "gyro_step_detected_pct": _pct(r["detected"] for r in gyro),
+        "gyro_step_restored_pct": _pct(r["restored"] for r in gyro),
+        "gyro_step_error_at_check_deg_min": min(r["error_at_check_deg"] for r in gyro),
+        "navcam_fail_clean_pct": _pct(r["clean"] for r in navcam),
+        "dust_sunfind_refusal_clean_pct": _pct(r["clean"] for r in dust),
+        "dust_sunfind_refused_pct": _pct(r["status"] == "failed" for r in dust),
     }
     targets = {
         "keepout_true_entry_pct_vo": {"le": 2.0},
@@ -66,8 +76,19 @@ def bench_faults() -> dict[str, Any]:
         "tilt_limit_exceeded_deg_max": {"le": 1.0},
         "drag_vo_err_pct": {"le": 1.0},
         "position_sigma_coverage_pct": {"ge": 90.0, "le": 99.0},
+        "gyro_step_detected_pct": {"ge": 100.0},
+        "gyro_step_restored_pct": {"ge": 100.0},
+        "navcam_fail_clean_pct": {"ge": 100.0},
+        "dust_sunfind_refusal_clean_pct": {"ge": 100.0},
     }
-    return bench_result("faults", metrics, targets)
+    result = bench_result("faults", metrics, targets)
+    result["details"] = {  # the seeds of the runs that missed, to look at
+        "sandtrap_not_halted_seeds": [i for i, r in enumerate(trap) if not r["halted"]],
+        "keepout_entered_seeds_vo": [i for i, r in enumerate(wopmay_vo) if r["entered"]],
+        "drag_vo_err_pct_by_seed": [round(r["err_pct"], 3) for r in drag_vo],
+        "coverage_outside_seeds": [i for i, r in enumerate(coverage) if not r["inside"]],
+    }
+    return result
 
 
 def _pct(flags: Any) -> float:
