@@ -36,6 +36,8 @@ def test_an_operator_sees_the_halt_its_reason_and_clears_it(server: str) -> None
         f"{server}/api/rovers/spirit/clock", json={"speed": "max"}, headers=AUTH
     ).raise_for_status()
     with console_page(f"{server}/?rover=spirit", "halt.png") as page:
+        # the console's modules have run (a click before they listen would be lost)
+        expect(page.get_by_test_id("signed-in")).to_have_text("reading only")
         sign_in(page)
         expect(page.get_by_test_id("mobility")).to_have_text("enabled")
         r = httpx.post(f"{server}/api/rovers/spirit/sequences", content=SEQ, headers=AUTH)
