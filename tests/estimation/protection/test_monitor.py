@@ -71,7 +71,7 @@ def test_tilt_timeout_and_time_of_day_each_trip_where_they_should() -> None:
     assert late is not None and late.halt.check == "timeout"
     assert late.index == round(5.0 / DT)  # the first cycle past 5 s
     bumpy = _segment()
-    bumpy["bogie_rad"][50:, 1] = math.radians(35.0)
+    bumpy["bogie_rad"][50:, 1] = math.radians(50.0)
     trip = _check(MobilityProtection(0.0), bumpy)
     assert trip is not None and trip.halt.check == "suspension" and trip.index == 50
 
