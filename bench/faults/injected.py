@@ -2,7 +2,8 @@
 conductor (``sim.faults``) and scores what the flight software made of the fault.
 
 - **Gyro bias step**: 10 deg/h on the gyro about body z, then 20 min of driving (45 m at
-  MER's 3.75 cm/s), then SUNCHECK (tolerance 2 deg). Started at 08:00 LMST at Gusev, so that
+  MER's 3.75 cm/s; a leg halted by fault protection cleared and driven on), then SUNCHECK
+  (tolerance 2 deg). Started at 08:00 LMST at Gusev, so that
   the sun is low (about 20-35 deg up) when the check runs: a heading error moves the sun in
   the image by the error times the cosine of its elevation, and Suncheck sees only that
   (Ali et al. 2005 sec. 2.3.2). ``gyro_step_detected_pct``: Suncheck failed its tolerance;
@@ -45,11 +46,25 @@ def _three_sigma_deg(s: RoverSession) -> float:
     return 2.0 - margin if math.isfinite(margin) else math.inf
 
 
+def _drive(s: RoverSession, distance_m: float) -> None:
+    """``distance_m`` by the rover's estimate, in legs of at most 15 m; a leg that fault
+    protection halts (a bogie over a rock, say) is cleared and driven on, as the team would:
+    the case is the gyro's, not the terrain's."""
+    left = distance_m
+    while left > 0.05:
+        p0 = s.nate.p_s.copy()
+        report = s.execute(cmd.DriveStraight(distance_m=min(15.0, left)))
+        left -= float(math.hypot(*(s.nate.p_s - p0)[:2]))
+        if report.status == "halted":
+            s.execute(cmd.ClearMobilityFault())
+        elif report.status != "completed":
+            raise RuntimeError(f"drive {report.status}: {report.reason}")
+
+
 def gyro_step_run(seed: int) -> dict[str, Any]:
     s = _fine(seed, MORNING_GUSEV)
     s.faults.add(GyroBias("z", 10.0), at_t_s=s.sim.t_s)
-    for _ in range(3):  # 45 m: 15 m out, turn, on, as a drive plan would go
-        s.execute(cmd.DriveStraight(distance_m=DRIVE_20_MIN_M / 3))
+    _drive(s, DRIVE_20_MIN_M)
     check = s.execute(cmd.Suncheck(tolerance_deg=SUNCHECK_TOLERANCE_DEG))
     error_before = math.degrees(s.attitude_error_rad())
     restore = s.execute(cmd.SuncheckSungaze())
