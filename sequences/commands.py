@@ -472,7 +472,7 @@ class SetParam(Command):
                 raise ValueError(f"value: {exc}") from None
 
 
-_ZONE_NAME = "letters, digits and _ (1-64); KEEPOUT_CLEAR name=all clears every zone"
+_ZONE_NAME = "letters, digits and _ (1-64); KEEPOUT_CLEAR zone=all clears every zone"
 
 
 @dataclass(frozen=True)
