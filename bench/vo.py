@@ -20,8 +20,9 @@ rocks 8-20 cm tall
 - Shadow: the same drives on ``gusev`` heading away from a 25-45 deg sun, the rover's own
   shadow drawn in the pairs (sec. 4.3's false positive).
 
-Mobility fault protection is set not to stop these drives (the slip check every 50 m, longer
-than any drive here; ``vo_fail=continue``): the bench measures VO over slipping drives.
+Mobility fault protection is set not to stop these drives (``RELAXED_LIMITS``: the slip check
+every 50 m, longer than any drive here, tilt and suspension limits at their largest;
+``vo_fail=continue``): the bench measures VO over slipping drives on rough ground.
 
 Errors. A drive's error is the distance between the estimated and the true displacement
 from the first pair to the last (3D, Site frame), as a percentage of the distance truly
@@ -57,6 +58,7 @@ from scipy.spatial.transform import Rotation
 
 from bench.result import bench_result
 from bench.vo_baseline import OrbPnpBaseline
+from estimation.protection.limits import SPECS
 from estimation.sapp.aqf import AttitudeQuality
 from estimation.vo.odometry import VisualOdometry, VoResult, VoStatus
 from estimation.vo.stereo_rig import NAVCAM
@@ -256,7 +258,14 @@ def _chain(pairs: list[PairRecord], which: str) -> FloatArray:
     return total
 
 
-SLIP_CHECK_OFF_M = 50.0  # mobility.slip_check_m's largest: no drive here reaches a check
+# mobility fault protection's limits at their largest (estimation.protection.limits): no drive
+# here reaches a slip check, and the reactive checks stop a drive only at the joints' stops
+RELAXED_LIMITS = {
+    "slip_check_m": SPECS["slip_check_m"].hi,
+    "tilt_limit_rad": SPECS["tilt_limit_rad"].hi,
+    "rocker_limit_rad": SPECS["rocker_limit_rad"].hi,
+    "bogie_limit_rad": SPECS["bogie_limit_rad"].hi,
+}
 
 
 def drive_run(spec: DriveSpec) -> dict[str, Any]:
@@ -270,7 +279,8 @@ def drive_run(spec: DriveSpec) -> dict[str, Any]:
     # halt (estimation.protection) would cut the slipping drives this bench exists for
     # (set in the rover's table directly: a SET_PARAM would take a control cycle and move
     # every figure off the ones measured before fault protection existed)
-    session.loop.protection.set_limit("slip_check_m", SLIP_CHECK_OFF_M)
+    for name, value in RELAXED_LIMITS.items():
+        session.loop.protection.set_limit(name, value)
     report = session.execute(
         cmd.DriveStraight(distance_m=spec.length_m, vo=True, vo_fail="continue")
     )
