@@ -171,7 +171,11 @@ def test_after_plant_site_the_site_estimate_and_the_mission_error_are_apart(
     page.click("#upload-text")
     expect(page.get_by_test_id("sequence-status")).to_contain_text("queued")
     position = page.get_by_test_id("position")
-    expect(position).to_have_text(re.compile(r"^Site [1-9]\d*: est \(0\.00, 0\.00\) m$"))
+    # the estimate at the new Site's origin, with the rover's own 2σ beside it (its position
+    # uncertainty carries over: the drive's, grown with the heading unknown)
+    expect(position).to_have_text(
+        re.compile(r"^Site [1-9]\d*: est \(0\.00, 0\.00\) m ± \d+\.\d\d m \(2σ\)$")
+    )
     frame = _wait(
         lambda: (
             (s := httpx.get(f"{server}/api/rovers/spirit/state").json())["queue"] == []
