@@ -123,7 +123,21 @@ def cmd_faults(args: argparse.Namespace) -> dict[str, Any]:
         return _call(args, "POST", path, fault_body(args))
     if args.action == "reveal":
         return _call(args, "POST", f"{path}/reveal", None)
-    return _call(args, "GET", path, None)
+    listed = _call(args, "GET", path, None)
+    if getattr(args, "json", False):
+        return listed
+    return {
+        "rover": listed["rover"],
+        **{_fault_line(f)[0]: _fault_line(f)[1] for f in listed["faults"]},
+    }
+
+
+def _fault_line(fault: dict[str, Any]) -> tuple[str, str]:
+    """One fault as the terminal shows it: ``#id``, then what, when and its state."""
+    at = fault["at"]
+    state = fault["state"] + (", revealed" if fault["revealed"] else "")
+    when = f"sol {at['sol']} {int(at['lmst_h']):02d}:{int(at['lmst_h'] % 1 * 60):02d} LMST"
+    return f"#{fault['fault_id']}", f"{fault['description']}, {when}: {state}"
 
 
 def _call(args: argparse.Namespace, method: str, path: str, body: Any) -> dict[str, Any]:

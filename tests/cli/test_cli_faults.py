@@ -89,3 +89,19 @@ def test_bad_options_and_refusals_are_one_line_and_exit_2(
 
 def test_the_cli_offers_every_kind_of_fault() -> None:
     assert sorted(KINDS) == sorted(RECORD_KINDS)
+
+
+def test_a_fault_listed_for_the_terminal_is_one_line() -> None:
+    from cli.faults import _fault_line
+
+    fault = {
+        "fault_id": 3,
+        "description": "sand trap of radius 1.5 m at (3, 0) m",
+        "at": {"sol": 100, "lmst_h": 8.5645, "utc": "2004-04-14T15:00:24+00:00", "t_s": 1.0},
+        "state": "applied",
+        "revealed": True,
+    }
+    assert _fault_line(fault) == (
+        "#3",
+        "sand trap of radius 1.5 m at (3, 0) m, sol 100 08:33 LMST: applied, revealed",
+    )
