@@ -88,6 +88,14 @@ def truth_view(text: str) -> str:
         ) from None
 
 
+def comm_mode(text: str) -> str:
+    """An argparse type: a new rover's link, ``instant`` or ``mission`` (``server.comm``)."""
+    value = text.strip().lower()
+    if value not in ("instant", "mission"):
+        raise argparse.ArgumentTypeError(f"--comm must be instant or mission, got {text!r}")
+    return value
+
+
 def on_off(name: str) -> Callable[[str], bool]:
     """An argparse type: on/off (true/false, 1/0, yes/no)."""
 

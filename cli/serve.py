@@ -9,6 +9,7 @@ from types import FrameType
 from typing import Any
 
 from cli.arguments import (
+    comm_mode,
     database_arguments,
     database_url,
     env,
@@ -57,6 +58,14 @@ def add_serve(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         help="who sees the simulator's truth (true pose, errors, truth channels and alarms, "
         "the 3D view's true rover): everyone (default, for learning alone) or conductor "
         "(the conductor role and above; viewers and operators get the rover's downlink only)",
+    )
+    serve.add_argument(
+        "--comm",
+        type=comm_mode,
+        default=env("COMM", "instant"),  # a string default goes through type= too
+        help="a new rover's link: instant (default: commands and telemetry cross at once) or "
+        "mission (across light time: uplink windows, relay passes, data volume; README, "
+        "'Operating across light time')",
     )
     serve.add_argument(
         "--estimators",
@@ -113,6 +122,7 @@ def cmd_serve(args: argparse.Namespace) -> dict[str, Any]:
         truth_view=args.truth_view,
         viewer_3d=not args.no_3d,
         estimators=args.estimators,
+        comm=args.comm,
     )
     app = create_app(config)
     # A new data directory gets a local admin, its token printed this once (stored hashed:
@@ -140,6 +150,7 @@ def cmd_serve(args: argparse.Namespace) -> dict[str, Any]:
         )
     print(f"reading without a token: {'on' if args.public_read else 'off'}", flush=True)
     print(f"the simulator's truth shown to: {args.truth_view}", flush=True)
+    print(f"a new rover's link: {args.comm}", flush=True)
     print(f"database: {url}", flush=True)
     # uvicorn shuts down gracefully on SIGINT/SIGTERM, then raises the signal again under
     # the handler it found: with Python's it would die of it (make prints "Terminated") or

@@ -41,6 +41,7 @@ frame: loosening a limit can clear an alarm while the rover stands still.
 from __future__ import annotations
 
 import contextlib
+import math
 import threading
 from collections.abc import Callable, Mapping
 from datetime import UTC, datetime
@@ -54,6 +55,7 @@ from server.notices import AlarmNotice
 from server.sinks import FrameBatch
 from server.storage import Store
 from sim.scoring.truth import merged
+from sim.world.marsclock import t_s_to_utc
 
 RANK = {"warning": 1, "critical": 2}
 LATEST_EVERY_S = 60.0  # a number's latest value is stored at least this often (rover's clock)
@@ -116,7 +118,18 @@ def alarm_json(row: dict[str, Any]) -> dict[str, Any]:
         "acknowledged": acknowledged, "cleared": cleared, "latest": _latest(row),
         "spans": [{"from_t_s": a, "to_t_s": b} for a, b in _spans(row)],
         "shelved": row.get("shelved") or None,
+        "received": _received(row.get("received_t_s")),
     }  # fmt: skip
+
+
+def _received(t_s: float | None) -> dict[str, Any] | None:
+    """When the data that raised an alarm reached the ground (across light time)."""
+    return None if t_s is None else {"t_s": t_s, "utc": t_s_to_utc(t_s).isoformat()}
+
+
+def _clock(lmst_h: float) -> str:
+    minutes = int(lmst_h % 24.0 * 60.0)
+    return f"{minutes // 60:02d}:{minutes % 60:02d}"
 
 
 def _message(limits: ChannelLimits, level: str, value: Any) -> str:
@@ -150,6 +163,8 @@ class AlarmEngine:
         self._limits: dict[str, dict[str, ChannelLimits]] = {}
         self._listed: dict[str, dict[str, dict[str, Any]]] = {}  # rover -> channel -> row
         self._edited: dict[str, dict[str, dict[str, Any]]] = {}  # operators' levels
+        self._judged_t_s: dict[str, float] = {}  # rover -> the newest downlink judged
+        self._received_t_s: float | None = None  # the batch being judged arrived then
 
     # ---- limits ---------------------------------------------------------------------
 
@@ -236,18 +251,39 @@ class AlarmEngine:
     # ---- judging frames -------------------------------------------------------------
 
     def publish(self, rover: str, batch: FrameBatch) -> None:
-        """A frame sink (``server.sinks``): judge a played-out batch, frame by frame, every
-        channel (a channel of the downlink on the downlink, a truth channel on the truth)."""
+        """A frame sink (``server.sinks``): judge a batch, frame by frame, every channel (a
+        channel of the downlink on the downlink, a truth channel on the truth). Across light
+        time the downlink is judged when it reaches the ground, and an alarm it raises
+        names that arrival (``received``) beside the data's own time; data older than the
+        newest already judged (a pass filling in what it sent decimated) is not judged:
+        it never raises an alarm as if it were now."""
         with self._lock:
             self._load(rover)
             limits = self._limits[rover]
             any_truth = any(limits[c].truth for c in limits)
-            for downlink, truth in zip(batch.downlink, batch.truth, strict=True):
-                scored = merged(downlink, truth) if any_truth else downlink
-                expected = acquiring(downlink)
-                for channel in limits:
-                    frame = scored if limits[channel].truth else downlink  # the rover's own
-                    self._judge(rover, channel, frame, expected)
+            self._received_t_s = batch.received_t_s
+            newest = self._judged_t_s.get(rover, -math.inf)
+            for downlink, truth in batch.pairs():
+                frame: Mapping[str, Any]
+                if downlink is not None and truth is not None:
+                    frame = merged(downlink, truth) if any_truth else downlink
+                    judged = list(limits)
+                elif downlink is not None:
+                    if downlink["t_s"] <= newest:
+                        continue  # late fill-in (docstring)
+                    frame, judged = downlink, [c for c in limits if not limits[c].truth]
+                else:
+                    assert truth is not None
+                    frame, judged = truth, [c for c in limits if limits[c].truth]
+                expected = downlink is not None and acquiring(downlink)
+                for channel in judged:
+                    # a truth channel on the merged frame, the rover's own on its downlink
+                    seen = frame if limits[channel].truth or downlink is None else downlink
+                    self._judge(rover, channel, seen, expected)
+                if downlink is not None:
+                    newest = max(newest, float(downlink["t_s"]))
+            self._judged_t_s[rover] = newest
+            self._received_t_s = None
 
     def _judge(self, rover: str, channel: str, frame: Mapping[str, Any], expected: bool) -> None:
         """Judge one channel on one frame; ``expected``: an attitude acquisition runs."""
@@ -311,7 +347,7 @@ class AlarmEngine:
             "raised_sol": when["sol"], "cleared_t_s": None, "cleared_utc": None,
             "cleared_lmst_h": None, "acknowledged_by": None, "acknowledged_at": None,
             "latest": {"value": value, **when}, "spans": [[t_s, None]], "shelved": None,
-            **self._crossing(limits, level, value),
+            "received_t_s": self._received_t_s, **self._crossing(limits, level, value),
         }  # fmt: skip
         row["id"] = self.store.add_alarm(row)
         self._listed[rover][limits.channel] = row
@@ -352,6 +388,11 @@ class AlarmEngine:
         severity = "info" if cleared or what.startswith("acknowledged") else (
             "error" if row["level"] == "critical" else "warning")  # fmt: skip
         text = f"alarm {what}: {row['message']}"  # the message names the channel, truth view
+        if self._received_t_s is not None and t_s is not None:  # across light time
+            data = self._when(rover, t_s)
+            late_min = (self._received_t_s - t_s) / 60.0
+            text += (f" (data of sol {data['sol']} {_clock(data['lmst_h'])} LMST, received "
+                     f"{late_min:.0f} min later)")  # fmt: skip
         self.on_event(rover, t_s, {"text": text, "kind": "alarm", "severity": severity})
 
     # ---- operators ------------------------------------------------------------------

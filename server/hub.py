@@ -39,8 +39,8 @@ from typing import Any
 
 from server.access.truth_view import is_truth_notice
 from server.notices import Notice
-from server.sinks import FrameBatch
-from sim.scoring.truth import merged
+from server.sinks import FrameBatch, live_frame
+from sim.scoring.truth import TruthDict, merged
 
 MAX_RATE_HZ = 10.0
 QUEUE_FRAMES = 64
@@ -66,20 +66,28 @@ class Client:
     dropped_events: int = 0
     wake: asyncio.Event = field(default_factory=asyncio.Event)
 
-    def put_frames(self, frames: list[dict[str, Any]]) -> None:
+    def put_frames(
+        self, frames: list[dict[str, Any]], late: list[dict[str, Any]] | None = None
+    ) -> None:
         """Enqueue a batch on the client's loop, dropping the oldest frames when full; the
-        batch's events wait apart, stamped, so a dropped frame loses none of them."""
+        batch's events wait apart, stamped, so a dropped frame loses none of them. ``late``:
+        frames older than the newest sent, whose events alone go on."""
+        for frame in late or ():
+            self._put_events(frame)
         for frame in frames:
             if self.queue.full():
                 self.queue.get_nowait()
                 self.dropped += 1
             self.queue.put_nowait(frame)
-            for event in stamped_events(frame):
-                if len(self.events) >= QUEUE_EVENTS:
-                    self.events.popleft()
-                    self.dropped_events += 1
-                self.events.append(event)
+            self._put_events(frame)
         self.wake.set()
+
+    def _put_events(self, frame: dict[str, Any]) -> None:
+        for event in stamped_events(frame):
+            if len(self.events) >= QUEUE_EVENTS:
+                self.events.popleft()
+                self.dropped_events += 1
+            self.events.append(event)
 
     def put_notice(self, notice: dict[str, Any]) -> None:
         """Enqueue a notice on the client's loop, dropping the oldest when full."""
@@ -96,6 +104,9 @@ class TelemetryHub:
     def __init__(self) -> None:
         self._clients: dict[str, set[Client]] = {}
         self._lock = threading.Lock()
+        # across light time: the newest downlink handed on and the newest truth, per rover
+        self._newest: dict[str, dict[str, Any]] = {}
+        self._truth: dict[str, TruthDict] = {}
 
     def subscribe(self, rover: str, truth: bool = True) -> Client:
         """A new client on the running loop, in the truth view if ``truth``."""
@@ -117,28 +128,57 @@ class TelemetryHub:
     def publish(self, rover: str, batch: FrameBatch) -> None:
         """A frame sink (``server.sinks``): hand frames to every client of ``rover``
         (thread-safe, never blocks), each a copy stamped with ``published_wall``: the
-        downlink merged with the truth for a client in the truth view, else the downlink."""
+        downlink merged with the truth for a client in the truth view, else the downlink.
+
+        Across light time (a batch of one record, ``server.comm``) the downlink comes when
+        it reaches the ground, stamped ``received_t_s``; a downlink record older than the
+        newest one handed on (a pass filling in) goes to no client, only its events do. The
+        truth view sees the truth live: its frames are the newest downlink on the ground
+        with the newest truth record merged in, ``truth_t_s`` the truth's own time."""
+        now = time.time()
         with self._lock:
             clients = list(self._clients.get(rover, set()))
-        if not clients:
-            return
-        now = time.time()
-        ground = [{**d, "published_wall": now} for d in batch.downlink]
-        truth = (
-            [
-                {**merged(d, t), "published_wall": now}
-                for d, t in zip(batch.downlink, batch.truth, strict=True)
-            ]
-            if any(c.truth for c in clients)
-            else []
-        )
+            if batch.paired:
+                ground = [{**d, "published_wall": now} for d in batch.downlink]
+                pairs = zip(batch.downlink, batch.truth, strict=True)
+                truth = [{**merged(d, t), "published_wall": now} for d, t in pairs]
+                late: list[dict[str, Any]] = []
+            else:
+                ground, late = self._received(rover, batch, now)
+                latest = self._truth.get(rover)
+                if batch.truth:
+                    latest = self._truth[rover] = batch.truth[-1]
+                    newest = self._newest.get(rover)
+                    ground = []  # nothing new on the ground: the truth view's frame only
+                    # its events went with it already
+                    truth = [] if newest is None else [_live({**newest, "events": []}, latest, now)]
+                else:
+                    truth = [_live(d, latest, now) for d in ground] if latest else list(ground)
         for client in clients:
+            frames = truth if client.truth else ground
+            if not (frames or late):
+                continue
             try:
-                client.loop.call_soon_threadsafe(
-                    client.put_frames, truth if client.truth else ground
-                )
+                client.loop.call_soon_threadsafe(client.put_frames, frames, late)
             except RuntimeError:  # the client's loop has closed
                 self.unsubscribe(rover, client)
+
+    def _received(
+        self, rover: str, batch: FrameBatch, now: float
+    ) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+        """A batch that reached the ground: its records newer than the newest handed on,
+        stamped, and the events of the older ones (the caller holds the lock)."""
+        newest = self._newest.get(rover)
+        fresh, late = [], []
+        for d in sorted(batch.downlink, key=lambda d: d["t_s"]):
+            if newest is None or d["t_s"] > newest["t_s"]:
+                newest = {**d, "published_wall": now, "received_t_s": batch.received_t_s}
+                fresh.append(newest)
+            elif d.get("events"):
+                late.append(dict(d))
+        if newest is not None:
+            self._newest[rover] = newest
+        return fresh, late
 
     def notify(self, rover: str, notice: Notice) -> None:
         """Hand a notice (``server.notices``) to every client of ``rover`` (thread-safe,
@@ -154,6 +194,10 @@ class TelemetryHub:
                 client.loop.call_soon_threadsafe(client.put_notice, dict(message))
             except RuntimeError:  # the client's loop has closed
                 self.unsubscribe(rover, client)
+
+
+def _live(downlink: dict[str, Any], truth: TruthDict | None, now: float) -> dict[str, Any]:
+    return {**live_frame(downlink, truth), "published_wall": now}
 
 
 def pending_notice(client: Client) -> dict[str, Any] | None:

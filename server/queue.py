@@ -126,6 +126,16 @@ class Cancelled:
     done: int
     running_step: int | None
 
+    def where(self) -> str:
+        """Where it stopped, in words (its record's ``detail``)."""
+        if self.running_step is not None:
+            rest = self.steps - self.running_step - 1
+            left = f"; {rest} step(s) after it not run" if rest else ""
+            return f"during step {self.running_step + 1} of {self.steps} (it runs to its end){left}"
+        if self.done == 0:
+            return f"before it started ({self.steps} step(s) not run)"
+        return f"after step {self.done} of {self.steps} ({self.steps - self.done} not run)"
+
 
 def pinned(item: QueuedSequence) -> str | None:
     """Why ``item`` keeps its place in the queue (``None``: it may move)."""

@@ -50,13 +50,13 @@ import threading
 import time
 from collections import deque
 from collections.abc import Iterable, Mapping
-from dataclasses import asdict, dataclass
-from datetime import UTC, datetime
+from dataclasses import asdict
 from typing import Any
 
 from sequences import commands as cmd
 from sequences.language import Sequence, TimeTag
 from server.checkpoint import CheckpointFormatError, decode, encode
+from server.comm.hosting import CancelSent, CommMode, RuntimeComm
 from server.queue import (
     Cancelled,
     NotQueuedError,
@@ -70,6 +70,7 @@ from server.queue import (
     snapshot,
     start_time,
 )
+from server.rovers import ROVERS, ClockState, RoverSpec
 from server.sinks import FrameBatch, FrameSink, PlayedFrame, RuntimeListener, with_truth
 from server.storage.records import CommandRecord
 from server.validation.reported import ReportedState
@@ -85,7 +86,8 @@ from sim.world.marsclock import (
 )
 
 # the queue's types are the runtime's vocabulary too (``server.queue``)
-__all__ = ["Cancelled", "CheckpointFormatError", "NotQueuedError", "QueueEntry", "QueueError"]
+__all__ = ["ROVERS", "Cancelled", "CheckpointFormatError", "ClockState", "NotQueuedError",
+           "QueueEntry", "QueueError", "RoverSpec"]  # fmt: skip
 
 log = logging.getLogger(__name__)
 
@@ -103,35 +105,9 @@ IDLE_STEP_S = 10.0  # at a finite speed the idle rover is simulated in steps thi
 # with frames of an idle rover (an articulating one is propagated at 8 Hz); real time costs
 # one frame per IDLE_STEP_S.
 IDLE_SPEED_AT_MAX = 1.0
+MIN_SKIP_S = 1.0  # the least a skip of idle time moves the clock (what is due is never missed)
 FRAME_EVERY_S = 1.0  # 8 Hz activity is recorded at most once a simulated second
 CHECKPOINT_EVERY_S = 1.0  # wall seconds between checkpoints
-
-
-@dataclass(frozen=True)
-class RoverSpec:
-    """A rover the server hosts: its name, site, mission and start time."""
-
-    name: str
-    site: str
-    mission: str
-    start_utc: datetime
-    seed: int
-
-
-ROVERS: dict[str, RoverSpec] = {
-    "spirit": RoverSpec("spirit", "gusev", "spirit", datetime(2004, 4, 14, 15, 0, tzinfo=UTC), 1),
-    "opportunity": RoverSpec(
-        "opportunity", "meridiani", "opportunity", datetime(2004, 4, 14, 3, 0, tzinfo=UTC), 2
-    ),
-}
-
-
-@dataclass
-class ClockState:
-    """The clock: ``running`` and ``speed`` (simulated s per wall s; ``inf`` = max)."""
-
-    running: bool = True
-    speed: float = 1.0
 
 
 class RoverRuntime:
@@ -143,7 +119,7 @@ class RoverRuntime:
 
     def __init__(self, spec: RoverSpec, session: RoverSession | None = None,
                  estimators: tuple[str, ...] = ("sapp",), listener: RuntimeListener | None = None,
-                 sinks: Iterable[FrameSink] = ()) -> None:  # fmt: skip
+                 sinks: Iterable[FrameSink] = (), comm: CommMode = "instant") -> None:  # fmt: skip
         self.spec = spec
         self.listener = listener
         self.estimators = tuple(estimators)
@@ -170,6 +146,7 @@ class RoverRuntime:
         self.last_truth: TruthDict | None = None  # and its truth record
         self.reported = ReportedState()
         self.watermark_t_s = -math.inf  # frames up to here are stored already (restore)
+        self.comm = RuntimeComm(self, comm)  # the link across light time (server.comm)
 
     # ---- control ------------------------------------------------------------------
 
@@ -221,18 +198,38 @@ class RoverRuntime:
 
     def enqueue(self, sequence_id: int, sequence: Sequence, immediate: bool = False) -> None:
         """Queue an accepted sequence. An immediate command goes before the sequences but
-        after the immediate commands sent before it, so commands run in the order sent."""
+        after the immediate commands sent before it, so commands run in the order sent.
+        Across light time the ground radiates it at its next window (``server.comm``)."""
+        entry = QueuedSequence(sequence_id, sequence, immediate=immediate)
+        if self.comm.uplink(entry):
+            self._queue_changed(commit=True)
+            return
+        self.take_onboard(entry)
+
+    def take_onboard(self, entry: QueuedSequence) -> None:
+        """A sequence into the rover's queue (it arrived onboard, or the link is instant)."""
         with self.lock:
             items = list(self.queue)
-            insert(items, QueuedSequence(sequence_id, sequence, immediate=immediate))
+            insert(items, entry)
             self.queue = deque(items)
             self._checkpoint_queue()
         self._wake.set()  # its first step may be due now
         self._queue_changed()
 
-    def cancel(self, sequence_id: int) -> Cancelled | None:
+    def cancel(self, sequence_id: int) -> Cancelled | CancelSent | None:
         """Drop a queued sequence (a running one stops after its current command); where it
-        stopped, or ``None`` if it is not queued. Stored before this returns."""
+        stopped, or ``None`` if it is not queued. Stored before this returns. Across light
+        time a sequence still on the ground is dropped there; one radiated is cancelled by
+        a cancel that goes up (``CancelSent``: the rover reports what it found)."""
+        if self.comm.mission is None:
+            return self.cancel_onboard(sequence_id)
+        found = self.comm.cancel(sequence_id)
+        if found is not None:
+            self._queue_changed(commit=True)
+        return found
+
+    def cancel_onboard(self, sequence_id: int) -> Cancelled | None:
+        """Drop a sequence from the rover's own queue (``cancel``)."""
         with self.lock:
             item = next((q for q in self.queue if q.sequence_id == sequence_id), None)
             if item is None:
@@ -262,9 +259,9 @@ class RoverRuntime:
         self._queue_changed(commit=True)
 
     def queued_ids(self) -> list[int]:
-        """Sequence ids in queue order."""
+        """Sequence ids in queue order, and those the link holds (waiting, on their way up)."""
         with self.lock:
-            return [q.sequence_id for q in self.queue]
+            return [*self.comm.held_ids(), *(q.sequence_id for q in self.queue)]
 
     def queue_snapshot(self) -> list[QueueEntry]:
         """The queue in order, copied under the lock (safe to read from any thread)."""
@@ -321,6 +318,7 @@ class RoverRuntime:
                 # what the clock runs at now (at max with nothing queued: real time)
                 "effective_speed": _speed_json(self._effective_speed()),
                 "executing": self.executing,
+                "comm": self.comm.mode,
                 "queue": [q.summary() for q in self.queue],
                 "frame": with_truth(self.last_frame, self.last_truth),
             }
@@ -353,6 +351,13 @@ class RoverRuntime:
     def _tick(self, dt_wall: float) -> bool:
         """One step of the clock; True when the next is due at once (at max speed, after a
         command, its play-out or a skip of idle time: a sleep would only add wall time)."""
+        self.comm.apply_request()
+        try:
+            return self._tick_clock(dt_wall)
+        finally:
+            self.comm.advance(self._clock_t_s)
+
+    def _tick_clock(self, dt_wall: float) -> bool:
         with self.lock:
             running, speed, changed = self.clock.running, self.clock.speed, self._clock_changed
         at_max = running and math.isinf(speed)
@@ -389,8 +394,10 @@ class RoverRuntime:
             self._execute(step[0])
             return at_max
         if math.isinf(speed):
-            if step is not None:  # idle time is skipped: straight to the next step
-                self._idle(min(target - sim_t, IDLE_CHUNK_S))
+            # idle time is skipped: straight to the next step, or what the link brings next
+            wake = min(target, self.comm.next_due_t_s())
+            if wake < math.inf:
+                self._idle(min(max(wake - sim_t, MIN_SKIP_S), IDLE_CHUNK_S))
                 return True
             # nothing to skip to: the clock runs on in real time (IDLE_SPEED_AT_MAX)
             budget = IDLE_SPEED_AT_MAX * min(dt_wall, MAX_TICK_S)
@@ -416,6 +423,15 @@ class RoverRuntime:
 
     def _start_time(self, tag: TimeTag) -> float:
         return start_time(tag, self.spec.mission, self.session.sim.t_s, self._last_done_t_s)
+
+    @property
+    def running(self) -> bool:
+        """Whether the clock thread runs."""
+        return self._thread is not None and self._thread.is_alive()
+
+    def idle_until(self, t_s: float) -> None:
+        """The rover idles until ``t_s`` (an uplink arrives then: nothing runs before)."""
+        self._idle(t_s - self.session.sim.t_s)
 
     def session_changed(self) -> None:
         """Checkpoint at the next tick: the session changed outside the clock thread (a
@@ -474,11 +490,10 @@ class RoverRuntime:
             if report.status in ("refused", "halted"):  # the rest assumed this step: stop
                 item.next_step = len(item.sequence.steps)
                 item.stopped = True
-        if self.listener is not None:
-            self.listener.command_reported(self.spec.name, CommandRecord(
-                item.sequence_id, index, step.command.describe(), report.status, report.reason,
-                report.start_t_s, report.end_t_s, tuple(e.text for e in report.events),
-            ))  # fmt: skip
+        self.comm.command_reported(CommandRecord(
+            item.sequence_id, index, step.command.describe(), report.status, report.reason,
+            report.start_t_s, report.end_t_s, tuple(e.text for e in report.events),
+        ))  # fmt: skip
         self._queue_changed()
         if report.status != "completed":
             log.info("rover %s: %s: %s", self.spec.name, report.status, report.reason)
@@ -508,22 +523,27 @@ class RoverRuntime:
 
     def _emit(self, pairs: list[PlayedFrame]) -> None:
         self._clock_t_s = max(self._clock_t_s, float(pairs[-1][0]["t_s"]))
+        if self.comm.rover_frames(pairs):
+            return  # into the rover's store, the truth out live
         pairs = [p for p in pairs if p[0]["t_s"] > self.watermark_t_s]
         if not pairs:
             return
         batch = FrameBatch([d for d, _ in pairs], [t for _, t in pairs])
         self.last_frame, self.last_truth = pairs[-1]
         self.note_reported(e for d in batch.downlink for e in d.get("events", ()))
-        for sink in self.sinks:
-            sink.publish(self.spec.name, batch)
+        self.publish(batch)
 
     def note_reported(self, events: Iterable[Mapping[str, Any]]) -> None:
         """Keep what the rover's ``events`` report of its onboard tables."""
         self.reported.note(events)
 
     def _sequence_status(self, sequence_id: int, status: str, detail: str | None) -> None:
-        if self.listener is not None:
-            self.listener.sequence_status(sequence_id, status, detail)
+        self.comm.sequence_status(sequence_id, status, detail, self.session.sim.t_s)
+
+    def publish(self, batch: FrameBatch) -> None:
+        """Hand a batch to every sink (on the clock thread)."""
+        for sink in self.sinks:
+            sink.publish(self.spec.name, batch)
 
     def checkpoint(self) -> None:
         """Checkpoint the whole state now, from the clock thread or with it stopped."""
@@ -547,6 +567,7 @@ class RoverRuntime:
             "clock_t_s": self._clock_t_s,
             "executing": self.executing,
             "current_step": None if self.current_step is None else list(self.current_step),
+            "comm": self.comm.state(),
         }
 
     def _save(self, state: dict[str, Any]) -> None:
@@ -575,6 +596,7 @@ class RoverRuntime:
             runtime.executing = str(state["executing"])
             step = state["current_step"]
             runtime.current_step = None if step is None else (int(step[0]), int(step[1]))
+            runtime.comm.load_state(state.get("comm"))  # none before light time: instant
         except (KeyError, TypeError, ValueError) as exc:
             raise CheckpointFormatError(
                 f"checkpoint of rover {spec.name} does not hold the state this roverops "

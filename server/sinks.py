@@ -21,8 +21,9 @@ checkpoint, a queue change) goes to the one ``RuntimeListener`` it is built with
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol, cast
 
 from sim.loop.downlink import DownlinkDict
 from sim.scoring.truth import TruthDict, merged
@@ -36,19 +37,38 @@ PlayedFrame = tuple[DownlinkDict, TruthDict]  # a downlink record and its truth 
 
 @dataclass(frozen=True)
 class FrameBatch:
-    """Records played out together: ``downlink[i]`` and ``truth[i]`` share their ``t_s``."""
+    """Records handed on together. With the link instant (``server.comm``), a batch is
+    played out whole: ``downlink[i]`` and ``truth[i]`` share their ``t_s``. Across light
+    time the two records part: the truth goes out live as the clock plays it out (a batch
+    of truth records alone), the downlink when it reaches the ground (a batch of downlink
+    records alone, ``received_t_s`` when it arrived; older data may come after newer, as
+    a pass fills in the telemetry it sent decimated first)."""
 
     downlink: list[DownlinkDict]
     truth: list[TruthDict]
+    received_t_s: float | None = None  # on the ground then (None: as it was made)
 
     def __post_init__(self) -> None:
-        if len(self.downlink) != len(self.truth):
+        if self.downlink and self.truth and len(self.downlink) != len(self.truth):
             raise ValueError(
                 f"a batch pairs its records: {len(self.downlink)} downlink, {len(self.truth)} truth"
             )
 
+    @property
+    def paired(self) -> bool:
+        """Both records of each frame, played out together (the instant link)."""
+        return len(self.downlink) == len(self.truth)
+
+    def pairs(self) -> list[tuple[DownlinkDict | None, TruthDict | None]]:
+        """Each frame's records, ``None`` for the one the batch does not carry."""
+        if self.paired:
+            return list(zip(self.downlink, self.truth, strict=True))
+        if self.downlink:
+            return [(d, None) for d in self.downlink]
+        return [(None, t) for t in self.truth]
+
     def __len__(self) -> int:
-        return len(self.downlink)
+        return max(len(self.downlink), len(self.truth))
 
 
 def with_truth(downlink: DownlinkDict | None, truth: TruthDict | None) -> Frame | None:
@@ -59,6 +79,17 @@ def with_truth(downlink: DownlinkDict | None, truth: TruthDict | None) -> Frame 
     if truth is None or truth["t_s"] != downlink["t_s"]:
         return dict(downlink)
     return merged(downlink, truth)
+
+
+def live_frame(downlink: Mapping[str, Any], truth: TruthDict | None) -> dict[str, Any]:
+    """Across light time, the truth view's frame: the newest downlink on the ground with the
+    newest truth record (live) merged in, ``truth_t_s`` the truth's own time; the truth's
+    events are left out (they are stored with it, and would be stamped with the
+    downlink's time here)."""
+    if truth is None:
+        return dict(downlink)
+    live = cast("TruthDict", {**truth, "t_s": downlink["t_s"], "events": []})
+    return {**merged(cast("DownlinkDict", downlink), live), "truth_t_s": truth["t_s"]}
 
 
 class FrameSink(Protocol):
@@ -89,6 +120,20 @@ class RuntimeListener(Protocol):
     def queue_changed(self, rover: str) -> None:
         """The queue or the step executing changed (it must not wait)."""
 
+    def sequence_stage(
+        self, sequence_id: int, stage: str, t_s: float, detail: str | None = None
+    ) -> None:
+        """A stage of an uplinked sequence (its command history, ``server.comm``) at ``t_s``,
+        as the ground knows it now; a stage recorded already is not recorded again."""
+
+    def link_event(self, rover: str, t_s: float, event: dict[str, str], recovering: bool) -> None:
+        """An event of the link the ground learns (a gap, a cancel's outcome); with
+        ``recovering`` it may be stored already (delivered again after a restart)."""
+
+    def stored_frame_times(self, rover: str, downlinks: list[DownlinkDict]) -> set[float]:
+        """Which of ``downlinks`` (their ``t_s``) storage holds already."""
+        return set()
+
 
 class StorageSink:
     """Both records of every frame and the events they carry, handed to the storage writer
@@ -98,7 +143,6 @@ class StorageSink:
         self.writer = writer
 
     def publish(self, rover: str, batch: FrameBatch) -> None:
-        self.writer.frames(rover, batch.downlink, batch.truth)
         events = [(float(f["t_s"]), e) for f in batch.downlink for e in f.get("events", [])]
-        if events:
-            self.writer.events(rover, events)
+        # one call: a flush never parts a frame from its events
+        self.writer.frames(rover, batch.downlink, batch.truth, events, batch.received_t_s)

@@ -23,6 +23,7 @@ from server.access.accounts import Accounts
 from server.access.audit import AuditEntry, AuditLog
 from server.access.truth_view import check_truth_view
 from server.alarms import AlarmEngine
+from server.comm.hosting import check_comm_mode
 from server.errors import UnknownRoverError
 from server.hub import TelemetryHub
 from server.notices import CommandNotice, EventNotice, QueueNotice
@@ -35,6 +36,7 @@ from server.timeline import stored_command
 from server.validation.context import rover_site, validation_context
 from server.validation.pool import ValidationPool
 from server.validation.uploads import ValidationSlots
+from sim.loop.downlink import DownlinkDict
 from sim.world.marsclock import t_s_to_utc
 
 log = logging.getLogger(__name__)
@@ -68,9 +70,13 @@ class ServerConfig:
     # what runs beside SAPP on a new rover (sim.loop.side.kinematic); a rover restored from a
     # checkpoint keeps the estimators it was started with
     estimators: tuple[str, ...] = ("sapp",)
+    # the link of a new rover (server.comm): instant, or mission (across light time); a
+    # rover restored from a checkpoint keeps its own
+    comm: str = "instant"
 
     def __post_init__(self) -> None:
         self.truth_view = check_truth_view(self.truth_view)
+        self.comm = check_comm_mode(self.comm)
 
 
 @dataclass(frozen=True)
@@ -136,7 +142,11 @@ class Server:
                 saved = None
             if saved is None:
                 runtime = RoverRuntime(
-                    spec, estimators=config.estimators, listener=self, sinks=self.sinks
+                    spec,
+                    estimators=config.estimators,
+                    listener=self,
+                    sinks=self.sinks,
+                    comm=check_comm_mode(config.comm),
                 )
             assert runtime is not None
             if saved is None:
@@ -174,11 +184,16 @@ class Server:
         immediate command (format ``command``) first as when it was sent."""
         rover = runtime.spec.name
         last = self.store.last_frame(rover)
-        if last is not None:
-            runtime.watermark_t_s = float(last["t_s"])
+        truth = self.store.last_truth(rover)
+        if last is not None or truth is not None:
+            # the truth is stored as it is played out, the downlink (across light time) when
+            # it reaches the ground: the truth's time is how far play-out had got
+            runtime.watermark_t_s = max(float(r["t_s"]) for r in (last, truth) if r is not None)
             runtime.last_frame = last
-            runtime.last_truth = self.store.last_truth(rover)
-            runtime.note_reported(self.store.events(rover, -math.inf, runtime.watermark_t_s))
+            runtime.last_truth = truth
+            runtime.note_reported(self.store.events(rover, -math.inf, math.inf))
+        if runtime.comm.mission is not None:
+            runtime.comm.mission.received_until_t_s = self.store.received_until(rover)
         held = set(runtime.queued_ids())
         pending = [
             s
@@ -224,6 +239,24 @@ class Server:
             {"text": text + (f": {detail}" if detail else ""), "kind": "sequence",
              "severity": severity},
         )  # fmt: skip
+
+    def sequence_stage(
+        self, sequence_id: int, stage: str, t_s: float, detail: str | None = None
+    ) -> None:
+        try:
+            self.store.add_stage(sequence_id, stage, t_s, detail)
+        except KeyError:  # a sequence of a test's own, never stored
+            log.warning("stage %s of unknown sequence #%s", stage, sequence_id)
+
+    def link_event(self, rover: str, t_s: float, event: dict[str, str], recovering: bool) -> None:
+        if recovering and any(
+            e["text"] == event["text"] for e in self.store.events(rover, t_s, t_s)
+        ):
+            return  # stored before the restart
+        self._server_event(rover, t_s, event)
+
+    def stored_frame_times(self, rover: str, downlinks: list[DownlinkDict]) -> set[float]:
+        return self.store.stored_frame_times(rover, (float(d["t_s"]) for d in downlinks))
 
     def checkpoint(self, rover: str, t_s: float, blob: bytes) -> None:
         self.writer.checkpoint(rover, t_s, blob)

@@ -65,6 +65,13 @@ class When(Answer):
     sol: int | None = None
 
 
+class Received(Answer):
+    """When data reached the ground (TT seconds and UTC)."""
+
+    t_s: float
+    utc: str
+
+
 class Clock(Answer):
     """A rover's clock: running or paused, and its speed factor ("max": as fast as it can)."""
 
@@ -187,10 +194,11 @@ class SequenceRecord(StoredSequence):
 
 
 class CancelledSequence(Answer):
-    """A cancelled sequence, and where it stopped."""
+    """A cancelled sequence, and where it stopped; across light time, for a sequence already
+    radiated, a cancel sent (``cancel-sent``: it goes up, and the rover reports)."""
 
     id: int
-    status: Literal["cancelled"]
+    status: Literal["cancelled", "cancel-sent"]
     detail: str
 
 
@@ -459,6 +467,9 @@ class Alarm(Answer):
     latest: When | None = None
     spans: list[Span] = []
     shelved: Shelf | None = None
+    received: Received | None = Field(
+        default=None, description="across light time: when the data that raised it came down"
+    )
 
 
 class FaultEntry(Answer):
@@ -529,6 +540,12 @@ class FrameMessage(_frame_model("DownlinkFrame", truth=False)):  # type: ignore[
     events: list[LiveEvent]
     dropped: int
     dropped_events: int
+    received_t_s: float | None = Field(
+        default=None, description="across light time: when this downlink reached the ground"
+    )
+    truth_t_s: float | None = Field(
+        default=None, description="across light time, the truth view: the truth's own (live) time"
+    )
 
 
 class _NoticeMessage(Answer):

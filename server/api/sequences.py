@@ -27,8 +27,9 @@ from server.api.deps import (
     error_doc,
     router,
 )
+from server.comm.hosting import CancelSent
 from server.errors import ConflictError, NotFoundError
-from server.runtime import Cancelled, RoverRuntime
+from server.runtime import RoverRuntime
 from server.state import Server
 from server.validation.context import rover_site
 from server.validation.pool import Checked
@@ -116,19 +117,6 @@ def request_errors(result: ValidationResult) -> list[dict[str, Any]]:
         {"loc": ["body"], "msg": d.message, "type": d.code, "line": d.line, "column": d.column}
         for d in result.errors
     ]
-
-
-def cancelled_where(stopped: Cancelled) -> str:
-    """Where a cancelled sequence stopped, in words (its record's ``detail``)."""
-    if stopped.running_step is not None:
-        rest = stopped.steps - stopped.running_step - 1
-        left = f"; {rest} step(s) after it not run" if rest else ""
-        return (
-            f"during step {stopped.running_step + 1} of {stopped.steps} (it runs to its end){left}"
-        )
-    if stopped.done == 0:
-        return f"before it started ({stopped.steps} step(s) not run)"
-    return f"after step {stopped.done} of {stopped.steps} ({stopped.steps - stopped.done} not run)"
 
 
 def steps_json(sequence: Sequence) -> list[dict[str, Any]]:
@@ -268,6 +256,10 @@ def cancel_sequence(
     stopped = runtime.cancel(sequence_id)
     if stopped is None:
         raise ConflictError(f"sequence {sequence_id} is {found['status']}, not queued")
-    detail = f"cancelled by {who.name} {cancelled_where(stopped)}"
+    if isinstance(stopped, CancelSent):  # across light time: the rover answers later
+        detail = (f"cancel accepted by the ground from {who.name}: it goes up in the next "
+                  "uplink window; the rover reports where the sequence stopped")  # fmt: skip
+        return {"id": sequence_id, "status": "cancel-sent", "detail": detail}
+    detail = f"cancelled by {who.name} {stopped.where()}"
     server.store.set_sequence_status(sequence_id, "cancelled", detail)
     return {"id": sequence_id, "status": "cancelled", "detail": detail}

@@ -77,9 +77,9 @@ from server.scene3d.model import (
     status_text,
     terrain_patch,
 )
-from server.sinks import FrameBatch, with_truth
+from server.sinks import FrameBatch, live_frame, with_truth
 from server.storage import Store
-from sim.scoring.truth import merged
+from sim.scoring.truth import TruthDict, merged
 from sim.world.sites import make_terrain
 
 log = logging.getLogger(__name__)
@@ -289,6 +289,7 @@ class RoverScene:
         self.server: viser.ViserServer | None = None
         self._lock = threading.Lock()
         self._latest: Mapping[str, Any] | None = None
+        self._live_truth: TruthDict | None = None  # across light time (``_take_apart``)
         self._dirty = threading.Event()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -404,14 +405,34 @@ class RoverScene:
     def publish(self, rover: str, batch: FrameBatch) -> None:
         """A frame sink (``server.sinks``): keep the traverses and the newest frame."""
         with self._lock:
-            for d, t in zip(batch.downlink, batch.truth, strict=True):
-                self._take(merged(d, t) if self.truth else d)
+            if batch.paired:
+                for d, t in zip(batch.downlink, batch.truth, strict=True):
+                    self._take(merged(d, t) if self.truth else d)
+            else:
+                self._take_apart(batch)
         self._dirty.set()
 
-    def _take(self, f: Mapping[str, Any]) -> None:
+    def _take_apart(self, batch: FrameBatch) -> None:
+        """Across light time: the downlink as it reaches the ground (older records that a
+        pass fills in are not drawn over newer ones), the truth live (``live_frame``)."""
+        if batch.truth:
+            if not self.truth:
+                return
+            self._live_truth = batch.truth[-1]
+            for t in batch.truth:
+                self._tracks["true"].add(t["p_mission_true"])
+            if self._latest is not None:
+                self._latest = live_frame(self._latest, self._live_truth)
+            return
+        for d in sorted(batch.downlink, key=lambda d: d["t_s"]):
+            if self._latest is None or d["t_s"] > self._latest["t_s"]:
+                shown = live_frame(d, self._live_truth) if self.truth else d
+                self._take(shown, true_track=False)
+
+    def _take(self, f: Mapping[str, Any], true_track: bool = True) -> None:
         self._latest = f
         self.marks.take(f)
-        if self.truth:
+        if self.truth and true_track:
             self._tracks["true"].add(f["p_mission_true"])
         self._tracks["est"].add(f["p_mission_est"])
         for name, side in (f.get("estimators") or {}).items():  # roverops serve --estimators

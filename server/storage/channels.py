@@ -12,7 +12,7 @@ row per frame (issue 21).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, cast
 
@@ -36,13 +36,13 @@ DOWNLINK_CHANNELS = frozenset(DOWNLINK.columns)
 TRUTH_CHANNELS = frozenset(TRUTH.columns)
 
 
-def downlink_row(rover: str, record: dict[str, Any]) -> dict[str, Any]:
+def downlink_row(rover: str, record: Mapping[str, Any]) -> dict[str, Any]:
     """The ``frames`` row of a downlink record (``Downlink.as_dict()``)."""
     return {"rover": rover, "t_s": float(record["t_s"]), "sol": int(record["sol"]),
             "layout": RECORD_LAYOUT, **DOWNLINK.encode(record)}  # fmt: skip
 
 
-def truth_row(rover: str, record: dict[str, Any]) -> dict[str, Any]:
+def truth_row(rover: str, record: Mapping[str, Any]) -> dict[str, Any]:
     """The ``truth_frames`` row of a truth record (``Truth.as_dict()``)."""
     return {"rover": rover, "t_s": float(record["t_s"]), **TRUTH.encode(record)}
 

@@ -63,6 +63,8 @@ sequences = Table(
     Column("updated_at", DateTime(timezone=True), nullable=False, default=now_utc),
     # who uploaded it (an immediate command: who sent it); null on rows from before accounts
     Column("submitted_by", String(64), nullable=True),
+    # its command history (server.comm): [{"stage", "t_s", "detail"}] in the order learned
+    Column("stages", JSON, nullable=True),
 )
 
 commands = Table(
@@ -96,6 +98,8 @@ events = Table(
     # LEGACY_KIND / LEGACY_SEVERITY
     Column("kind", String(32), nullable=False, server_default="unknown"),
     Column("severity", String(16), nullable=False, server_default="info"),
+    # on the ground then, across light time (server.comm); null: as it was made
+    Column("received_t_s", Double, nullable=True),
     Index("ix_events_rover_t", "rover", "t_s"),
 )
 
@@ -115,6 +119,8 @@ frames_table = Table(
     Column("sol", Integer, nullable=False),
     Column("data", JSON, nullable=False),
     Column("layout", Integer, nullable=True),
+    # on the ground then, across light time (server.comm); null: as it was made
+    Column("received_t_s", Double, nullable=True),
     *DOWNLINK.table_columns(),
     Index("ix_frames_rover_t", "rover", "t_s"),
     Index("ix_frames_rover_sol", "rover", "sol"),
@@ -256,6 +262,8 @@ alarms_table = Table(
     Column("violations", Integer, nullable=False, default=1, server_default="1"),
     Column("raised_t_s", Double, nullable=False),
     Column("raised_utc", String(40), nullable=False),
+    # the data that raised it reached the ground then, across light time (null: at once)
+    Column("received_t_s", Double, nullable=True),
     Column("raised_lmst_h", Double, nullable=False),
     Column("raised_sol", Integer, nullable=False),
     Column("cleared_t_s", Double, nullable=True),

@@ -11,7 +11,7 @@ from __future__ import annotations
 import functools
 import json
 import math
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from datetime import UTC, datetime
 from typing import TYPE_CHECKING, Any, Concatenate, ParamSpec, TypeVar
 
@@ -41,7 +41,7 @@ from server.storage.channels import (
 from server.storage.chunks import CHUNK_FRAMES, pack_new
 from server.storage.engine import OneThreadAtATimePool
 from server.storage.migrate import upgrade_database
-from server.storage.records import CommandRecord
+from server.storage.records import CommandRecord, command_row, record_command
 
 if TYPE_CHECKING:  # types only: storage loads without the simulator (roverops users)
     from sim.loop.downlink import DownlinkDict
@@ -63,6 +63,12 @@ from server.storage.schema import (
 
 P = ParamSpec("P")
 R = TypeVar("R")
+
+
+# a writer's queued telemetry: (rover, downlink records, truth records, received_t_s)
+FrameRows = tuple[str, Sequence[Mapping[str, Any]], Sequence[Mapping[str, Any]], float | None]
+# a queued event: (rover, t_s, event, received_t_s)
+EventRow = tuple[str, float, Mapping[str, Any], float | None]
 
 
 def _finite(value: Any) -> Any:
@@ -100,40 +106,6 @@ def row_dict(row: RowMapping) -> dict[str, Any]:
 def event_columns(event: Mapping[str, Any]) -> dict[str, str]:
     e = event_dict(event)
     return {"text": str(e["text"]), "kind": str(e["kind"]), "severity": str(e["severity"])}
-
-
-def command_row(rover: str, record: CommandRecord) -> dict[str, Any]:
-    """The ``commands`` row of ``record`` (its columns, plus the rover and when it is
-    written)."""
-    return {
-        "rover": rover,
-        "sequence_id": record.sequence_id,
-        "step_index": record.step_index,
-        "command": record.command,
-        "status": record.status,
-        "reason": record.reason,
-        "start_t_s": float(record.start_t_s),
-        "end_t_s": float(record.end_t_s),
-        "events": list(record.events),
-        "created_at": now_utc(),
-    }
-
-
-def record_command(conn: Connection, row: dict[str, Any]) -> int:
-    """Insert a command row, or update the row of the same step (``sequence_id``,
-    ``step_index``) and count the re-run: every row of it, should a database of an older
-    version hold the step twice. The id of the (first) row."""
-    c = commands.c
-    if row["sequence_id"] is not None and row["step_index"] is not None:
-        same_step = (c.sequence_id == row["sequence_id"], c.step_index == row["step_index"])
-        found = conn.execute(select(func.min(c.id)).where(*same_step)).scalar()
-        if found is not None:
-            report = {k: v for k, v in row.items() if k != "created_at"}
-            conn.execute(update(commands).where(*same_step).values(**report, reruns=c.reruns + 1))
-            return int(found)
-    key = conn.execute(insert(commands).values(**row)).inserted_primary_key
-    assert key is not None
-    return int(key[0])
 
 
 def _after_queued_writes(
@@ -233,6 +205,34 @@ class Store:
             if result.rowcount == 0:
                 raise KeyError(f"no sequence {sequence_id}")
 
+    def add_stage(
+        self, sequence_id: int, stage: str, t_s: float, detail: str | None = None
+    ) -> bool:
+        """Add a stage to a sequence's command history, unless it has that stage already
+        (a report delivered again after a restart); whether it was added."""
+        c = sequences.c
+        with self.engine.begin() as conn:
+            found = conn.execute(select(c.stages).where(c.id == sequence_id)).first()
+            if found is None:
+                raise KeyError(f"no sequence {sequence_id}")
+            stages = list(found[0] or [])
+            if any(s["stage"] == stage for s in stages):
+                return False
+            stages.append({"stage": stage, "t_s": float(t_s), "detail": detail})
+            conn.execute(update(sequences).where(c.id == sequence_id).values(stages=stages))
+        return True
+
+    @_after_queued_writes
+    def stored_frame_times(self, rover: str, t_s: Iterable[float]) -> set[float]:
+        """Which of the times ``t_s`` have a downlink record of ``rover`` stored."""
+        wanted = sorted({float(t) for t in t_s})
+        if not wanted:
+            return set()
+        f = frames_table.c
+        query = select(f.t_s).where(f.rover == rover, f.t_s >= wanted[0], f.t_s <= wanted[-1])
+        with self.engine.connect() as conn:
+            return {float(t) for (t,) in conn.execute(query)} & set(wanted)
+
     def get_sequence(self, sequence_id: int) -> dict[str, Any] | None:
         """Every column of one sequence (JSON decoded, times ISO), or ``None``."""
         with self.engine.connect() as conn:
@@ -295,7 +295,7 @@ class Store:
     def add_events(self, rover: str, events: list[tuple[float, Mapping[str, Any]]]) -> None:
         """Store events as (t_s, ``{"text", "kind", "severity"}``) pairs."""
         with self.engine.begin() as conn:
-            self._insert_events(conn, [(rover, t, e) for t, e in events])
+            self._insert_events(conn, [(rover, t, e, None) for t, e in events])
 
     def events(self, rover: str, t_from: float, t_to: float) -> list[dict[str, Any]]:
         """Events with t_from <= t_s <= t_to, in time order, as
@@ -349,14 +349,17 @@ class Store:
     # ---- telemetry frames --------------------------------------------------------
 
     def add_frames(
-        self, rover: str, downlinks: list[dict[str, Any]], truths: list[dict[str, Any]]
+        self,
+        rover: str,
+        downlinks: list[dict[str, Any]],
+        truths: list[dict[str, Any]],
+        received_t_s: float | None = None,
     ) -> None:
-        """Store frames, the downlink records (``Downlink.as_dict()``) and the truth record
-        of each (``Truth.as_dict()``), in one transaction."""
+        """Store frames, the downlink records (``Downlink.as_dict()``) and the truth records
+        (``Truth.as_dict()``), in one transaction: paired, or either alone (across light
+        time the downlink comes when it reaches the ground, at ``received_t_s``)."""
         with self.engine.begin() as conn:
-            self._insert_frames(
-                conn, [(rover, d, t) for d, t in zip(downlinks, truths, strict=True)]
-            )
+            self._insert_frames(conn, [(rover, downlinks, truths, received_t_s)])
 
     @_after_queued_writes
     def frames(
@@ -548,22 +551,35 @@ class Store:
 
     # ---- the batch primitives, shared with BatchWriter ----------------------------
 
-    def _insert_frames(
-        self, conn: Connection, rows: list[tuple[str, dict[str, Any], dict[str, Any]]]
-    ) -> None:
-        if rows:
-            conn.execute(insert(frames_table), [downlink_row(r, d) for r, d, _ in rows])
-            conn.execute(insert(truth_frames), [truth_row(r, t) for r, _, t in rows])
-            pack_new(conn, [r for r, _, _ in rows], self.chunk_frames)
+    def _insert_frames(self, conn: Connection, rows: list[FrameRows]) -> None:
+        downlinks = [{**downlink_row(r, d), "received_t_s": got} for r, ds, _, got in rows
+                     for d in ds]  # fmt: skip
+        truths = [truth_row(r, t) for r, _, ts, _ in rows for t in ts]
+        if downlinks:
+            conn.execute(insert(frames_table), downlinks)
+        if truths:
+            conn.execute(insert(truth_frames), truths)
+        if downlinks or truths:
+            pack_new(conn, sorted({r[0] for r in rows}), self.chunk_frames)
 
-    def _insert_events(
-        self, conn: Connection, rows: list[tuple[str, float, Mapping[str, Any]]]
-    ) -> None:
+    @_after_queued_writes
+    def received_until(self, rover: str) -> float:
+        """The latest ``received_t_s`` of the rover's stored frames and events: what came
+        down across light time up to then is stored (``-inf``: nothing yet)."""
+        with self.engine.connect() as conn:
+            got = [
+                conn.execute(select(func.max(t.c.received_t_s)).where(t.c.rover == rover)).scalar()
+                for t in (frames_table, events)
+            ]
+        return max((float(g) for g in got if g is not None), default=-math.inf)
+
+    def _insert_events(self, conn: Connection, rows: list[EventRow]) -> None:
         if rows:
             conn.execute(
                 insert(events),
-                [{"rover": r, "t_s": float(t), **event_columns(x)} for r, t, x in rows],
-            )
+                [{"rover": r, "t_s": float(t), "received_t_s": got, **event_columns(x)}
+                 for r, t, x, got in rows],
+            )  # fmt: skip
 
     def _record_commands(self, conn: Connection, rows: list[dict[str, Any]]) -> None:
         for row in rows:  # a few per flush: one per step completed

@@ -7,13 +7,13 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
 from sqlalchemy.engine import Connection
 
-from server.storage.records import CommandRecord
-from server.storage.store import Store, command_row
+from server.storage.records import CommandRecord, command_row
+from server.storage.store import EventRow, FrameRows, Store
 
 log = logging.getLogger(__name__)
 
@@ -43,8 +43,8 @@ class BatchWriter:
         self._flush_lock = threading.Lock()  # one flush at a time, in queue order
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        self._frames: list[tuple[str, dict[str, Any], dict[str, Any]]] = []
-        self._events: list[tuple[str, float, Mapping[str, Any]]] = []
+        self._frames: list[FrameRows] = []
+        self._events: list[EventRow] = []
         self._commands: list[dict[str, Any]] = []
         self._checkpoints: dict[str, tuple[float, bytes]] = {}
         store.commit_queued_with(self.flush)  # the store's reads see what is queued here
@@ -58,16 +58,30 @@ class BatchWriter:
         self._thread.start()
 
     def frames(
-        self, rover: str, downlinks: list[dict[str, Any]], truths: list[dict[str, Any]]
+        self,
+        rover: str,
+        downlinks: Sequence[Mapping[str, Any]],
+        truths: Sequence[Mapping[str, Any]],
+        events: Sequence[tuple[float, Mapping[str, Any]]] = (),
+        received_t_s: float | None = None,
     ) -> None:
-        """Queue telemetry frames: the downlink records and the truth record of each."""
+        """Queue telemetry records, the downlink's and the truth's (the two lists of a
+        ``server.sinks.FrameBatch``: paired, or either alone), with the events the downlink
+        records carry, in one step: a flush never parts a frame from its events.
+        ``received_t_s``: when the downlink reached the ground (across light time)."""
         with self._lock:
-            self._frames.extend((rover, d, t) for d, t in zip(downlinks, truths, strict=True))
+            self._frames.append((rover, list(downlinks), list(truths), received_t_s))
+            self._events.extend((rover, float(t), e, received_t_s) for t, e in events)
 
-    def events(self, rover: str, events: list[tuple[float, Mapping[str, Any]]]) -> None:
+    def events(
+        self,
+        rover: str,
+        events: list[tuple[float, Mapping[str, Any]]],
+        received_t_s: float | None = None,
+    ) -> None:
         """Queue events as (t_s, ``{"text", "kind", "severity"}``) pairs."""
         with self._lock:
-            self._events.extend((rover, float(t), e) for t, e in events)
+            self._events.extend((rover, float(t), e, received_t_s) for t, e in events)
 
     def command(self, rover: str, record: CommandRecord) -> None:
         """Queue one command execution."""
@@ -101,10 +115,10 @@ class BatchWriter:
                 with store.engine.begin() as conn:
                     for _name, write in parts:
                         write(conn)
-                written = len(frames)
+                written = sum(len(f[1]) for f in frames)
             except Exception:
                 log.exception("storage batch failed; retrying each kind on its own")
-                written = self._write_parts(parts, len(frames))
+                written = self._write_parts(parts, sum(len(f[1]) for f in frames))
             self.flushed_frames += written
             callback = self.on_flush
         if callback is not None:
