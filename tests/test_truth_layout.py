@@ -25,6 +25,7 @@ GROUND_KNOWLEDGE = frozenset({
     "sim.world.light_time",  # Earth-Mars light time, from that ephemeris
     # the comm plan and the windows the ground predicts from published ephemerides
     "sim.comm.plan",
+    "sim.comm.windows",
     "sim.world.mars_frames",  # the IAU's Mars frames
     "sim.world.sites",  # the landing sites' published coordinates and terrain maps
     "sim.world.terrain",  # a terrain map (the ground's orbital and stereo maps)
