@@ -5,7 +5,11 @@ McEwen 2000, ``sim.world.marsclock``), the truth (DE421, Folkner, Williams and B
 the IAU 2009 rotation of Archinal et al. 2011 and the IAU/IAG 2000 ellipsoid,
 ``sim.world.mars_frames``) and the onboard conic approximation (Standish's Keplerian elements,
 ``estimation.ivp``). Angles in degrees (this is an edge of the system); vectors are unit
-vectors in the Local-Level frame (N, E, Down).
+vectors in the Local-Level frame (N, E, Down). Beside them, the one-way light time from
+Earth's centre to Mars' at that instant (``sim.world.light_time``, from the same DE421): the
+delay every command and every frame crosses (3 to 22 minutes, Mishkin, Limonadi, Laubach
+and Bass 2006), in seconds in the JSON and in minutes and seconds in the text
+(``print_ephem``).
 
 The site is a planetographic latitude and a West longitude in [0, 360), Mars24's
 convention. Every bad input raises ``InputError`` naming ``utc``, ``lat_deg``,
@@ -22,9 +26,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from cli.output import print_result
 from estimation import ivp
 from sim.errors import InputError
 from sim.world.ephemeris import check_t_s
+from sim.world.light_time import one_way_light_time_s
 from sim.world.mars_frames import azimuth_rad, earth_ll_truth, elevation_rad, sun_ll_truth
 from sim.world.marsclock import mars24, sol_number, utc_to_t_s
 
@@ -88,7 +94,8 @@ def ephem_report(
     """The ``roverops ephem`` JSON object for ``utc`` at the site (see module docstring).
 
     Keys: ``msd``, ``mst_h``, ``lmst_h``, ``ltst_h``, ``ls_deg``, ``sol`` (only with a
-    mission), and sections ``mars24`` (``sun_elev_deg``, ``sun_azimuth_deg``), ``truth``
+    mission), ``one_way_light_time_s`` (Earth's centre to Mars' centre, arriving at
+    ``utc``), and sections ``mars24`` (``sun_elev_deg``, ``sun_azimuth_deg``), ``truth``
     and ``ivp`` (``sun_elev_deg``, ``sun_azimuth_deg``, ``earth_elev_deg``,
     ``earth_azimuth_deg``, ``sun_ll`` and ``earth_ll`` as 3-lists).
     """
@@ -116,6 +123,7 @@ def ephem_report(
     }
     if mission is not None:
         report["sol"] = sol_number(mission, when)
+    report["one_way_light_time_s"] = float(one_way_light_time_s(t_s))
     report["mars24"] = {"sun_elev_deg": m24.sun_elev_deg, "sun_azimuth_deg": m24.sun_azimuth_deg}
     report["truth"] = _section(
         sun_ll_truth(t_s, lat_rad, lon_east_rad), earth_ll_truth(t_s, lat_rad, lon_east_rad)
@@ -124,3 +132,27 @@ def ephem_report(
         ivp.sun_ll(t_s, lat_rad, lon_east_rad), ivp.earth_ll(t_s, lat_rad, lon_east_rad)
     )
     return report
+
+
+def minutes_seconds(duration_s: float) -> str:
+    """A duration as minutes and seconds to a tenth, as the text report shows a light time.
+
+    >>> minutes_seconds(567.77), minutes_seconds(59.96)
+    ('9 min 27.8 s', '1 min 0.0 s')
+    """
+    tenths = round(duration_s * 10.0)
+    minutes, rest = divmod(tenths, 600)
+    return f"{minutes} min {rest / 10.0:.1f} s"
+
+
+def print_ephem(result: dict[str, Any], as_json: bool) -> None:
+    """``roverops ephem``'s report: JSON with ``--json``; else ``print_result``'s lines, the
+    light time in minutes and seconds."""
+    if as_json or "one_way_light_time_s" not in result:
+        print_result(result, as_json)
+        return
+    shown = {k: v for k, v in result.items() if k != "one_way_light_time_s"}
+    tail = {k: shown.pop(k) for k in list(shown) if isinstance(shown[k], dict)}
+    print_result(shown, False)
+    print(f"one_way_light_time: {minutes_seconds(result['one_way_light_time_s'])}")
+    print_result(tail, False)

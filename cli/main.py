@@ -34,6 +34,12 @@ def _cmd_ephem(args: argparse.Namespace) -> dict[str, Any]:
     return ephem_report(args.utc, args.lat_deg, args.lon_west_deg, args.mission)
 
 
+def _print_ephem(result: dict[str, Any], as_json: bool) -> None:
+    from cli.ephem_report import print_ephem
+
+    print_ephem(result, as_json)
+
+
 def _cmd_run(args: argparse.Namespace) -> dict[str, Any]:
     from sim.scenarios.headless import run_scenario
 
@@ -58,7 +64,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     ephem = sub.add_parser(
         "ephem",
-        help="Mars time, Sun and Earth directions for a site (Mars24, truth and onboard IVP)",
+        help="Mars time, Sun and Earth directions for a site (Mars24, truth and onboard IVP),"
+        " and the one-way light time",
     )
     ephem.add_argument("--utc", required=True, help="UTC instant, ISO 8601 (2004-01-03T13:46:31)")
     ephem.add_argument(
@@ -75,7 +82,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ephem.add_argument("--mission", help="spirit or opportunity: also report the sol number")
     ephem.add_argument("--json", action="store_true", help="print JSON")
-    ephem.set_defaults(handler=_cmd_ephem)
+    ephem.set_defaults(handler=_cmd_ephem, printer=_print_ephem)
 
     run = sub.add_parser("run", help="run a built-in headless scenario and print its summary")
     run.add_argument(

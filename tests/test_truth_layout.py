@@ -22,6 +22,10 @@ GROUND_KNOWLEDGE = frozenset({
     "sim.loop.downlink",  # what the rover sends: the ground's own record
     "sim.world.marsclock",  # Mars time
     "sim.world.ephemeris",  # JPL's ephemeris, as a mission's navigation team has it
+    "sim.world.light_time",  # Earth-Mars light time, from that ephemeris
+    # the comm plan and the windows the ground predicts from published ephemerides
+    "sim.comm.plan",
+    "sim.comm.windows",
     "sim.world.mars_frames",  # the IAU's Mars frames
     "sim.world.sites",  # the landing sites' published coordinates and terrain maps
     "sim.world.terrain",  # a terrain map (the ground's orbital and stereo maps)

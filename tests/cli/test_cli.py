@@ -35,6 +35,7 @@ def test_ephem_json_has_the_documented_sections(capsys: pytest.CaptureFixture[st
     assert code == 0
     result = json.loads(out)
     assert {"msd", "mst_h", "lmst_h", "ltst_h", "ls_deg", "sol"} <= set(result)
+    assert 180.0 < result["one_way_light_time_s"] < 1340.0  # 3 to 22 min 20 s
     for section in ("mars24", "truth", "ivp"):
         assert {"sun_elev_deg", "sun_azimuth_deg"} <= set(result[section])
     # the night side at the Spirit site 18 h before landing: the Sun is down in all three

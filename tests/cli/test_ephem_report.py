@@ -9,8 +9,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from cli.ephem_report import ephem_report, parse_utc
+from cli.ephem_report import ephem_report, minutes_seconds, parse_utc, print_ephem
 from sim.errors import InputError
+from sim.world.ephemeris import C_KM_S, astrometric_from_mars_j2000_km
+from sim.world.marsclock import utc_to_t_s
 
 EXAMPLE = ("2004-01-03T13:46:31", -14.64, 184.702)  # GISS Mars24 worked example 2
 SECTION_KEYS = {
@@ -30,7 +32,8 @@ def _angle_deg(a: list[float], b: list[float]) -> float:
 def test_keys_are_exactly_the_contract() -> None:
     without = ephem_report(*EXAMPLE, None)
     with_sol = ephem_report(*EXAMPLE, "spirit")
-    top = {"msd", "mst_h", "lmst_h", "ltst_h", "ls_deg", "mars24", "truth", "ivp"}
+    top = {"msd", "mst_h", "lmst_h", "ltst_h", "ls_deg", "one_way_light_time_s"}
+    top |= {"mars24", "truth", "ivp"}
     assert set(without) == top
     assert set(with_sol) == top | {"sol"}
     assert set(with_sol["mars24"]) == {"sun_elev_deg", "sun_azimuth_deg"}
@@ -67,6 +70,33 @@ def test_sections_are_consistent() -> None:
     assert _angle_deg(r["truth"]["sun_ll"], r["ivp"]["sun_ll"]) < 0.05
     assert _angle_deg(r["truth"]["earth_ll"], r["ivp"]["earth_ll"]) < 0.1
     assert abs(r["mars24"]["sun_elev_deg"] - r["truth"]["sun_elev_deg"]) < 0.35
+
+
+def test_the_light_time_is_the_ephemeris_distance_to_earth_over_c() -> None:
+    r = ephem_report(*EXAMPLE, None)
+    # the distance to where Earth was when its light left: the same equation, solved by the
+    # ephemeris for Earth's direction
+    t_s = utc_to_t_s(parse_utc(EXAMPLE[0]))
+    earth_km = astrometric_from_mars_j2000_km("earth", t_s)
+    assert r["one_way_light_time_s"] == pytest.approx(np.linalg.norm(earth_km) / C_KM_S, abs=1e-3)
+    # three days before Spirit landed: 9 min 26 s (3 to 22 minutes: Mishkin, Limonadi,
+    # Laubach and Bass 2006)
+    assert r["one_way_light_time_s"] == pytest.approx(565.84, abs=0.01)
+
+
+def test_the_text_shows_the_light_time_in_minutes_and_seconds(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    r = ephem_report(*EXAMPLE, "spirit")
+    print_ephem(r, False)
+    lines = capsys.readouterr().out.splitlines()
+    assert "one_way_light_time: 9 min 25.8 s" in lines
+    assert lines.index("sol: 1") < lines.index("one_way_light_time: 9 min 25.8 s")
+    assert lines.index("one_way_light_time: 9 min 25.8 s") < lines.index("mars24:")
+    print_ephem(r, True)
+    assert json.loads(capsys.readouterr().out)["one_way_light_time_s"] == r["one_way_light_time_s"]
+    assert minutes_seconds(1334.96) == "22 min 15.0 s"
+    assert minutes_seconds(179.99) == "3 min 0.0 s"
 
 
 @pytest.mark.parametrize(
