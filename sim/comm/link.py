@@ -38,10 +38,9 @@ from dataclasses import asdict, dataclass, field
 from typing import Any, Literal, Protocol
 
 from sim.comm.plan import CommPlan
+from sim.comm.store import OnboardStore, Product
 from sim.comm.windows import Window, comm_windows
 from sim.world.light_time import downlink_arrival_t_s, uplink_arrival_t_s
-
-from sim.comm.store import OnboardStore, Product
 from sim.world.marsclock import SOL_S
 
 UplinkKind = Literal["sequence", "cancel"]
@@ -155,6 +154,7 @@ class CommLink:
         self.down_t_s = t_s  # the transmitter's place: everything before it is done
         self.up_t_s = t_s  # the end of the last radiation
         self.t_s = t_s  # advanced to here
+        self.opened_t_s = -math.inf  # the last pass the store gave its account at
 
     # ---- the plan ---------------------------------------------------------------------
 
@@ -258,7 +258,8 @@ class CommLink:
         for segment in self._segments(self.down_t_s, t_to_s):
             window = segment.window
             t = max(segment.start_t_s, self.down_t_s)
-            if t == window.start_t_s:  # a pass opens with the store's own account
+            if t == window.start_t_s > self.opened_t_s:  # a pass opens: the store's account
+                self.opened_t_s = t
                 store.add_report(
                     t,
                     {
@@ -359,6 +360,7 @@ class CommLink:
             "down_t_s": self.down_t_s,
             "up_t_s": self.up_t_s,
             "t_s": self.t_s,
+            "opened_t_s": self.opened_t_s,
         }
 
     @classmethod
@@ -385,6 +387,7 @@ class CommLink:
         link.next_uplink_id = int(state["next_uplink_id"])
         link.down_t_s = float(state["down_t_s"])
         link.up_t_s = float(state["up_t_s"])
+        link.opened_t_s = float(state["opened_t_s"])
         return link
 
 
