@@ -88,6 +88,10 @@ def queue_json(runtime: RoverRuntime, store: Store | None = None) -> list[dict[s
     """The rover's queue in order (``position`` 0 runs next), every step with its status;
     ``movable`` false with ``pinned`` saying why for a sequence that keeps its place;
     ``submitted_by`` when ``store`` is given."""
+    if runtime.comm.mission is not None and store is not None:  # across light time
+        from server.comm.queue_sides import mission_queue_json
+
+        return mission_queue_json(runtime, store)
     entries = runtime.queue_snapshot()
     who = store.submitters(e.sequence_id for e in entries) if store is not None else {}
     return [

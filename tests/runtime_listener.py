@@ -4,6 +4,7 @@ the runtime reports, in order, as the ``Server`` would store it."""
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 from server.storage.records import CommandRecord
 
@@ -19,6 +20,8 @@ class RecordingListener:
         self.blobs: list[bytes] = []
         self.commits = 0
         self.queue_changes = 0
+        self.stages: list[tuple[int, str, float]] = []
+        self.events: list[tuple[float, dict[str, str]]] = []
         self._on_report = on_report
 
     def command_reported(self, rover: str, report: CommandRecord) -> None:
@@ -37,3 +40,14 @@ class RecordingListener:
 
     def queue_changed(self, rover: str) -> None:
         self.queue_changes += 1
+
+    def sequence_stage(
+        self, sequence_id: int, stage: str, t_s: float, detail: str | None = None
+    ) -> None:
+        self.stages.append((sequence_id, stage, t_s))
+
+    def link_event(self, rover: str, t_s: float, event: dict[str, str], recovering: bool) -> None:
+        self.events.append((t_s, event))
+
+    def stored_frame_times(self, rover: str, downlinks: list[Any]) -> set[float]:
+        return set()

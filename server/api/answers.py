@@ -222,13 +222,15 @@ class QueueEntry(Answer):
     sequence_id: int
     name: str | None
     immediate: bool
-    status: Literal["queued", "running"]
+    status: Literal["queued", "running", "waiting", "radiated"]
     movable: bool
     pinned: str | None
     submitted_by: str | None
     next_step: int
     step_count: int
     steps: list[QueueStep]
+    side: Literal["ground", "onboard"] = "onboard"  # across light time: which side
+    stages: list[dict[str, Any]] = []  # its command history: stage, t_s, detail, when
 
 
 class RecentSequence(Answer):

@@ -77,6 +77,11 @@ def move_in_queue(
     this answers. The queue as ``GET .../queue`` lists it."""
     runtime = server.rover(rover)
     request.state.audit_action = f"move sequence #{sequence_id} to position {body.to}"
+    if runtime.comm.mission is not None:
+        raise ConflictError(
+            "across light time the rover's queue is not reordered from the ground: cancel "
+            "the sequence and upload it again"
+        )
     try:
         runtime.move(sequence_id, body.to)
     except NotQueuedError as error:
