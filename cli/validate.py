@@ -91,9 +91,9 @@ def cmd_validate(args: argparse.Namespace) -> dict[str, Any]:
 def _validate_on_checkpoint(text: str, args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     """Validate ``text`` against the rover's last checkpoint in the server's database."""
     from sequences.validate import validate
-    from server.checkpoint import CheckpointFormatError
     from server.runtime import ROVERS
     from server.storage import Store
+    from server.storage.checkpoint import CheckpointFormatError
     from server.validation.context import stored_rover_site
 
     if args.rover not in ROVERS:

@@ -266,3 +266,14 @@ def start_time(tag: TimeTag, mission: str, now_t_s: float, last_done_t_s: float)
         t = t_s_for_sol_lmst(mission, sol, lmst_h)
         return t if t >= now_t_s - 1e-6 else t_s_for_sol_lmst(mission, sol + 1, lmst_h)
     return now_t_s
+
+
+def tag_text(tag: TimeTag) -> str:
+    """A step's time tag in words (empty: when the previous step completes)."""
+    if tag.kind == "lmst":
+        return f"at {tag.clock()} LMST"
+    if tag.kind == "sol_lmst":
+        return f"at sol {tag.sol} {tag.clock()} LMST"
+    if tag.kind == "relative":
+        return f"{tag.after_s:g} s after the previous step"
+    return ""

@@ -25,8 +25,9 @@ from typing import Any
 
 from sqlalchemy import select
 
-from sequences.language import SequenceStep, TimeTag
+from sequences.language import SequenceStep
 from server.notices import QueueNotice
+from server.queue import tag_text
 from server.runtime import QueueEntry, RoverRuntime
 from server.storage import Store, commands
 from sim.world.marsclock import t_s_to_utc
@@ -42,17 +43,6 @@ def _when(runtime: RoverRuntime, t_s: float | None) -> dict[str, Any] | None:
     if t_s is None:
         return None
     return {"t_s": t_s, "utc": t_s_to_utc(t_s).isoformat(), "lmst_h": runtime.lmst_h(t_s)}
-
-
-def tag_text(tag: TimeTag) -> str:
-    """A step's time tag in words (empty: when the previous step completes)."""
-    if tag.kind == "lmst":
-        return f"at {tag.clock()} LMST"
-    if tag.kind == "sol_lmst":
-        return f"at sol {tag.sol} {tag.clock()} LMST"
-    if tag.kind == "relative":
-        return f"{tag.after_s:g} s after the previous step"
-    return ""
 
 
 def _step(

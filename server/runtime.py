@@ -25,21 +25,17 @@ its queue of accepted sequences, and a thread that runs the clock:
   that is refused (it could not run) stops the sequence, which ends ``failed``. A sequence
   that ran to the end is ``completed``, with the failed steps in its ``detail``.
 
-The runtime's state (session, queue, clock, frames still to play out) is checkpointed as plain data
-(``server.checkpoint``, versioned; ``checkpoint_state``) once per wall second through the storage
-writer, in the same transaction as the frames published before it. A runtime restored from a
-checkpoint resumes there; frames it publishes again up to the last stored one (``watermark_t_s``)
-are dropped, so storage has no duplicates. Steps it runs again (those after the checkpoint) report
-again, and storage keeps one row per step (``server.storage``).
+The state (session, queue, clock, play-out, link) is checkpointed as plain data
+(``server.storage.checkpoint``) once per wall second through the storage writer, with the
+frames published before it; restored, it resumes there: frames published again up to the
+last stored (``watermark_t_s``) are dropped, steps run again keep one row each. A clock
+change, the operators' intent, is stored before ``set_clock`` returns; ``stop`` checkpoints.
 
-The clock is the operators' intent, so it survives any restart: a clock change is
-checkpointed at once (``commit`` stores it before ``set_clock`` returns) and again where it
-takes effect; ``stop`` checkpoints the state the clock thread stopped in.
-
-What the runtime publishes is the rover's downlink with the truth beside it
-(``server.sinks.FrameBatch``); ``last_frame`` is the latest downlink record played out, and
-``reported`` what the rover's events report of its onboard tables (NATE's parameters, its
-keep-out zones, its mobility fault): the ground's view (``server.validation.reported``).
+What it publishes is the downlink with the truth beside it (``server.sinks.FrameBatch``);
+``last_frame`` is the newest downlink on the ground, ``reported`` what its events report of
+the onboard tables (``server.validation.reported``). Across light time (``comm``,
+``server.comm.hosting``) sequences wait for their uplink window, the downlink for a pass,
+the truth goes out live.
 """
 
 from __future__ import annotations
@@ -55,7 +51,6 @@ from typing import Any
 
 from sequences import commands as cmd
 from sequences.language import Sequence, TimeTag
-from server.checkpoint import CheckpointFormatError, decode, encode
 from server.comm.hosting import CancelSent, CommMode, RuntimeComm
 from server.queue import (
     Cancelled,
@@ -72,6 +67,7 @@ from server.queue import (
 )
 from server.rovers import ROVERS, ClockState, RoverSpec
 from server.sinks import FrameBatch, FrameSink, PlayedFrame, RuntimeListener, with_truth
+from server.storage.checkpoint import CheckpointFormatError, decode, encode
 from server.storage.records import CommandRecord
 from server.validation.reported import ReportedState
 from sim.loop.downlink import DownlinkDict
@@ -197,9 +193,8 @@ class RoverRuntime:
         self.listener.commit()
 
     def enqueue(self, sequence_id: int, sequence: Sequence, immediate: bool = False) -> None:
-        """Queue an accepted sequence. An immediate command goes before the sequences but
-        after the immediate commands sent before it, so commands run in the order sent.
-        Across light time the ground radiates it at its next window (``server.comm``)."""
+        """Queue an accepted sequence (across light time: at its next uplink window). An
+        immediate command goes before the sequences, after those sent before it."""
         entry = QueuedSequence(sequence_id, sequence, immediate=immediate)
         if self.comm.uplink(entry):
             self._queue_changed(commit=True)
@@ -217,10 +212,9 @@ class RoverRuntime:
         self._queue_changed()
 
     def cancel(self, sequence_id: int) -> Cancelled | CancelSent | None:
-        """Drop a queued sequence (a running one stops after its current command); where it
-        stopped, or ``None`` if it is not queued. Stored before this returns. Across light
-        time a sequence still on the ground is dropped there; one radiated is cancelled by
-        a cancel that goes up (``CancelSent``: the rover reports what it found)."""
+        """Drop a queued sequence (a running one stops after its current command): where it
+        stopped, or ``None`` if not queued; stored before this returns. Across light time,
+        ``RuntimeComm.cancel`` (a cancel may go up: ``CancelSent``)."""
         if self.comm.mission is None:
             return self.cancel_onboard(sequence_id)
         found = self.comm.cancel(sequence_id)
@@ -424,13 +418,9 @@ class RoverRuntime:
     def _start_time(self, tag: TimeTag) -> float:
         return start_time(tag, self.spec.mission, self.session.sim.t_s, self._last_done_t_s)
 
-    @property
-    def running(self) -> bool:
-        """Whether the clock thread runs."""
-        return self._thread is not None and self._thread.is_alive()
+    running = property(lambda self: self._thread is not None and self._thread.is_alive())
 
-    def idle_until(self, t_s: float) -> None:
-        """The rover idles until ``t_s`` (an uplink arrives then: nothing runs before)."""
+    def idle_until(self, t_s: float) -> None:  # an uplink arrives then: nothing runs before
         self._idle(t_s - self.session.sim.t_s)
 
     def session_changed(self) -> None:
@@ -540,8 +530,7 @@ class RoverRuntime:
     def _sequence_status(self, sequence_id: int, status: str, detail: str | None) -> None:
         self.comm.sequence_status(sequence_id, status, detail, self.session.sim.t_s)
 
-    def publish(self, batch: FrameBatch) -> None:
-        """Hand a batch to every sink (on the clock thread)."""
+    def publish(self, batch: FrameBatch) -> None:  # to every sink, on the clock thread
         for sink in self.sinks:
             sink.publish(self.spec.name, batch)
 
@@ -555,7 +544,7 @@ class RoverRuntime:
             self._save(self.checkpoint_state())
 
     def checkpoint_state(self) -> dict[str, Any]:
-        """The runtime's state as plain data (``server.checkpoint``): session, queue (as
+        """The runtime's state as plain data (``server.storage.checkpoint``): session, queue (as
         texts), clock, play-out, step executing. The caller holds ``lock``, between commands."""
         return {
             "estimators": list(self.estimators),
@@ -581,8 +570,8 @@ class RoverRuntime:
     @classmethod
     def restore(cls, spec: RoverSpec, blob: bytes, listener: RuntimeListener | None = None,
                 sinks: Iterable[FrameSink] = ()) -> RoverRuntime:  # fmt: skip
-        """A runtime from a checkpoint blob (``server.checkpoint``); ``CheckpointFormatError``
-        for a blob it cannot read (the caller starts the rover fresh)."""
+        """A runtime from a checkpoint blob (``server.storage.checkpoint``);
+        ``CheckpointFormatError`` for one it cannot read (the caller starts the rover fresh)."""
         state = decode(spec.name, blob)
         try:
             runtime = cls(spec, estimators=tuple(state["estimators"]), listener=listener,

@@ -47,7 +47,13 @@ TRUTH_CARRIERS = frozenset({
     "server.api.telemetry_csv",  # its CSV columns
     "server.scene3d.scene",  # the 3D view's truth layer
 })  # fmt: skip
-SIMULATOR_HOSTS = frozenset({"server.runtime"})  # hosts the rover sessions
+SIMULATOR_HOSTS = frozenset({
+    "server.runtime",  # hosts the rover sessions
+    # host the link across light time (sim.comm.link: the rover's store, what is on its way)
+    # and hand the live truth on; what the ground reads of them is their ground_view
+    "server.comm.hosting",
+    "server.comm.mission",
+})  # fmt: skip
 # The conductor's faults as data (what can fail, with which parameters): read only by the
 # modules that serve the conductor's fault routes, never by the ground's.
 FAULT_RECORDS = "sim.faults.records"

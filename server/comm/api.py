@@ -44,7 +44,7 @@ class PlanBody(BaseModel):
     """``PUT .../comm/plan``: the fields to change (``sim.comm.plan.CommPlan``, its ranges
     checked there); absent ones keep their values."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", strict=True)
     uplink_lmst_h: float | None = _hours("the morning uplink window opens (LMST, hours)")
     uplink_minutes: float | None = _hours("its length")
     uplink_rate_bps: float | None = _hours("its rate")

@@ -15,8 +15,7 @@ from typing import Any
 from sqlalchemy import select
 
 from server.comm.view import when
-from server.queue import QueuedSequence
-from server.queue_view import tag_text
+from server.queue import QueuedSequence, tag_text
 from server.runtime import RoverRuntime
 from server.storage import Store, commands
 

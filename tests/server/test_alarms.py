@@ -14,6 +14,7 @@ import pytest
 
 from server.alarms import AlarmConflictError, AlarmEngine, UnknownAlarmError
 from server.limits import LimitsError
+from server.sinks import FrameBatch
 from server.storage import Store
 from tests.frame_batches import batch
 
@@ -280,3 +281,37 @@ def test_an_operator_shelves_an_alarm_for_a_duration_of_the_rovers_clock(rig: Ri
     assert rig.engine.unshelve(after["id"], "bob")["shelved"] is None
     with pytest.raises(AlarmConflictError):
         rig.engine.unshelve(after["id"], "bob")
+
+
+def test_data_that_comes_down_late_is_judged_with_its_own_time_and_arrival(rig: Rig) -> None:
+    """Across light time: the downlink alone, when it reaches the ground (``received_t_s``).
+    An alarm names the data's time and its arrival; data older than the newest judged (a pass
+    filling in what it sent decimated) never raises an alarm as if it were now."""
+
+    def arrive(received_t_s: float, *frames: dict[str, Any]) -> None:
+        whole = batch([{"aqf": "Fine", "command": "", **f} for f in frames])
+        rig.engine.publish("spirit", FrameBatch(whole.downlink, [], received_t_s))
+
+    arrive(5_000.0, {"t_s": 100.0, "tilt_accel_deg": 10.0}, {"t_s": 400.0, "tilt_accel_deg": 27.0})
+    (alarm,) = rig.alarms()
+    assert alarm["raised"]["t_s"] == 400.0  # the data's own time, not the arrival
+    assert alarm["received"]["t_s"] == 5_000.0
+    assert "received" in rig.notices[-1]["alarm"] and rig.notices[-1]["alarm"]["received"]
+    # a pass fills in a frame from before the newest judged: not judged, however bad
+    arrive(6_000.0, {"t_s": 200.0, "imu_integration_s": 99_999.0})
+    assert [a["channel"] for a in rig.alarms()] == ["tilt_accel_deg"]
+    # newer data is judged, and clears with its own time
+    arrive(7_000.0, {"t_s": 500.0, "tilt_accel_deg": 10.0})
+    assert rig.alarms()[0]["cleared"]["t_s"] == 500.0
+
+
+def test_the_live_truth_alone_judges_only_the_truth_channels(rig: Rig) -> None:
+    rig.engine.set_limits("spirit", "hga_margin_deg", {"warning": 0.5, "critical": 0.0}, "op", None)
+    whole = batch([{"t_s": 10.0, "aqf": "Fine", "command": "", "tilt_accel_deg": 40.0,
+                    "earth_up": True, "hga_margin_deg": -5.0}])  # fmt: skip
+    rig.engine.publish("spirit", FrameBatch([], whole.truth))
+    alarms = rig.alarms()
+    # the truth channel judged on the truth alone; the rover's own tilt is not in it
+    assert [(a["channel"], a["truth"], a["level"]) for a in alarms] == [
+        ("hga_margin_deg", True, "critical")
+    ]

@@ -1,9 +1,10 @@
-"""Checkpoints as versioned plain data (``server.checkpoint``): a session restored from the
+"""Checkpoints as versioned plain data (``server.storage.checkpoint``): a session restored from the
 bytes runs on as the uninterrupted one, number for number; a blob of another format, or of
 none, is refused with a message saying that the rover starts fresh."""
 
 from __future__ import annotations
 
+import json
 import math
 import pickle
 from datetime import UTC, datetime
@@ -14,9 +15,9 @@ import numpy as np
 import pytest
 
 from sequences import commands as cmd
-from server.checkpoint import CHECKPOINT_FORMAT, CheckpointFormatError, decode, encode
 from server.runtime import ROVERS, RoverRuntime
 from server.sinks import FrameBatch
+from server.storage.checkpoint import CHECKPOINT_FORMAT, CheckpointFormatError, decode, encode
 from sim.loop.rover_sim import RoverSim
 from sim.loop.session import RoverSession
 from sim.scoring.truth import merged
@@ -77,6 +78,15 @@ def test_encode_takes_plain_data_only() -> None:
     back = decode("spirit", encode("spirit", state))
     np.testing.assert_array_equal(back["a"], state["a"])
     assert back["a"].dtype == np.int64 and back["b"] == state["b"] and back["c"] == -np.inf
+
+
+def test_a_large_checkpoint_is_compressed_and_reads_back_whole() -> None:
+    state = {"frames": [{"t_s": float(i), "x": [0.5] * 20} for i in range(2_000)]}
+    blob = encode("spirit", state)
+    assert blob[:1] == b"Z" and len(blob) < len(json.dumps(state)) / 4
+    assert decode("spirit", blob) == state
+    with pytest.raises(CheckpointFormatError):
+        decode("spirit", b"Z" + b"not zlib at all")
 
 
 def test_a_pickle_of_an_older_roverops_is_refused_and_says_the_rover_starts_fresh() -> None:

@@ -15,10 +15,10 @@ import pytest
 
 from sequences.language import Sequence
 from sequences.validate import validate
-from server.checkpoint import decode
 from server.runtime import FRAME_EVERY_S, ROVERS, RoverRuntime
 from server.sinks import FrameBatch
 from server.state import Server, ServerConfig
+from server.storage.checkpoint import decode
 from server.storage.store import json_dumps
 from sim.loop.session import RoverSession
 from tests.runtime_listener import RecordingListener

@@ -32,9 +32,7 @@ def wait_for(what: Callable[[], Any], why: str, timeout_s: float = 180.0) -> Any
 
 @pytest.fixture
 def server() -> Iterator[Server]:
-    server = Server.open(
-        ServerConfig(database_url="sqlite://", start_clocks=False, comm="mission")
-    )
+    server = Server.open(ServerConfig(database_url="sqlite://", start_clocks=False, comm="mission"))
     server.start()
     try:
         yield server
