@@ -385,6 +385,7 @@ class RoverRuntime:
             sim_t = self.session.sim.t_s
         if target <= sim_t + 1e-6:
             assert step is not None
+            self.comm.onboard_until(sim_t)  # a cancel or a sequence that arrived meanwhile
             self._execute(step[0])
             return at_max
         if math.isinf(speed):

@@ -26,13 +26,12 @@ from collections.abc import Iterable, Mapping
 from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING, Any, Literal, Protocol
 
-from sim.comm.plan import CommPlan
-
 from server.comm.mission import MissionLink, stage_of
 from server.queue import Cancelled, QueuedSequence
 from server.sinks import FrameBatch, PlayedFrame, RuntimeListener
 from server.storage.records import CommandRecord
 from sim.comm.link import CommLink
+from sim.comm.plan import CommPlan
 from sim.world.marsclock import get_mission
 
 if TYPE_CHECKING:
@@ -244,6 +243,11 @@ class RuntimeComm:
     def advance(self, t_s: float) -> None:
         if self.mission is not None:
             self.mission.advance(t_s)
+
+    def onboard_until(self, t_s: float) -> None:
+        """Before the rover starts a step at ``t_s``: what has reached it by then."""
+        if self.mission is not None:
+            self.mission.onboard_until(t_s)
 
     def next_due_t_s(self) -> float:
         """When the link next brings something (``inf`` with the link instant)."""

@@ -27,12 +27,11 @@ import math
 from collections.abc import Mapping
 from typing import Any, Protocol
 
-from sim.comm.plan import CommPlan
-
 from sequences.language import to_text
 from server.queue import QueuedSequence
 from server.sinks import FrameBatch
 from sim.comm.link import CommLink, Progress, Sent, Uplink
+from sim.comm.plan import CommPlan
 from sim.comm.store import HEADER_BITS
 from sim.loop.downlink import DownlinkDict
 
@@ -114,6 +113,12 @@ class MissionLink:
         progress = self.link.advance(t_s)
         if progress.radiated or progress.onboard or progress.on_ground:
             self._hand_on(progress)
+
+    def onboard_until(self, t_s: float) -> None:
+        """What has reached the rover by its clock ``t_s`` (before it starts a step)."""
+        arrived = self.link.onboard_until(t_s)
+        if arrived:
+            self._hand_on(Progress(onboard=arrived))
 
     def _hand_on(self, progress: Progress) -> None:
         for uplink in progress.radiated:

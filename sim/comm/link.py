@@ -223,8 +223,15 @@ class CommLink:
             self.up_t_s = when[1]
             bisect.insort(self.rising, uplink, key=lambda u: (u.arrival_t_s, u.id))
             progress.radiated.append(uplink)
-        while self.rising and _arrival(self.rising[0]) <= t_to_s:
-            progress.onboard.append(self.rising.pop(0))
+        progress.onboard += self.onboard_until(t_to_s)
+
+    def onboard_until(self, t_s: float) -> list[Uplink]:
+        """The uplinks on their way that have reached the rover by ``t_s`` (the rover's
+        clock, which may run ahead of the ground's while a command executes)."""
+        arrived = []
+        while self.rising and _arrival(self.rising[0]) <= t_s:
+            arrived.append(self.rising.pop(0))
+        return arrived
 
     # ---- down ---------------------------------------------------------------------------
 

@@ -52,7 +52,8 @@ def test_a_new_rover_raises_its_alarms_and_the_timeline_shows_them(client: TestC
     assert 8.5 < raised["lmst_h"] < 8.6
     assert set(aqf) == {"id", "rover", "channel", "level", "truth", "value", "limit", "units",
                         "message", "violations", "raised", "acknowledged", "cleared", "latest",
-                        "spans", "shelved"}  # fmt: skip
+                        "spans", "shelved", "received"}  # fmt: skip
+    assert aqf["received"] is None  # the link is instant: the data came down as it was made
     assert aqf["latest"]["value"] == "Unknown" and aqf["latest"]["t_s"] >= raised["t_s"]
     assert aqf["spans"] == [{"from_t_s": raised["t_s"], "to_t_s": None}]
     assert opportunity_is_quiet(client)
