@@ -286,8 +286,8 @@ class CommWalk:
                 return  # no window known before the deadline, and none known after it
             text = (
                 f"sol {sol}'s plan cannot build on this drive: no downlink window is "
-                f"predicted from its end ({ctx.clock(end)}) to {ctx.clock(timing.horizon_t_s)}, "
-                f"after the {due}"
+                f"predicted between its end ({ctx.clock(end)}) and "
+                f"{ctx.clock(timing.horizon_t_s)}, so its results reach the ground after the {due}"
             )
             self.warn(step, "restricted-sol", text)
             return

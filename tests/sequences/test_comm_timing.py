@@ -195,7 +195,7 @@ def test_a_drive_with_no_pass_known_after_it() -> None:
     text = "@ 12:00 LMST DRIVE_STRAIGHT distance_m=3.75\n"
     result = validate(text, context(timing(windows=windows)))
     assert codes(result) == [(1, 14, "restricted-sol")]
-    assert "no downlink window is predicted from its end" in result.warnings[0].message
+    assert "no downlink window is predicted between its end" in result.warnings[0].message
     # the windows known stop before the deadline: nothing can be said
     short = timing(windows=windows, horizon_t_s=at(286, 17.0))
     assert codes(validate(text, context(short))) == []
