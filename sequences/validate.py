@@ -53,6 +53,7 @@ from estimation.sapp.nadir import NadirParams
 from estimation.sapp.nate_io import FINE_TO_COARSE_S, NateParams
 from estimation.sapp.sun_modes import SungazeParams
 from sequences import commands as cmd
+from sequences.comm_timing import CommTiming, CommWalk
 from sequences.drive_safety import DriveSafety
 from sequences.language import (
     Diagnostic,
@@ -111,6 +112,10 @@ CODES: dict[str, str] = {
     "drive-after-halt": "warning",
     "drive-timeout": "warning",
     "lmst-limit": "warning",
+    # from sequences.comm_timing (a rover whose link crosses the light time)
+    "before-onboard": "warning",
+    "no-uplink": "warning",
+    "restricted-sol": "warning",
 }
 """Every diagnostic code and its severity; docs/sequences.md explains each."""
 
@@ -192,7 +197,10 @@ class ValidationContext:
     ``p_s_est`` (North, East, m in Site ``site_index``) and ``heading_rad`` the rover's
     reported estimate, ``position_sigma_m`` its reported uncertainty, ``keepout_zones`` the
     zones it reports holding and ``mobility_fault`` the halt that disabled its mobility, if
-    one did: the drives' checks (``sequences.drive_safety``).
+    one did: the drives' checks (``sequences.drive_safety``). ``comm``: the rover's link
+    when it crosses the light time (``None``: instant, the sequence onboard at
+    ``start_t_s``): the walk then starts when the sequence is onboard, and warns about tags
+    before that and drives whose results miss the planning time (``sequences.comm_timing``).
     """
 
     start_t_s: float
@@ -212,6 +220,7 @@ class ValidationContext:
     position_sigma_m: float = 0.0
     keepout_zones: tuple[KeepOutZone, ...] = ()
     mobility_fault: str | None = None
+    comm: CommTiming | None = None
 
     def __post_init__(self) -> None:
         if self.aqf not in AQF_RANK:
@@ -262,7 +271,7 @@ def validate(
     if context is None:
         _check_ephemeris_sols(sequence, result)
     elif sequence.steps:
-        _Prediction(context, result).walk(sequence.steps)
+        _Prediction(context, result, sequence).walk(sequence.steps)
     result.errors.sort(key=_order)  # stable: JSON diagnostics (all at 0:0) keep step order
     result.warnings.sort(key=_order)
     result.errors = _capped(result.errors, "error")
@@ -302,7 +311,7 @@ def _diag(
 ) -> Diagnostic:
     """A diagnostic about ``step``: at its time tag for the time codes, else its keyword; a
     JSON step's location (``steps[3].time: ``) starts the message."""
-    tagged = code.startswith(("time", "tag")) or (
+    tagged = code.startswith(("time", "tag", "before-onboard")) or (
         code == "beyond-ephemeris" and step.time_tag.kind == "sol_lmst"
     )
     column = step.tag_column if tagged and step.tag_column else step.column
@@ -420,9 +429,14 @@ def _drive_times_s(
 class _Prediction:
     """The walk of the module docstring: start times, AQF and IMU time per command."""
 
-    def __init__(self, context: ValidationContext, result: ValidationResult) -> None:
+    def __init__(
+        self, context: ValidationContext, result: ValidationResult, sequence: Sequence
+    ) -> None:
         self.ctx, self.result = context, result
-        self.t_s = context.start_t_s
+        self.comm: CommWalk | None = None
+        if context.comm is not None:
+            self.comm = CommWalk.start(self.warn, context, context.comm, sequence)
+        self.t_s = context.start_t_s if self.comm is None else self.comm.start_t_s
         self.aqf: str = context.aqf
         self.imu_s = context.imu_integration_s
         self.articulating = context.articulating
@@ -444,6 +458,8 @@ class _Prediction:
                 return  # nothing past the ephemeris can be predicted
             self.check_start(step, start, duration)
             self.safety.step(step, start, duration)
+            if self.comm is not None:
+                self.comm.step(step, start, duration)
             self.advance(step, duration)
             self.t_s = start + duration
 
@@ -457,21 +473,28 @@ class _Prediction:
         if tag.kind == "sol_lmst":
             at = ctx.t_s_for(tag.sol or 0, lmst_h)
             if at < now - _EPS_S:
-                late = ctx.clock(now)
-                text = f"{_tag_words(tag)} has passed when it comes up ({late}): it starts late"
-                self.warn(step, "tag-passed", text)
+                if self.comm is None or not self.comm.before_onboard(step, at, now):
+                    late = ctx.clock(now)
+                    text = f"{_tag_words(tag)} has passed when it comes up ({late}): it starts late"
+                    self.warn(step, "tag-passed", text)
                 return now
             return at
         sol = ctx.sol(now)
         at = ctx.t_s_for(sol, lmst_h)
-        if at < now - _EPS_S:
-            at = ctx.t_s_for(sol + 1, lmst_h)
-            if i > 0:
-                text = (
-                    f"the commands before end at {ctx.clock(now)}, after {tag.clock()} LMST: "
-                    f"this one waits until sol {sol + 1}"
-                )
-                self.warn(step, "tag-next-sol", text)
+        passed = at < now - _EPS_S
+        if passed:
+            sol += 1
+            at = ctx.t_s_for(sol, lmst_h)
+        if self.comm is not None and self.comm.before_onboard(  # the reading before it
+            step, ctx.t_s_for(sol - 1, lmst_h), at, since_t_s=ctx.start_t_s
+        ):
+            return at
+        if passed and i > 0:
+            text = (
+                f"the commands before end at {ctx.clock(now)}, after {tag.clock()} LMST: "
+                f"this one waits until sol {sol}"
+            )
+            self.warn(step, "tag-next-sol", text)
         return at
 
     def beyond_ephemeris(self, step: SequenceStep, start: float, duration: float) -> None:

@@ -36,6 +36,7 @@ from scipy.spatial.transform import Rotation
 from estimation.protection.keepout import KeepOutZone
 from estimation.sapp.nate import NateParams
 from sequences.validate import AqfName, ValidationContext
+from server.validation.comm_context import RoverLink, rover_link
 from sim.world.ephemeris import C_KM_S, Body, astrometric_from_mars_j2000_km, coverage_t_s
 from sim.world.ephemeris import mars_velocity_j2000_km_s as mars_velocity
 from sim.world.mars_frames import R_ll_mf, R_mf_j2000, iau_mars_angles_rad, site_mf_m
@@ -186,10 +187,12 @@ class RoverSite:
     position_sigma_m: float = 0.0
     keepout_zones: tuple[KeepOutZone, ...] = ()
     mobility_fault: str | None = None
+    comm: RoverLink | None = None  # the link across the light time; None: instant
 
     def context(self) -> ValidationContext:
         """The ``ValidationContext`` of this site (``site_context``), with the drives'
-        state (``sequences.drive_safety``)."""
+        state (``sequences.drive_safety``) and the link's timing
+        (``server.validation.comm_context``)."""
         base = site_context(
             self.mission,
             self.lat_rad,
@@ -208,6 +211,7 @@ class RoverSite:
             position_sigma_m=self.position_sigma_m,
             keepout_zones=self.keepout_zones,
             mobility_fault=self.mobility_fault,
+            comm=self.comm.timing() if self.comm is not None else None,
         )
 
 
@@ -218,7 +222,8 @@ def rover_site(runtime: RoverRuntime) -> RoverSite:
     the NATE parameters it has reported setting (``reported``; NATE's defaults
     otherwise), its estimated pose and position uncertainty, and the keep-out zones and
     mobility fault its events report (``server.validation.reported``). Never from the live
-    session, which may be a command ahead of the clock."""
+    session, which may be a command ahead of the clock. Across the light time, its link
+    (``server.validation.comm_context.rover_link``) of the same moment."""
     landing = site(runtime.spec.site)
     with runtime.lock:
         last = runtime.last_frame  # a played-out record is never changed: no copy needed
@@ -226,6 +231,7 @@ def rover_site(runtime: RoverRuntime) -> RoverSite:
         params = dict(runtime.reported.params)
         zones = tuple(runtime.reported.zones.values())
         fault = runtime.reported.mobility_fault
+        link = rover_link(runtime)
     pose = _reported_pose(last)
     return RoverSite(
         runtime.spec.mission,
@@ -243,6 +249,7 @@ def rover_site(runtime: RoverRuntime) -> RoverSite:
         position_sigma_m=pose[2],
         keepout_zones=zones,
         mobility_fault=fault,
+        comm=link,
     )
 
 
