@@ -45,7 +45,7 @@ import math
 import threading
 import time
 from collections import deque
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import asdict
 from typing import Any
 
@@ -240,10 +240,8 @@ class RoverRuntime:
         return stopped
 
     def move(self, sequence_id: int, to: int) -> None:
-        """Put a queued sequence at position ``to`` (0 is the head), the others keeping
-        their order. Refused (``QueueError`` saying why; nothing changes) for a sequence
-        that has started or an immediate command, in front of one, or past the end
-        (module docstring). Stored before this returns."""
+        """Put a queued sequence at position ``to`` (0 is the head); ``QueueError`` saying
+        why for a started one or an immediate command, in front of one, past the end."""
         with self.lock:
             items = moved(self.queue, sequence_id, to, self.spec.name)
             if items is None:
@@ -263,13 +261,14 @@ class RoverRuntime:
             return snapshot(self.queue, self.current_step)
 
     def _checkpoint_queue(self, removed: int | None = None) -> None:
-        """Apply a queue change to the last checkpoint and store it (the caller holds
-        ``lock``), as ``set_clock`` does a clock change: the session may be mid-command in
-        the clock thread, so its state is not taken from here (``server.queue.merged``)."""
-        if self._last_state is None or self.listener is None:
-            return
-        queue = merged(self._last_state["queue"], self.queue, removed)
-        self._save({**self._last_state, "queue": queue})
+        """A queue change into the last checkpoint, stored (the session may be mid-command in
+        the clock thread, so its state is not taken from here: ``server.queue.merged``)."""
+        self.amend_checkpoint(lambda last: {"queue": merged(last["queue"], self.queue, removed)})
+
+    def amend_checkpoint(self, change: Callable[[dict[str, Any]], dict[str, Any]]) -> None:
+        with self.lock:  # the last checkpoint stored again with change(last)'s parts
+            if self._last_state is not None and self.listener is not None:
+                self._save({**self._last_state, **change(self._last_state)})
 
     def _queue_changed(self, commit: bool = False) -> None:
         """Store a queue change at once (``commit``) and tell the listener of it."""
@@ -281,12 +280,10 @@ class RoverRuntime:
 
     # ---- state for the API ----------------------------------------------------------
 
-    def lmst_h(self, t_s: float) -> float:
-        """LMST at the rover's mission site, hours."""
+    def lmst_h(self, t_s: float) -> float:  # LMST at the rover's mission site, hours
         return float(lmst_h_from_t_s(t_s, get_mission(self.spec.mission).lon_west_deg))
 
-    def sol(self, t_s: float) -> int:
-        """MER sol number at ``t_s``."""
+    def sol(self, t_s: float) -> int:  # MER sol number at t_s
         return int(sol_number_t_s(self.spec.mission, t_s))
 
     def clock_text(self) -> str:

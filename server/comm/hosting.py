@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 import threading
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING, Any, Literal, Protocol
 
@@ -91,6 +91,8 @@ class Hosted(Protocol):
     def idle_until(self, t_s: float) -> None: ...
 
     def session_changed(self) -> None: ...
+
+    def amend_checkpoint(self, change: Callable[[dict[str, Any]], dict[str, Any]]) -> None: ...
 
 
 class RuntimeComm:
@@ -161,9 +163,31 @@ class RuntimeComm:
                 self.stage(entry.sequence_id, stage, t_s)
             return False
         with self.runtime.lock:
-            self.mission.uplink_sequence(entry, t_s)
+            uplink = self.mission.uplink_sequence(entry, t_s)
+            self._amend_waiting(lambda waiting: [*waiting, asdict(uplink)], uplink.id)
         self.stage(entry.sequence_id, "waiting", t_s)
         return True
+
+    def _amend_waiting(
+        self, change: Callable[[list[dict[str, Any]]], list[dict[str, Any]]], next_id: int
+    ) -> None:
+        """A change of the ground's uplink queue stored at once: applied to the last
+        checkpoint's (the clock thread may be mid-command, so the link's state now is not
+        the checkpoint's), as the runtime does a queue change (caller holds the lock)."""
+
+        def amended(last: dict[str, Any]) -> dict[str, Any]:
+            comm = last.get("comm") or {}
+            mission = comm.get("mission")
+            if mission is None:  # checkpointed before the mode changed: the tick stores it
+                return {}
+            link = {
+                **mission["link"],
+                "waiting": change(mission["link"]["waiting"]),
+                "next_uplink_id": max(int(mission["link"]["next_uplink_id"]), next_id + 1),
+            }
+            return {"comm": {**comm, "mission": {**mission, "link": link}}}
+
+        self.runtime.amend_checkpoint(amended)
 
     def cancel(self, sequence_id: int) -> Cancelled | CancelSent | None:
         """Across light time: a sequence still on the ground is dropped there (``Cancelled``);
@@ -181,11 +205,15 @@ class RuntimeComm:
             )
             if waiting is not None:
                 self.mission.withdraw(sequence_id)
+                self._amend_waiting(
+                    lambda ws: [w for w in ws if int(w["id"]) != waiting.id], waiting.id
+                )
                 steps = len(QueuedSequence.from_state(waiting.payload).sequence.steps)
                 return Cancelled(steps=steps, done=0, running_step=None)
             if sequence_id not in self.mission.radiated_ids:
                 return None
             uplink = self.mission.uplink_cancel(sequence_id, self.runtime.t_s)
+            self._amend_waiting(lambda ws: [*ws, asdict(uplink)], uplink.id)
         self.stage(sequence_id, "cancel accepted", self.runtime.t_s)
         return CancelSent(sequence_id, uplink.id)
 
