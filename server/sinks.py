@@ -72,12 +72,15 @@ class FrameBatch:
 
 
 def with_truth(downlink: DownlinkDict | None, truth: TruthDict | None) -> Frame | None:
-    """``downlink`` merged with its ``truth`` record (``sim.scoring.truth.merged``) when
-    there is one of its time, else ``downlink`` as it is."""
+    """``downlink`` merged with its ``truth`` record (``sim.scoring.truth.merged``); across
+    light time, with the newest truth of another time (``live_frame``); with no truth,
+    ``downlink`` as it is."""
     if downlink is None:
         return None
-    if truth is None or truth["t_s"] != downlink["t_s"]:
+    if truth is None:
         return dict(downlink)
+    if truth["t_s"] != downlink["t_s"]:
+        return live_frame(downlink, truth)
     return merged(downlink, truth)
 
 

@@ -4,9 +4,10 @@ A team shares a rover the way Yamcs and Aerie let it: each person has a user wit
 and each role may do all that the ones before it may:
 
 - ``viewer``: read everything (telemetry, sequences, timelines, the 3D view);
-- ``operator``: also upload and cancel sequences, send immediate commands, run the clock;
+- ``operator``: also upload and cancel sequences, send immediate commands, run the clock,
+  change a rover's comm plan;
 - ``conductor``: also the test conductor's actions (fault injection, rehearsal campaigns);
-- ``admin``: also manage users and tokens, and read the audit log.
+- ``admin``: also manage users and tokens, read the audit log, change a rover's comm mode.
 
 A token is 256 random bits (``secrets.token_urlsafe(32)``), shown once when issued and
 stored only as its SHA-256: a hash of a high-entropy token cannot be reversed or guessed,
