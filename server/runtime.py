@@ -315,9 +315,10 @@ class RoverRuntime:
             }
 
     def _effective_speed(self) -> float:
-        """The speed the clock runs at now: ``speed``, except at max with nothing queued or
-        playing out (``IDLE_SPEED_AT_MAX``). The caller holds ``lock``."""
-        if math.isinf(self.clock.speed) and not self.queue and not self._playout:
+        """The speed the clock runs at now: ``speed``, except at max with nothing queued,
+        playing out or on its way (``IDLE_SPEED_AT_MAX``). The caller holds ``lock``."""
+        idle = not self.queue and not self._playout and self.comm.next_due_t_s() == math.inf
+        if math.isinf(self.clock.speed) and idle:
             return IDLE_SPEED_AT_MAX
         return self.clock.speed
 

@@ -147,7 +147,13 @@ class RuntimeComm:
             self._start(self.runtime.t_s)
         elif mode == "instant" and self.mission is not None:
             mission = self.mission
-            mission._hand_on(mission.link.drain(self.runtime.t_s))
+            # what the rover answers (a receipt, a cancel's outcome) goes through as well
+            while (
+                (got := mission.link.drain(self.runtime.t_s)).radiated
+                or got.onboard
+                or (got.on_ground)
+            ):
+                mission.hand_on(got)
             self.mission = None
         self._applied.set()
 
@@ -278,10 +284,17 @@ class RuntimeComm:
             self.mission.onboard_until(t_s)
 
     def next_due_t_s(self) -> float:
-        """When the link next brings something (``inf`` with the link instant)."""
-        if self.mission is None:
+        """When the link next brings something the operators wait for: while a sequence is
+        on the ground, on its way or onboard unreported (``inf`` otherwise, and with the link
+        instant: at max speed the idle clock then runs in real time, as without light time)."""
+        mission = self.mission
+        if mission is None:
             return math.inf
-        return self.mission.link.next_due_t_s()
+        with self.runtime.lock:
+            link = mission.link
+            if not (link.waiting or link.rising or mission.radiated_ids):
+                return math.inf
+            return link.next_due_t_s()
 
     # ---- the link's host (server.comm.mission.LinkHost) ----------------------------------
 

@@ -30,7 +30,7 @@ from typing import Any, Protocol
 from sequences.language import to_text
 from server.queue import QueuedSequence
 from server.sinks import FrameBatch
-from sim.comm.link import CommLink, Progress, Sent, Uplink
+from sim.comm.link import SEARCH_SOLS, CommLink, Progress, Sent, Uplink
 from sim.comm.plan import CommPlan
 from sim.comm.store import HEADER_BITS
 from sim.loop.downlink import DownlinkDict
@@ -111,16 +111,24 @@ class MissionLink:
     def advance(self, t_s: float) -> None:
         """The link up to ``t_s``, and everything it brought handed on."""
         progress = self.link.advance(t_s)
-        if progress.radiated or progress.onboard or progress.on_ground:
-            self._hand_on(progress)
+        if progress.radiated or progress.onboard or progress.on_ground or progress.unsent:
+            self.hand_on(progress)
 
     def onboard_until(self, t_s: float) -> None:
         """What has reached the rover by its clock ``t_s`` (before it starts a step)."""
         arrived = self.link.onboard_until(t_s)
         if arrived:
-            self._hand_on(Progress(onboard=arrived))
+            self.hand_on(Progress(onboard=arrived))
 
-    def _hand_on(self, progress: Progress) -> None:
+    def hand_on(self, progress: Progress) -> None:
+        for uplink in progress.unsent:
+            window = self.plan.uplink_minutes * 60.0 * self.plan.uplink_rate_bps
+            detail = (
+                f"not radiated: no uplink window in the next {SEARCH_SOLS} sols holds "
+                f"its {uplink.bits} bits (a whole window holds at most {window:.0f})"
+            )
+            self.host.stage(uplink.sequence_id, "not radiated", self.link.t_s, detail)
+            self.host.status_arrived(uplink.sequence_id, "failed", detail)
         for uplink in progress.radiated:
             assert uplink.radiated_t_s is not None
             what = "radiated" if uplink.kind == "sequence" else "cancel radiated"

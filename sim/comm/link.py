@@ -117,6 +117,7 @@ class Progress:
 
     radiated: list[Uplink] = field(default_factory=list)
     onboard: list[Uplink] = field(default_factory=list)
+    unsent: list[Uplink] = field(default_factory=list)  # too big for every window ahead
     on_ground: list[Sent] = field(default_factory=list)
 
 
@@ -215,7 +216,10 @@ class CommLink:
         while self.waiting:
             uplink = self.waiting[0]
             when = self.radiation(uplink, max(uplink.accepted_t_s, self.up_t_s))
-            if when is None or when[1] > t_to_s:
+            if when is None:  # no window of SEARCH_SOLS holds it: it would block the rest
+                progress.unsent.append(self.waiting.pop(0))
+                continue
+            if when[1] > t_to_s:
                 break
             self.waiting.pop(0)
             uplink.radiated_t_s = when[1]

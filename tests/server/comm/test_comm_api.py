@@ -128,3 +128,41 @@ def test_a_sequence_waits_on_the_ground_and_is_cancelled_there(served: Any) -> N
     assert gone.status_code == 200 and gone.json()["status"] == "cancelled", gone.text
     assert client.get("/api/rovers/spirit/queue").json()["queue"] == []
     assert client.get("/api/rovers/spirit/comm").json()["uplinks"] == []
+
+
+def test_back_to_instant_everything_on_its_way_goes_through(served: Any) -> None:
+    client, h, _ = served
+    client.post("/api/rovers/spirit/clock", json={"action": "pause"}, headers=h["operator"])
+    client.put("/api/rovers/spirit/comm/mode", json={"mode": "mission"}, headers=h["admin"])
+    up = client.post("/api/rovers/spirit/sequences", content="SEQUENCE s\nNADIR_UPDATE\n",
+                     headers={**h["operator"], "Content-Type": "text/plain"})  # fmt: skip
+    seq_id = up.json()["id"]
+    assert client.get("/api/rovers/spirit/queue").json()["queue"][0]["side"] == "ground"
+    client.put("/api/rovers/spirit/comm/mode", json={"mode": "instant"}, headers=h["admin"])
+    queue = client.get("/api/rovers/spirit/queue").json()["queue"]
+    assert [(e["sequence_id"], e["side"]) for e in queue] == [(seq_id, "onboard")]
+    got = client.get(f"/api/sequences/{seq_id}").json()
+    assert [s["stage"] for s in got["stages"]][:4] == [
+        "accepted",
+        "waiting",
+        "radiated",
+        "received",
+    ]
+
+
+def test_a_sequence_no_window_can_hold_fails_on_the_ground(served: Any) -> None:
+    client, h, _ = served
+    client.post("/api/rovers/spirit/clock", json={"action": "pause"}, headers=h["operator"])
+    client.put("/api/rovers/spirit/comm/mode", json={"mode": "mission"}, headers=h["admin"])
+    # a window of 1 min at 100 bit/s holds 6,000 bits: this sequence is bigger
+    client.put("/api/rovers/spirit/comm/plan", json={"uplink_minutes": 1, "uplink_rate_bps": 100},
+               headers=h["operator"])  # fmt: skip
+    text = "SEQUENCE big\n" + "NADIR_UPDATE\n" * 80
+    up = client.post("/api/rovers/spirit/sequences", content=text,
+                     headers={**h["operator"], "Content-Type": "text/plain"})  # fmt: skip
+    seq_id = up.json()["id"]
+    runtime = client.app.state.server.rovers["spirit"]  # type: ignore[attr-defined]
+    runtime.comm.advance(runtime.t_s + 1.0)
+    got = client.get(f"/api/sequences/{seq_id}").json()
+    assert got["status"] == "failed" and "not radiated" in got["detail"], got
+    assert client.get("/api/rovers/spirit/queue").json()["queue"] == []

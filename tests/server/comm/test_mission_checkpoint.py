@@ -74,7 +74,7 @@ def test_a_rover_restored_mid_link_delivers_what_an_uninterrupted_one_does() -> 
         return ground
 
     whole = run(None)
-    assert len(whole.downlink) > 100 and whole.truth
+    assert len(whole.downlink) > 50 and whole.truth  # the drive came down
     for stop_at in (37, 151, 263):
         again = run(stop_at)
         assert again.downlink == whole.downlink, f"stopped at tick {stop_at}"
