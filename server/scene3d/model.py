@@ -268,12 +268,19 @@ def draw_vectors(scene: viser.SceneApi, frame: Mapping[str, Any], pose: RoverPos
         )
 
 
-def status_text(frame: Mapping[str, Any], live: bool) -> str:
+def status_text(frame: Mapping[str, Any], live: bool, now_t_s: float | None = None) -> str:
     """The status line of a viewer: sol, LMST, live or replay, mode, AQF, and the position
-    error where the frame carries the truth."""
+    error where the frame carries the truth. Across light time (a frame with its
+    ``received_t_s``) the rover's time is its data's, with when it came down; the truth view's
+    truth is live (``truth_t_s``)."""
     h = float(frame["lmst_h"])
     clock = f"{int(h):02d}:{int(h * 60) % 60:02d}"
     mode = "live" if live else "replay"
+    received = frame.get("received_t_s")
+    if received is not None and now_t_s is not None:
+        mode = f"data received {max(0.0, now_t_s - received) / 60.0:.0f} min ago"
     text = f"Sol {frame['sol']} {clock} LMST ({mode}) · {frame['nate_mode']} · AQF {frame['aqf']}"
     error = frame.get("position_error_m")
+    if frame.get("truth_t_s") is not None:
+        text += " · truth live"
     return text + (f" · position error {error:.2f} m" if error is not None else "")

@@ -196,7 +196,7 @@ class Viewer:
                 return
             with self.client.atomic():
                 self._chase(p_w)
-                self.status.content = status_text(frame, live=True)
+                self.status.content = status_text(frame, live=True, now_t_s=self.scene.runtime.t_s)
                 if span is not None:
                     lo, hi = span
                     self.slider.min = math.floor(lo * 100.0) / 100.0
@@ -426,8 +426,8 @@ class RoverScene:
             return
         for d in sorted(batch.downlink, key=lambda d: d["t_s"]):
             if self._latest is None or d["t_s"] > self._latest["t_s"]:
-                shown = live_frame(d, self._live_truth) if self.truth else d
-                self._take(shown, true_track=False)
+                shown = live_frame(d, self._live_truth) if self.truth else dict(d)
+                self._take({**shown, "received_t_s": batch.received_t_s}, true_track=False)
 
     def _take(self, f: Mapping[str, Any], true_track: bool = True) -> None:
         self._latest = f

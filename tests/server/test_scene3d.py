@@ -182,6 +182,32 @@ def test_the_scene_follows_the_frames(
     assert first is not None and first["t_s"] == frames[0]["t_s"]
 
 
+def test_across_light_time_the_truth_is_live_and_the_rover_known_layer_waits(
+    tmp_path_factory: pytest.TempPathFactory,
+) -> None:
+    """Truth records alone draw the true traverse at once; downlink records alone (when a
+    pass brings them) draw the rover where it believes it is, newest last, and an older
+    one a pass fills in is not drawn over a newer one."""
+    store = Store(data_dir_url(tmp_path_factory.mktemp("scene_apart")))
+    runtime = RoverRuntime(ROVERS["spirit"])
+    rover_scene = RoverScene(runtime, store)
+    runtime.session.execute(cmd.DriveStraight(distance_m=2.0))
+    whole = batch_of(merged_frames(runtime.session))
+    rover_scene.publish("spirit", FrameBatch([], whole.truth))
+    assert rover_scene._latest is None and len(rover_scene._tracks["true"].points) > 3
+    assert rover_scene._tracks["est"].points == []
+    half = len(whole.downlink) // 2
+    rover_scene.publish("spirit", FrameBatch(whole.downlink[half:], [], 9e9))
+    latest = rover_scene._latest
+    assert latest is not None and latest["t_s"] == whole.downlink[-1]["t_s"]
+    assert latest["truth_t_s"] == whole.truth[-1]["t_s"] and latest["received_t_s"] == 9e9
+    rover_scene.publish("spirit", FrameBatch(whole.downlink[:half], [], 9.5e9))  # filled in
+    assert rover_scene._latest is not None and rover_scene._latest["t_s"] == latest["t_s"]
+    text = status_text(rover_scene._latest, live=True, now_t_s=9e9 + 600.0)
+    assert "data received 10 min ago" in text and "truth live" in text
+    store.close()
+
+
 def test_each_estimator_beside_sapp_is_a_traverse_of_its_own_colour(
     tmp_path_factory: pytest.TempPathFactory,
 ) -> None:
