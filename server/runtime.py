@@ -311,6 +311,7 @@ class RoverRuntime:
                 "executing": self.executing,
                 "comm": self.comm.mode,
                 "queue": [q.summary() for q in self.queue],
+                **self.comm.ground_state(),  # across light time: what the ground knows of them
                 "frame": with_truth(self.last_frame, self.last_truth),
             }
 

@@ -272,6 +272,22 @@ class RuntimeComm:
         with self.runtime.lock:
             self.mission.rover_report(t_s, report)
 
+    def ground_state(self) -> dict[str, Any]:
+        """Across light time, what the rover's ``/state`` says of its queue and the command
+        it runs: what the ground knows (the sequences it holds or has radiated, the command
+        the newest downlink reports), never the rover's own queue; nothing with the link
+        instant."""
+        mission = self.mission
+        if mission is None:
+            return {}
+        with self.runtime.lock:
+            ups = [*mission.link.waiting, *mission.link.rising]
+        queue = [
+            QueuedSequence.from_state(u.payload).summary() for u in ups if u.kind == "sequence"
+        ]
+        frame = self.runtime.last_frame
+        return {"queue": queue, "executing": "" if frame is None else frame.get("command", "")}
+
     # ---- the clock ----------------------------------------------------------------------
 
     def advance(self, t_s: float) -> None:
@@ -326,16 +342,18 @@ class RuntimeComm:
     def command_arrived(self, report: Mapping[str, Any]) -> None:
         fields = {k: v for k, v in report.items() if k != "type"}
         record = CommandRecord(**{**fields, "events": tuple(fields.get("events", ()))})
-        if self.runtime.listener is not None:
-            self.runtime.listener.command_reported(self.runtime.spec.name, record)
+        if (listener := self.runtime.listener) is not None:
+            listener.command_reported(self.runtime.spec.name, record)
+            listener.queue_changed(self.runtime.spec.name)  # the onboard side, as reported
 
     def status_arrived(self, sequence_id: int, status: str, detail: str | None) -> None:
         if self.runtime.listener is not None:
             self.runtime.listener.sequence_status(sequence_id, status, detail)
 
     def stage(self, sequence_id: int, stage: str, t_s: float, detail: str | None = None) -> None:
-        if self.runtime.listener is not None:
-            self.runtime.listener.sequence_stage(sequence_id, stage, t_s, detail)
+        if (listener := self.runtime.listener) is not None:
+            listener.sequence_stage(sequence_id, stage, t_s, detail)
+            listener.queue_changed(self.runtime.spec.name)  # a stage moves it on the queue
 
     def event(self, t_s: float, event: dict[str, str], recovering: bool) -> None:
         if self.runtime.listener is not None:

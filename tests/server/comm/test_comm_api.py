@@ -120,6 +120,8 @@ def test_a_sequence_waits_on_the_ground_and_is_cancelled_there(served: Any) -> N
         (seq_id, "ground", "waiting")
     ]
     assert queue[0]["radiate"] is not None
+    state = client.get("/api/rovers/spirit/state").json()
+    assert [q["sequence_id"] for q in state["queue"]] == [seq_id] and state["comm"] == "mission"
     assert [s["stage"] for s in queue[0]["stages"]] == ["accepted", "waiting"]
     moved = client.post(f"/api/rovers/spirit/queue/{seq_id}/move", json={"to": 0},
                         headers=h["operator"])  # fmt: skip
