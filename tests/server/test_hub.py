@@ -180,3 +180,35 @@ def test_a_client_outside_the_truth_view_gets_the_downlink_and_no_truth_notice()
     assert ground[1]["aqf"] == "Fine" and "position_error_m" not in ground[1]
     assert [m.get("type") for m in conductor] == ["alarm", "event", "alarm", None]
     assert conductor[3]["position_error_m"] == 0.2
+
+
+def test_across_light_time_the_ground_gets_the_downlink_late_and_the_truth_view_live() -> None:
+    """Batches of one record (``server.comm``): a client outside the truth view gets only the
+    downlink, when it arrives, stamped ``received_t_s``; older records a pass fills in go to
+    no one but their events do; the truth view's frames are the newest downlink with the
+    newest truth (``truth_t_s``)."""
+    frames = [{"t_s": float(t), "position_error_m": 0.1 * t, "events": []} for t in range(1, 6)]
+    frames[1]["events"] = [EV_A]
+    whole = batch(frames)
+
+    async def scenario() -> tuple[list[dict], list[dict]]:  # type: ignore[type-arg]
+        hub = TelemetryHub()
+        ground, truth = hub.subscribe("spirit", truth=False), hub.subscribe("spirit", truth=True)
+        hub.publish("spirit", FrameBatch([], whole.truth))  # live: nothing on the ground yet
+        await asyncio.sleep(0)
+        assert ground.queue.empty() and truth.queue.empty()
+        hub.publish("spirit", FrameBatch(whole.downlink[3:], [], 900.0))
+        await asyncio.sleep(0)
+        got = [await next_message(ground)], [await next_message(truth)]
+        hub.publish("spirit", FrameBatch(whole.downlink[:3], [], 950.0))  # filled in
+        await asyncio.sleep(0)
+        assert ground.queue.empty()  # nothing older than what was shown ...
+        got[0].append(dict(ground.events[0]))  # ... but its event goes on
+        return got
+
+    ground, truth = _run(scenario())
+    assert ground[0]["t_s"] == 5.0 and ground[0]["received_t_s"] == 900.0
+    assert "position_error_m" not in ground[0] and "truth_t_s" not in ground[0]
+    assert truth[0]["t_s"] == 5.0 and truth[0]["truth_t_s"] == 5.0
+    assert truth[0]["position_error_m"] == 0.5
+    assert ground[1]["text"] == "a" and ground[1]["t_s"] == 2.0
