@@ -5,49 +5,10 @@ arrives in time stops the sequence onboard, and the ground hears where."""
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator
-from typing import Any
 
-import pytest
-
-from sequences.validate import validate
 from server.comm.hosting import CancelSent
-from server.runtime import RoverRuntime
-from server.state import Server, ServerConfig
-
-MAX_TICKS = 20_000
-
-
-@pytest.fixture
-def server() -> Iterator[Server]:
-    server = Server.open(ServerConfig(database_url="sqlite://", start_clocks=False, comm="mission"))
-    server.start()
-    try:
-        yield server
-    finally:
-        server.stop()
-
-
-def tick_until(runtime: RoverRuntime, done: Callable[[], Any], why: str) -> None:
-    """The clock a tick at a time (the test looks between ticks), each a quarter of a wall
-    second's worth: at max speed a command and its play-out, at 10,000x 2,500 s."""
-    for _ in range(MAX_TICKS):
-        if done():
-            return
-        runtime._tick(0.25)
-    raise AssertionError(f"never: {why}")
-
-
-def upload(server: Server, text: str) -> int:
-    result = validate(text)
-    assert result.sequence is not None
-    seq_id = server.store.add_sequence("spirit", "s", text, "text", "queued", [], [], [])
-    server.rovers["spirit"].enqueue(seq_id, result.sequence)
-    return seq_id
-
-
-def stages(server: Server, seq_id: int) -> list[str]:
-    return [s["stage"] for s in (server.store.get_sequence(seq_id) or {}).get("stages") or []]
+from server.state import Server
+from tests.server.comm.conftest import stages, tick_until, upload
 
 
 def events(server: Server) -> list[str]:

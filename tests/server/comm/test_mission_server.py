@@ -6,18 +6,18 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from typing import Any
 
 import pytest
 from sqlalchemy import select
 
-from sequences.validate import validate
-from server.state import Server, ServerConfig
+from server.state import Server
 from server.storage.schema import frames_table
 from sim.comm.windows import comm_windows
 from sim.world.light_time import one_way_light_time_s
 from sim.world.marsclock import get_mission
+from tests.server.comm.conftest import upload
 
 DRIVE = "SEQUENCE short_drive\nNADIR_UPDATE\nDRIVE_STRAIGHT distance_m=2\n"
 
@@ -28,24 +28,6 @@ def wait_for(what: Callable[[], Any], why: str, timeout_s: float = 180.0) -> Any
         assert time.monotonic() < deadline, f"timed out waiting for {why}"
         time.sleep(0.05)
     return got
-
-
-@pytest.fixture
-def server() -> Iterator[Server]:
-    server = Server.open(ServerConfig(database_url="sqlite://", start_clocks=False, comm="mission"))
-    server.start()
-    try:
-        yield server
-    finally:
-        server.stop()
-
-
-def upload(server: Server, text: str) -> int:
-    result = validate(text)
-    assert result.sequence is not None
-    seq_id = server.store.add_sequence("spirit", "s", text, "text", "queued", [], [], [])
-    server.rovers["spirit"].enqueue(seq_id, result.sequence)
-    return seq_id
 
 
 def stages(server: Server, seq_id: int) -> dict[str, float]:

@@ -5,25 +5,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Iterator
-
-import pytest
 
 from sequences.validate import validate
-from server.state import Server, ServerConfig
-from tests.server.comm.test_mission_cancel import tick_until
+from server.state import Server
+from tests.server.comm.conftest import tick_until
 
 DRIVE = "SEQUENCE d\nNADIR_UPDATE\nDRIVE_STRAIGHT distance_m=6\n"
-
-
-@pytest.fixture
-def server() -> Iterator[Server]:
-    server = Server.open(ServerConfig(database_url="sqlite://", start_clocks=False, comm="mission"))
-    server.start()
-    try:
-        yield server
-    finally:
-        server.stop()
 
 
 def test_an_overflowing_store_reports_its_gaps(server: Server) -> None:
