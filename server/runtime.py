@@ -201,13 +201,14 @@ class RoverRuntime:
             return
         self.take_onboard(entry)
 
-    def take_onboard(self, entry: QueuedSequence) -> None:
-        """A sequence into the rover's queue (it arrived onboard, or the link is instant)."""
+    def take_onboard(self, entry: QueuedSequence, by_link: bool = False) -> None:
+        """Into the rover's queue; ``by_link``: arrived onboard, the clock thread checkpoints."""
         with self.lock:
             items = list(self.queue)
             insert(items, entry)
             self.queue = deque(items)
-            self._checkpoint_queue()
+            if not by_link:
+                self._checkpoint_queue()
         self._wake.set()  # its first step may be due now
         self._queue_changed()
 
@@ -222,8 +223,8 @@ class RoverRuntime:
             self._queue_changed(commit=True)
         return found
 
-    def cancel_onboard(self, sequence_id: int) -> Cancelled | None:
-        """Drop a sequence from the rover's own queue (``cancel``)."""
+    def cancel_onboard(self, sequence_id: int, by_link: bool = False) -> Cancelled | None:
+        """Drop a sequence from the rover's own queue (``cancel``; ``by_link``: as above)."""
         with self.lock:
             item = next((q for q in self.queue if q.sequence_id == sequence_id), None)
             if item is None:
@@ -235,8 +236,9 @@ class RoverRuntime:
                 done=min(item.next_step, len(item.sequence.steps)),
                 running_step=running[1] if running and running[0] == sequence_id else None,
             )
-            self._checkpoint_queue(removed=sequence_id)
-        self._queue_changed(commit=True)
+            if not by_link:
+                self._checkpoint_queue(removed=sequence_id)
+        self._queue_changed(commit=not by_link)
         return stopped
 
     def move(self, sequence_id: int, to: int) -> None:
@@ -255,8 +257,7 @@ class RoverRuntime:
         with self.lock:
             return [*self.comm.held_ids(), *(q.sequence_id for q in self.queue)]
 
-    def queue_snapshot(self) -> list[QueueEntry]:
-        """The queue in order, copied under the lock (safe to read from any thread)."""
+    def queue_snapshot(self) -> list[QueueEntry]:  # in order, copied under the lock
         with self.lock:
             return snapshot(self.queue, self.current_step)
 
@@ -288,8 +289,7 @@ class RoverRuntime:
 
     def clock_text(self) -> str:
         """The rover's clock now as ``sol N hh:mm:ss LMST`` (for the audit log)."""
-        t = self._clock_t_s
-        seconds = int(self.lmst_h(t) % 24.0 * 3600.0)
+        t, seconds = self._clock_t_s, int(self.lmst_h(self._clock_t_s) % 24.0 * 3600.0)
         h, rest = divmod(seconds, 3600)
         return f"sol {self.sol(t)} {h:02d}:{rest // 60:02d}:{rest % 60:02d} LMST"
 
@@ -424,8 +424,8 @@ class RoverRuntime:
         self._idle(t_s - self.session.sim.t_s)
 
     def session_changed(self) -> None:
-        """Checkpoint at the next tick: the session changed outside the clock thread (a
-        fault injected or revealed, ``server.faults``; its plan has a lock of its own)."""
+        """Checkpoint at the next tick: the session or link changed outside the clock thread
+        (a fault, ``server.faults``; a comm change, ``server.comm``)."""
         with self.lock:
             self._clock_changed = True
         self._wake.set()

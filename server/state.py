@@ -229,16 +229,23 @@ class Server:
         self.writer.flush()
         before = self.store.get_sequence(sequence_id)
         self.store.set_sequence_status(sequence_id, status, detail)
-        if before is None or before["status"] == status:  # e.g. resumed after a restart
+        if before is None:
             return
         said = {"running": "started", "completed": "completed", "failed": "failed"}
         severity = "error" if status == "failed" else "warning" if detail else "info"
         text = f"sequence #{sequence_id} {before['name']} {said.get(status, status)}"
-        self._server_event(
-            before["rover"], None,
-            {"text": text + (f": {detail}" if detail else ""), "kind": "sequence",
-             "severity": severity},
-        )  # fmt: skip
+        text += f": {detail}" if detail else ""
+        rover = before["rover"]
+        # the same status again (resumed after a restart): its event only if a kill lost it
+        if before["status"] == status and any(
+            e["text"] == text
+            for e in self.store.event_log(
+                rover, -math.inf, math.inf, kinds=("sequence",), text_contains=text
+            )[0]
+        ):
+            return
+        self._server_event(rover, None, {"text": text, "kind": "sequence", "severity": severity})
+        self.writer.flush()  # with the status it tells of: a kill now loses neither
 
     def sequence_stage(
         self, sequence_id: int, stage: str, t_s: float, detail: str | None = None

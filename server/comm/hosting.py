@@ -83,9 +83,9 @@ class Hosted(Protocol):
     @property
     def running(self) -> bool: ...
 
-    def take_onboard(self, entry: QueuedSequence) -> None: ...
+    def take_onboard(self, entry: QueuedSequence, by_link: bool = False) -> None: ...
 
-    def cancel_onboard(self, sequence_id: int) -> Cancelled | None: ...
+    def cancel_onboard(self, sequence_id: int, by_link: bool = False) -> Cancelled | None: ...
 
     def publish(self, batch: FrameBatch) -> None: ...
 
@@ -320,10 +320,10 @@ class RuntimeComm:
 
     def take_uplink(self, entry: QueuedSequence, arrival_t_s: float) -> None:
         self.runtime.idle_until(arrival_t_s)  # nothing runs before it is onboard
-        self.runtime.take_onboard(entry)
+        self.runtime.take_onboard(entry, by_link=True)
 
     def cancel_onboard(self, sequence_id: int) -> dict[str, Any]:
-        stopped = self.runtime.cancel_onboard(sequence_id)
+        stopped = self.runtime.cancel_onboard(sequence_id, by_link=True)
         if stopped is None:
             return {"found": False}
         return {"found": True, "where": stopped.where()}
