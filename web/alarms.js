@@ -6,6 +6,7 @@
 import { api, detailText } from "./lib/api.js";
 import { bus } from "./lib/bus.js";
 import { $, el } from "./lib/dom.js";
+import { arrivalText } from "./lib/commtime.js";
 import { lmstText } from "./lib/marstime.js";
 
 const LIST_LIMIT = 100; // the newest alarms listed (done ones greyed)
@@ -76,6 +77,13 @@ function row(a) {
   tr.title = a.message;
   const raised = el("td");
   raised.append(el("div", { textContent: utcText(a.raised.utc) }), el("div", { textContent: whenText(a.raised), className: "dim" }));
+  // across light time: the data's own time (raised), and when it came down
+  if (a.received) {
+    const data = el("div", { textContent: arrivalText(a.raised, a.received.t_s - a.raised.t_s), className: "alarm-data-time" });
+    data.dataset.testid = "alarm-data-time";
+    data.title = `the data that raised it was made at ${utcText(a.raised.utc)} and reached the ground at ${utcText(a.received.utc)}`;
+    raised.append(data);
+  }
   const channel = el("td", { textContent: a.channel });
   if (a.truth) channel.append(" ", truthTag());
   const level = el("td", { textContent: a.level, className: `alarm-level level-${a.level}` });

@@ -14,6 +14,7 @@ import "./plot.js";
 import "./alarms.js";
 import "./eventlog.js";
 import "./queue.js";
+import "./comm.js";
 
 // The browser tests' hook (tests/browser): the bus, and the console's state (its WebSocket).
 window.roverops = { on: bus.on, emit: bus.emit, state };

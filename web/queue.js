@@ -4,9 +4,17 @@
 // and, as a fallback, re-reads GET /api/rovers/{rover}/queue when the 1 s /state poll shows
 // a queue other than the one drawn. A sequence that has started, or an immediate command,
 // keeps its place: the server says why, and its buttons say so too.
+// Across light time (the rover's link in mission mode, issue 23) the queue has two sides:
+// "On the ground" (waiting for the uplink window, or radiated and on its way) and "Onboard"
+// (as the ground knows it, from what has come down); each entry says its latest stage with
+// its time (UTC, sol and LMST) and lists its stages when expanded. A cancel of a sequence
+// already radiated goes up too: the server answers "cancel-sent", and the panel says so.
+// The stages arrive with the downlink, so the panel reads the queue again at each of the
+// link's reads ("comm", comm.js) and at each command or event notice.
 import { api, detailText, heldToken } from "./lib/api.js";
 import { bus } from "./lib/bus.js";
 import { $, el } from "./lib/dom.js";
+import { durationText, momentText } from "./lib/commtime.js";
 import { lmstText } from "./lib/marstime.js";
 import { mayAct } from "./lib/roles.js";
 
@@ -15,7 +23,10 @@ const STATUS_WORDS = {
   pending: "pending", running: "running", completed: "done", failed: "failed",
   refused: "refused", halted: "halted", skipped: "skipped",
 };
-const view = { rover: null, me: null, queue: [], recent: [], key: "", open: new Set(), loading: false, again: false };
+const view = {
+  rover: null, me: null, queue: [], recent: [], key: "", open: new Set(), loading: false, again: false,
+  mission: false, nowT: null, drawn: "", stateKey: "", cancelSent: new Set(),
+};
 
 // what the /state poll lists of the queue, for comparing with what is drawn
 const keyOf = (queue) => queue.map((q) => `${q.sequence_id}:${q.next_step}`).join(",");
@@ -28,6 +39,9 @@ async function load() {
     const rover = view.rover;
     const r = await api(`/api/rovers/${rover}/queue`);
     if (r.ok && rover === view.rover) {
+      const drawn = JSON.stringify(r.body);
+      if (drawn === view.drawn) return; // nothing new: the panel (and what is open) stays
+      view.drawn = drawn;
       view.recent = r.body.recent;
       show(r.body.queue);
     }
@@ -40,7 +54,10 @@ async function load() {
 function show(queue) {
   view.queue = queue;
   view.key = keyOf(queue);
+  if (queue.some((q) => q.side)) view.mission = true;
+  for (const id of view.cancelSent) if (!queue.some((q) => q.sequence_id === id)) view.cancelSent.delete(id);
   render();
+  bus.emit("queue-shown", queue);
 }
 
 function say(text, bad) {
@@ -67,8 +84,12 @@ async function cancel(q) {
   const note = q.status === "running" ? " Its step under way runs to its end; the rest are not run." : "";
   if (!window.confirm(`Cancel sequence ${what}?${note}`)) return;
   const r = await api(`/api/sequences/${q.sequence_id}`, { method: "DELETE" });
-  if (r.ok) say(`Sequence ${what} ${r.body.detail}`);
+  if (r.ok && r.body.status === "cancel-sent") {
+    view.cancelSent.add(q.sequence_id);
+    say(`Cancel of ${what} sent: ${r.body.detail}`);
+  } else if (r.ok) say(`Sequence ${what} ${r.body.detail}`);
   else say(`Not cancelled: ${detailText(r)}`, true);
+  view.drawn = "";
   load();
 }
 
@@ -124,10 +145,66 @@ function summaryText(q) {
   return `${q.immediate ? "immediate · " : ""}${where}${q.submitted_by ? ` · by ${q.submitted_by}` : ""}`;
 }
 
+// ---- across light time: stages ----------------------------------------------------------
+
+const utcText = (iso) => `${iso.slice(0, 16).replace("T", " ")} UTC`;
+const whenText = (m) => `${momentText(m)} (${utcText(m.utc)})`;
+
+function stagesList(stages) {
+  const ol = el("ol", { className: "queue-stages" });
+  ol.dataset.testid = "queue-stages";
+  for (const s of stages) {
+    const li = el("li", { className: `queue-stage stage-${s.stage.replace(/\s+/g, "-")}` });
+    li.dataset.testid = "queue-stage";
+    li.dataset.stage = s.stage;
+    li.append(
+      el("span", { className: "stage-name", textContent: s.stage }),
+      el("span", { className: "stage-when", textContent: s.when ? whenText(s.when) : "" }),
+      el("span", { className: "stage-detail", textContent: s.detail || "" }),
+    );
+    ol.append(li);
+  }
+  return ol;
+}
+
+// What comes next on the ground: when its window radiates it, when it reaches the rover;
+// "in N min" moves on with the rover's clock (the /state poll) without a redraw.
+function nextSpan(q) {
+  const [label, moment] = q.radiate ? ["radiates", q.radiate] : q.arrive ? ["reaches the rover", q.arrive] : [];
+  if (!moment) return null;
+  const span = el("span", { className: "queue-state queue-next" });
+  Object.assign(span.dataset, { testid: "queue-next", label, moment: momentText(moment), tS: String(moment.t_s) });
+  setNext(span);
+  return span;
+}
+
+function setNext(span) {
+  const t = Number(span.dataset.tS);
+  const soon = view.nowT !== null && t > view.nowT ? `, in ${durationText(t - view.nowT)}` : "";
+  span.textContent = `${span.dataset.label} ${span.dataset.moment}${soon}`;
+}
+
+function stageSummary(q) {
+  const last = (q.stages || []).at(-1);
+  const stage = el("span", { className: "queue-stage-now" });
+  stage.dataset.testid = "queue-latest-stage";
+  stage.dataset.stage = last ? last.stage : "";
+  stage.textContent = last ? `${last.stage} ${last.when ? whenText(last.when) : ""}` : q.status;
+  const parts = [stage, nextSpan(q)].filter(Boolean);
+  if (view.cancelSent.has(q.sequence_id)) {
+    const sent = el("span", { className: "queue-cancel-sent", textContent: "cancel sent" });
+    sent.dataset.testid = "queue-cancel-sent";
+    sent.title = "the cancel goes up in the next uplink window; the rover reports where the sequence stopped";
+    parts.push(sent);
+  }
+  return parts;
+}
+
 function item(q, index, queue) {
   const li = el("li", { className: `queue-item queue-${q.status}` });
   li.dataset.testid = "queue-item";
   li.dataset.sequenceId = q.sequence_id;
+  if (q.side) { li.dataset.side = q.side; li.dataset.status = q.status; }
   const details = el("details");
   details.open = view.open.has(q.sequence_id);
   details.addEventListener("toggle", () => {
@@ -137,9 +214,12 @@ function item(q, index, queue) {
   const summary = el("summary");
   summary.append(
     el("span", { className: "queue-name", textContent: `#${q.sequence_id} ${q.name || "(unnamed)"}` }),
-    el("span", { className: "queue-state", textContent: summaryText(q) }),
+    el("span", { className: "queue-state", textContent: q.side ? `${q.status} · ${summaryText(q)}` : summaryText(q) }),
   );
-  details.append(summary, stepsList(q.steps));
+  if (q.side) summary.append(...stageSummary(q));
+  details.append(summary);
+  if (q.stages && q.stages.length) details.append(stagesList(q.stages));
+  details.append(stepsList(q.steps));
   const above = queue[index - 1];
   const upWhy = q.pinned || (!above ? "first in the queue" : above.pinned ? `#${above.sequence_id} keeps its place` : "");
   const downWhy = q.pinned || (index === queue.length - 1 ? "last in the queue" : "");
@@ -165,16 +245,35 @@ function recentItem(s) {
   );
   details.append(summary);
   if (s.detail) details.append(el("p", { className: "queue-detail", textContent: s.detail }));
+  if (s.stages && s.stages.length) details.append(stagesList(s.stages));
   details.append(stepsList(s.steps));
   li.append(details);
   return li;
+}
+
+// In mission mode: the ground's side, then the rover's (as the ground knows it).
+function sides() {
+  const parts = [];
+  for (const [side, title, empty] of [
+    ["ground", "On the ground", "Nothing waits on the ground."],
+    ["onboard", "Onboard (as the ground knows it)", "Nothing onboard that the ground knows of."],
+  ]) {
+    const entries = view.queue.filter((q) => q.side === side);
+    const list = el("ol", { className: `queue-list queue-side-${side}` });
+    list.dataset.testid = `queue-${side}`;
+    list.append(...entries.map((q, i, all) => item(q, i, all)));
+    const head = el("h3", { className: "queue-subhead", textContent: `${title} (${entries.length})` });
+    parts.push(head, entries.length ? list : el("p", { className: "queue-empty", textContent: empty }));
+  }
+  return parts;
 }
 
 function render() {
   const list = el("ol", { className: "queue-list" });
   list.dataset.testid = "queue-list";
   list.append(...view.queue.map((q, i, all) => item(q, i, all)));
-  const parts = [view.queue.length ? list : el("p", { className: "queue-empty", textContent: "The queue is empty." })];
+  const parts = view.mission ? sides()
+    : [view.queue.length ? list : el("p", { className: "queue-empty", textContent: "The queue is empty." })];
   if (view.recent.length) {
     const recent = el("ol", { className: "queue-list queue-recent" });
     recent.dataset.testid = "queue-recent";
@@ -190,6 +289,9 @@ bus.on("rover", (rover) => {
   view.rover = rover;
   view.queue = [];
   view.recent = [];
+  view.drawn = "";
+  view.mission = false;
+  view.cancelSent.clear();
   view.open.clear();
   render();
   load();
@@ -202,7 +304,20 @@ bus.on("notice", (n) => {
   if (left) load(); // and what left it, with its outcome
 });
 bus.on("state", (s) => {
-  if (s.rover === view.rover && keyOf(s.queue) !== view.key) load();
+  if (s.rover !== view.rover) return;
+  view.nowT = s.t_s;
+  for (const span of panel.querySelectorAll(".queue-next")) setNext(span);
+  const mission = s.comm === "mission";
+  if (mission !== view.mission) { view.mission = mission; view.drawn = ""; load(); return; }
+  // across light time /state's queue is the rover's own: not what the panel draws
+  const key = keyOf(s.queue);
+  if (mission ? key !== view.stateKey : key !== view.key) load();
+  view.stateKey = key;
+});
+// across light time the stages come down with the data: read the queue again
+bus.on("comm", (c) => { if (c.rover === view.rover && c.mode === "mission") load(); });
+bus.on("notice", (n) => {
+  if (view.mission && (n.type === "command" || n.type === "event")) load();
 });
 bus.on("me", (me) => { view.me = me; render(); });
 render();

@@ -7,11 +7,15 @@ import { $, el } from "./lib/dom.js";
 import { lmstText } from "./lib/marstime.js";
 
 const IMU_WARN_S = 10000; // Ali et al. 2005 sec. 4: MER reacquired attitude at about this IMU time
-const view = { rover: null };
+// mission: the rover's link is across light time (/state's comm), so a frame is the newest
+// data on the ground, not the rover now; queue: the Queue panel's entries ("queue-shown")
+const view = { rover: null, mission: false, queue: [] };
 
 /** @param {import("./lib/bus.js").Frame} f */
 function showFrame(f) {
-  $("sol-clock").textContent = `Sol ${f.sol}  ${lmstText(f.lmst_h)} LMST`;
+  // across light time the clock is the rover's now (/state), not the data's
+  if (!view.mission) $("sol-clock").textContent = `Sol ${f.sol}  ${lmstText(f.lmst_h)} LMST`;
+  if (view.mission) $("executing").textContent = f.command ? `${f.command} (in the data)` : "—";
   $("nate-mode").textContent = f.nate_mode;
   const badge = $("aqf");
   badge.textContent = f.aqf;
@@ -51,13 +55,26 @@ function showPosition(f) {
 }
 
 function showState(s) {
-  if (!s.frame) $("sol-clock").textContent = `Sol ${s.sol}  ${lmstText(s.lmst_h)} LMST`;
+  view.mission = s.comm === "mission";
+  if (!s.frame || view.mission) $("sol-clock").textContent = `Sol ${s.sol}  ${lmstText(s.lmst_h)} LMST`;
+  // Across light time /state's executing and queue are the rover's own, which the ground
+  // learns a pass later: the panel says what the data says and the queue as the ground
+  // knows it (the Queue panel's two sides).
+  if (view.mission) { showGroundQueue(); return; }
   $("executing").textContent = s.executing || "—";
   $("queue").textContent = s.queue.length
     ? s.queue.map((q) => `#${q.sequence_id} ${q.name || ""} (${q.next_step}/${q.steps})`).join(", ")
     : "empty";
   const head = s.queue[0];
   $("progress-bar").style.width = head ? `${(100 * head.next_step) / Math.max(1, head.steps)}%` : "0";
+}
+
+function showGroundQueue() {
+  const ground = view.queue.filter((q) => q.side === "ground").length;
+  const onboard = view.queue.filter((q) => q.side === "onboard");
+  $("queue").textContent = `${ground} on the ground, ${onboard.length} onboard`;
+  const head = onboard.find((q) => q.status === "running");
+  $("progress-bar").style.width = head ? `${(100 * head.next_step) / Math.max(1, head.step_count)}%` : "0";
 }
 
 // The Rover panel lists the rover's own events (in frames) since the page opened, newest
@@ -88,6 +105,7 @@ async function fillGap(rover, since) {
 
 bus.on("frame", (f) => { if (f) showFrame(f); });
 bus.on("state", showState);
+bus.on("queue-shown", (queue) => { view.queue = queue; if (view.mission) showGroundQueue(); });
 // another rover, or the same one again after the link came back: its list starts afresh
 bus.on("rover", (rover) => {
   view.rover = rover;

@@ -10,7 +10,12 @@
 // skipped frames' events), so when the rover falls idle the lanes and plots are reconciled
 // with storage in place. "focus" ({sol, t_s}, from the event log) shows that sol with the
 // hairline at t_s.
-import { getJson } from "../lib/api.js";
+// Across light time (the rover's link in mission mode, issue 23) the Comm lane shows the
+// sol's windows and passes (comm.js), the span takes in the passes ahead, the plots break
+// where data is missing, and the sol is read again when data comes down for it (a frame
+// that came down, an event of the sol, or what the link's reads say was received): older
+// data fills in after newer, so appending live is not enough.
+import { api, getJson } from "../lib/api.js";
 import { bus } from "../lib/bus.js";
 import { $, el } from "../lib/dom.js";
 import { lmstText } from "../lib/marstime.js";
@@ -21,16 +26,21 @@ import {
   appendPlots, destroyPlots, drawPlots, placeFocus, reconcilePlots, resize,
 } from "./plots.js";
 import { setStatus, view } from "./view.js";
+import { commPath, receivedSignature, windowsSpan } from "./comm.js";
+import { gapAfterS } from "../lib/gaps.js";
 
 const MAX_POINTS = 2000; // the plots ask the server for at most about this many frames
 const MIN_SPAN_H = 1 / 60; // a sol with a single frame still gets a minute of axis
 const MAX_PENDING = 5000; // live messages kept while a sol loads
+const REFRESH_EVERY_MS = 1500; // across light time, the sol read again at most this often
 
 // ---- data -------------------------------------------------------------------------
 
+const everyS = (timeline) => Math.min(86400, Math.max(0, (timeline.end.t_s - timeline.start.t_s) / MAX_POINTS));
+
 function telemetryPath(rover, timeline) {
   const t0 = timeline.start.t_s, t1 = timeline.end.t_s;
-  const every = Math.min(86400, Math.max(0, (t1 - t0) / MAX_POINTS));
+  const every = everyS(timeline);
   const query = new URLSearchParams({
     from: String(t0), to: String(t1), every: every.toFixed(3), limit: String(2 * MAX_POINTS),
   });
@@ -77,7 +87,7 @@ async function reload({ followLatest }) {
   const rover = picked;
   if (!rover) return;
   const generation = beginLoad();
-  if (rover !== view.rover) { view.latestSol = null; view.pending = []; }
+  if (rover !== view.rover) { view.latestSol = null; view.pending = []; view.nowT = -Infinity; refresh.signature = ""; refresh.receivedT = -Infinity; }
   view.rover = rover;
   setStatus("Loading…");
   try {
@@ -111,16 +121,32 @@ function pickSol() { return showSol(Number($("timeline-sol").value)); }
 async function fetchSol(sol) {
   const rover = view.rover;
   const timeline = await getJson(`/api/rovers/${encodeURIComponent(rover)}/sols/${sol}/timeline`);
-  const frames = await getJson(telemetryPath(rover, timeline));
-  return { timeline, frames };
+  const [frames, comm] = await Promise.all([
+    getJson(telemetryPath(rover, timeline)),
+    api(commPath(rover, timeline)).then((r) => (r.ok ? r.body : null)), // a server without it: none
+  ]);
+  return { timeline, frames, comm };
+}
+
+// The sol's link (GET .../comm over the sol): the Comm lane's windows, the plots' holes.
+function takeComm(comm, timeline, frames) {
+  view.comm = comm;
+  view.mission = Boolean(comm && comm.mode === "mission");
+  if (comm) view.nowT = Math.max(view.nowT, comm.now.t_s);
+  $("timeline-panel").classList.toggle("comm-mission", view.mission);
+  view.dropped = view.mission ? comm.gaps.filter((g) => g.priority <= 1) : []; // decimated data or more
+  view.gapS = view.mission ? gapAfterS(frames.map((f) => f.t_s), { decimate_s: comm.plan.decimate_s, every_s: everyS(timeline) }) : Infinity;
+  const windows = view.mission ? windowsSpan(comm, timeline) : null;
+  if (windows) view.span = [Math.min(view.span[0], windows[0]), Math.max(view.span[1], windows[1])];
 }
 
 async function loadSol(sol, generation) {
   setStatus("Loading…");
-  const { timeline, frames } = await fetchSol(sol);
+  const { timeline, frames, comm } = await fetchSol(sol);
   if (generation !== view.generation) return;
   const x0 = timeline.start.lmst_h;
   view.span = [x0, Math.max(timeline.end.lmst_h, x0 + MIN_SPAN_H)];
+  takeComm(comm, timeline, frames);
   const rover = view.rover;
   view.sol = sol;
   view.timeline = timeline;
@@ -223,6 +249,7 @@ function onFrame(f) {
     newSol(f.sol);
     if (view.loading) { view.pending.push(["frame", f]); return; }
   }
+  if (view.mission && f.received_t_s !== undefined) cameDown(f);
   if (!view.timeline || f.sol !== view.sol) return;
   if (f.t_s > view.lastT) appendFrame(f);
   else if (f.events && f.events.length) { addFrameEvents(f); render(); } // a frame the /state poll showed first
@@ -242,8 +269,9 @@ function appendFrame(f) {
   view.timeline.end = { t_s: f.t_s, lmst_h: f.lmst_h };
   for (const lane of Object.values(LANES)) if (lane.frame) lane.frame(f);
   addFrameEvents(f);
-  appendPlots(f);
-  summarise(f);
+  // across light time a truth-view frame carries the truth live (truth_t_s), not of t_s: the
+  // truth plots and summary take the stored truth when the sol is read again
+  if (f.truth_t_s === undefined) { appendPlots(f); summarise(f); }
   render();
 }
 
@@ -296,13 +324,59 @@ function onAlarm(a) {
   render();
 }
 
+// ---- across light time: read the sol again when its data comes down ---------------------
+
+const refresh = { busy: false, again: false, lastMs: 0, timer: null, signature: "", receivedT: -Infinity };
+
+// A frame that came down: new data of the shown sol, or events of it (older data filling in
+// comes as its events alone). The truth view's frames repeat the newest data with the truth
+// live: those are not new.
+function cameDown(f) {
+  const fresh = f.received_t_s > refresh.receivedT;
+  refresh.receivedT = Math.max(refresh.receivedT, f.received_t_s);
+  const ofSol = (fresh && f.sol === view.sol) || (f.events || []).some((e) => e.sol === view.sol);
+  if (ofSol) refreshSol();
+}
+
+// At most one read at a time and one per REFRESH_EVERY_MS: a pass's data comes in bursts.
+function refreshSol() {
+  if (!view.timeline || !view.mission) return;
+  if (refresh.busy) { refresh.again = true; return; }
+  const wait = refresh.lastMs + REFRESH_EVERY_MS - Date.now();
+  if (wait > 0) {
+    if (!refresh.timer) refresh.timer = setTimeout(() => { refresh.timer = null; refreshSol(); }, wait);
+    return;
+  }
+  refresh.busy = true;
+  refresh.lastMs = Date.now();
+  reconcile({ anySol: true })
+    .catch((err) => setStatus(`Could not read the sol again: ${err.message}`, true))
+    .finally(() => {
+      refresh.busy = false;
+      if (refresh.again) { refresh.again = false; refreshSol(); }
+    });
+}
+
+// The link's read (comm.js, every 2 s): data came down that no frame announced (older data
+// filling in behind newer), or a pass's tally moved on.
+function onComm(c) {
+  if (!view.rover || c.rover !== view.rover) return;
+  view.nowT = Math.max(view.nowT, c.now.t_s);
+  const signature = receivedSignature(c);
+  if (signature === refresh.signature) return;
+  refresh.signature = signature;
+  refreshSol();
+}
+
 // The rover fell idle after work: storage's word on the sol, patched in place (the
-// WebSocket's decimation may have skipped short modes and points).
-async function reconcile() {
-  if (!view.timeline || !showingLatest() || view.loading) return;
+// WebSocket's decimation may have skipped short modes and points). Across light time any
+// sol on screen, when its data comes down (anySol).
+async function reconcile({ anySol = false } = {}) {
+  if (!view.timeline || (!anySol && !showingLatest()) || view.loading) return;
   const generation = view.generation;
-  const { timeline, frames } = await fetchSol(view.sol);
+  const { timeline, frames, comm } = await fetchSol(view.sol);
   if (generation !== view.generation || view.loading) return;
+  takeComm(comm, timeline, frames);
   for (const c of timeline.commands) LANES.commands.command(c);
   for (const lane of Object.values(LANES)) if (lane.reconcile) lane.reconcile(timeline);
   for (const e of timeline.events) addEvent(e);
@@ -317,6 +391,8 @@ async function reconcile() {
 
 function onState(s) {
   if (!view.rover || s.rover !== view.rover) return;
+  view.nowT = Math.max(view.nowT, s.t_s);
+  if (view.mission) LANES.comm.tick(view.nowT);
   const busy = Boolean(s.executing) || s.queue.length > 0;
   if (view.wasBusy && !busy) reconcile().catch((err) => setStatus(`Could not reconcile: ${err.message}`, true));
   view.wasBusy = busy;
@@ -344,6 +420,7 @@ function start() {
     if (n.type === "alarm") onAlarm(n.alarm);
   });
   bus.on("state", onState);
+  bus.on("comm", onComm);
   // a sign-in or out may change whether the timeline has its truth part: read it again
   let seesTruth = false; // until /api/me has answered
   bus.on("me", (me) => {

@@ -1,6 +1,9 @@
 // The sol timeline's plots (uPlot, vendored in /static/vendor/uplot) on the lanes' LMST
 // axis: the estimate's errors and the HGA pointing margin, and the hairline over them.
+// Across light time a line is not drawn across data the ground does not have (lib/gaps.js:
+// a step longer than view.gapS, or the store's reported drops): a point with no value there.
 import { $ } from "../lib/dom.js";
+import { withBreaks } from "../lib/gaps.js";
 import { lmstAt, lmstText } from "../lib/marstime.js";
 import { TICK_INCRS_H, TICK_SPACE_PX, view } from "./view.js";
 import { drawAxis, fitLabels } from "./lanes.js";
@@ -141,12 +144,17 @@ const sideValue = (f, name, key) => {
   return e && e[key] !== undefined ? e[key] : null;
 };
 
-// Each plot's uPlot data: [x, its value, the estimators' values beside SAPP].
+// Each plot's uPlot data: [x, its value, the estimators' values beside SAPP]. A null row
+// (a hole: withBreaks) is a point halfway between its neighbours with no values.
 function plotSeries(frames, spec, sides) {
   const key = SIDE_KEYS[spec.id];
-  const ys = frames.map((f) => { const v = spec.value(f); return v === undefined ? null : v; });
-  return [frames.map((f) => f.lmst_h), ys, ...sides.map((name) => frames.map((f) => sideValue(f, name, key)))];
+  const value = (f) => { if (!f) return null; const v = spec.value(f); return v === undefined ? null : v; };
+  const xs = frames.map((f, i) => (f ? f.lmst_h : (frames[i - 1].lmst_h + frames[i + 1].lmst_h) / 2));
+  return [xs, frames.map(value), ...sides.map((name) => frames.map((f) => (f ? sideValue(f, name, key) : null)))];
 }
+
+// The frames as plotted: across light time, with a break at each hole.
+const broken = (frames) => (view.mission ? withBreaks(frames, view.gapS, view.dropped) : frames);
 
 export function drawPlots(frames) {
   destroyPlots();
@@ -156,7 +164,7 @@ export function drawPlots(frames) {
     const key = SIDE_KEYS[spec.id];
     // an estimator of position only (radio_ekf) has no attitude line
     const sides = key ? names.filter((name) => frames.some((f) => sideValue(f, name, key) !== null)) : [];
-    const data = plotSeries(frames, spec, sides);
+    const data = plotSeries(broken(frames), spec, sides);
     view.plotData.push({ spec, sides, data });
     view.plots.push(new uPlot(plotOptions(container, spec, sides), data, container));
   }
@@ -172,7 +180,7 @@ export function appendPlots(f) {
 // Storage's frames in place of what was plotted live (the same plots, new data).
 export function reconcilePlots(frames) {
   view.plotData.forEach((entry, i) => {
-    entry.data = plotSeries(frames, entry.spec, entry.sides);
+    entry.data = plotSeries(broken(frames), entry.spec, entry.sides);
     view.plots[i].setData(entry.data);
   });
 }

@@ -20,6 +20,9 @@ export const view = {
   rover: null, span: null, plots: [], plotData: [], generation: 0, sol: null, timeline: null,
   lastT: -Infinity, latestSol: null, loading: false, pending: [], focus: null,
   wasBusy: false, liveFrames: 0, lastPosition: null, lastTruePosition: null, droppedNotices: 0,
+  // across light time (issue 23): the sol's windows and the link (GET .../comm over the sol),
+  // the rover's clock now, the longest step that is not a hole in the data, the store's drops
+  comm: null, mission: false, nowT: -Infinity, gapS: Infinity, dropped: [],
 };
 
 export function setStatus(text, bad = false) {
