@@ -42,7 +42,8 @@ MIN_INTERVAL_S = 0.1  # between two notices of a rover (wall time)
 def _when(runtime: RoverRuntime, t_s: float | None) -> dict[str, Any] | None:
     if t_s is None:
         return None
-    return {"t_s": t_s, "utc": t_s_to_utc(t_s).isoformat(), "lmst_h": runtime.lmst_h(t_s)}
+    return {"t_s": t_s, "utc": t_s_to_utc(t_s).isoformat(), "lmst_h": runtime.lmst_h(t_s),
+            "sol": runtime.sol(t_s)}  # fmt: skip
 
 
 def _step(
@@ -153,6 +154,9 @@ def recent_json(runtime: RoverRuntime, store: Store, limit: int = RECENT) -> lis
                 "submitted_by": summary.get("submitted_by"),
                 "step_count": len(steps),
                 "steps": steps,
+                "stages": [
+                    {**g, "when": _when(runtime, g["t_s"])} for g in stored.get("stages") or []
+                ],
             }
         )
     return out

@@ -110,8 +110,10 @@ class RuntimeListener(Protocol):
     def command_reported(self, rover: str, report: CommandRecord) -> None:
         """A queued step ended (completed, refused or failed)."""
 
-    def sequence_status(self, sequence_id: int, status: str, detail: str | None) -> None:
-        """A sequence started, completed or failed."""
+    def sequence_status(
+        self, sequence_id: int, status: str, detail: str | None, t_s: float | None = None
+    ) -> None:
+        """A sequence started, completed or failed (at the rover's ``t_s``; ``None``: now)."""
 
     def checkpoint(self, rover: str, t_s: float, blob: bytes) -> None:
         """The runtime's encoded state at ``t_s``, to be stored (queued, not waited for)."""

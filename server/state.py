@@ -225,7 +225,9 @@ class Server:
             if entry is not None:
                 self.hub.notify(rover, CommandNotice(entry))
 
-    def sequence_status(self, sequence_id: int, status: str, detail: str | None) -> None:
+    def sequence_status(
+        self, sequence_id: int, status: str, detail: str | None, t_s: float | None = None
+    ) -> None:
         self.writer.flush()
         before = self.store.get_sequence(sequence_id)
         self.store.set_sequence_status(sequence_id, status, detail)
@@ -244,7 +246,7 @@ class Server:
             )[0]
         ):
             return
-        self._server_event(rover, None, {"text": text, "kind": "sequence", "severity": severity})
+        self._server_event(rover, t_s, {"text": text, "kind": "sequence", "severity": severity})
         self.writer.flush()  # with the status it tells of: a kill now loses neither
 
     def sequence_stage(

@@ -29,7 +29,9 @@ class RecordingListener:
         if self._on_report is not None:
             self._on_report(report)
 
-    def sequence_status(self, sequence_id: int, status: str, detail: str | None) -> None:
+    def sequence_status(
+        self, sequence_id: int, status: str, detail: str | None, t_s: float | None = None
+    ) -> None:
         self.statuses.append((sequence_id, status, detail))
 
     def checkpoint(self, rover: str, t_s: float, blob: bytes) -> None:

@@ -28,6 +28,7 @@ from server.api.deps import (
     router,
 )
 from server.comm.hosting import CancelSent
+from server.comm.view import when
 from server.errors import ConflictError, NotFoundError
 from server.runtime import RoverRuntime
 from server.state import Server
@@ -234,6 +235,9 @@ def get_sequence(server: ServerDep, sequence_id: SequenceId, _: Viewer) -> dict[
     found = server.store.get_sequence(sequence_id)
     if found is None:
         raise NotFoundError(f"no sequence {sequence_id}")
+    if found.get("stages") and found["rover"] in server.rovers:  # each stage's moment
+        found["stages"] = [{**g, "when": when(server.rovers[found["rover"]], g["t_s"])}
+                           for g in found["stages"]]  # fmt: skip
     return found
 
 

@@ -350,9 +350,10 @@ class RuntimeComm:
             listener.command_reported(self.runtime.spec.name, record)
             listener.queue_changed(self.runtime.spec.name)  # the onboard side, as reported
 
-    def status_arrived(self, sequence_id: int, status: str, detail: str | None) -> None:
+    def status_arrived(self, sequence_id: int, status: str, detail: str | None,
+                       t_s: float | None = None) -> None:  # fmt: skip
         if self.runtime.listener is not None:
-            self.runtime.listener.sequence_status(sequence_id, status, detail)
+            self.runtime.listener.sequence_status(sequence_id, status, detail, t_s)
 
     def stage(self, sequence_id: int, stage: str, t_s: float, detail: str | None = None) -> None:
         if (listener := self.runtime.listener) is not None:

@@ -54,8 +54,9 @@ class LinkHost(Protocol):
     def command_arrived(self, report: Mapping[str, Any]) -> None:
         """A command's report reached the ground (a ``CommandRecord``'s fields)."""
 
-    def status_arrived(self, sequence_id: int, status: str, detail: str | None) -> None:
-        """A sequence's status reached the ground."""
+    def status_arrived(self, sequence_id: int, status: str, detail: str | None,
+                       t_s: float | None = None) -> None:  # fmt: skip
+        """A sequence's status (at the rover's ``t_s``) reached the ground."""
 
     def stage(self, sequence_id: int, stage: str, t_s: float, detail: str | None = None) -> None:
         """A stage of an uplinked sequence the ground knows of now (at ``t_s``)."""
@@ -161,15 +162,16 @@ class MissionLink:
         report, t_s = sent.product.payload, sent.product.t_s
         recovering = sent.arrival_t_s <= self.received_until_t_s
         kind, sequence_id = report.get("type"), int(report.get("sequence_id") or 0)
-        if kind == "store":
-            self.store_reported = {**report, "t_s": t_s, "received_t_s": sent.arrival_t_s}
+        if kind == "store":  # the newest account made (a relay's may come after a newer DTE's)
+            if self.store_reported is None or t_s >= self.store_reported["t_s"]:
+                self.store_reported = {**report, "t_s": t_s, "received_t_s": sent.arrival_t_s}
         elif kind == "command":
             self.host.command_arrived(report)
         elif kind == "stage":
             self.host.stage(sequence_id, str(report["stage"]), t_s)
         elif kind == "sequence":
             status, detail = str(report["status"]), report.get("detail")
-            self.host.status_arrived(sequence_id, status, detail)
+            self.host.status_arrived(sequence_id, status, detail, t_s)
             self.host.stage(sequence_id, stage_of(status, detail), t_s, detail)
             if status != "running":
                 self.radiated_ids.discard(sequence_id)
@@ -177,7 +179,7 @@ class MissionLink:
             self.radiated_ids.discard(sequence_id)
             if report.get("found"):
                 detail = f"cancelled onboard {report['where']}"
-                self.host.status_arrived(sequence_id, "cancelled", detail)
+                self.host.status_arrived(sequence_id, "cancelled", detail, t_s)
                 self.host.stage(sequence_id, "cancelled", t_s, detail)
             else:
                 text = (
@@ -198,7 +200,7 @@ class MissionLink:
 
     def _count(self, sent: Sent) -> None:
         """What each pass brought, as the ground tallies it on arrival."""
-        key = f"{sent.pass_start_t_s:.3f}"
+        key = f"{sent.via} {sent.pass_start_t_s:.3f}"
         tally = self.passes.setdefault(
             key,
             {

@@ -10,10 +10,9 @@ from __future__ import annotations
 
 from typing import Any
 
+from server.runtime import RoverRuntime
 from sim.comm.windows import Window, comm_windows
 from sim.world.light_time import one_way_light_time_s
-
-from server.runtime import RoverRuntime
 from sim.world.marsclock import SOL_S, get_mission, t_s_to_utc
 
 MAX_SPAN_S = 10.0 * SOL_S  # the longest span of windows one request may ask for
@@ -28,10 +27,10 @@ def when(runtime: RoverRuntime, t_s: float | None) -> dict[str, Any] | None:
 
 
 def _window(
-    runtime: RoverRuntime, w: Window, passes: dict[float, dict[str, Any]]
+    runtime: RoverRuntime, w: Window, passes: dict[tuple[str, float], dict[str, Any]]
 ) -> dict[str, Any]:
     out = {**w.as_json(), "start": when(runtime, w.start_t_s), "end": when(runtime, w.end_t_s)}
-    got = passes.get(round(w.start_t_s, 3))
+    got = passes.get((w.kind, round(w.start_t_s, 3)))  # an uplink window brings nothing down
     out["received_mbit"] = None if got is None else got["bits"] / 1e6
     out["received_products"] = None if got is None else got["products"]
     return out
@@ -48,7 +47,7 @@ def comm_json(runtime: RoverRuntime, t_from_s: float | None = None,
     site = get_mission(runtime.spec.mission)
     found = comm_windows(site.lat_deg, site.lon_east_deg, comm.plan, t_from_s, t_to_s)
     ground = comm.mission.ground_view() if comm.mission is not None else None
-    passes = {round(p["start_t_s"], 3): p for p in (ground or {}).get("passes", [])}
+    passes = {(p["via"], round(p["start_t_s"], 3)): p for p in (ground or {}).get("passes", [])}
     ahead = [w for w in comm_windows(site.lat_deg, site.lon_east_deg, comm.plan, now,
                                      now + 3.0 * SOL_S) if w.end_t_s > now]  # fmt: skip
     next_uplink = next((w for w in ahead if w.kind == "uplink"), None)
