@@ -62,6 +62,10 @@ BENCHES: dict[str, Bench] = {
         "bench.restart:bench_restart",
         "the server killed and restarted: lost steps, pauses, SIGTERM, restart time",
     ),
+    "comm": Bench(
+        "bench.comm.report:bench_comm",
+        "across light time: light time, passes and data volume, gaps, kills mid-pass",
+    ),
     "fuzz": Bench(
         "bench.fuzz:bench_fuzz",
         "the API fuzzed from its OpenAPI (schemathesis) and the sequence-language fuzzer",
