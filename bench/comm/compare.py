@@ -3,8 +3,7 @@
 Both runs are the same deterministic scenario (``bench.comm.kills``), so the rows are the
 same but for the kills'. Compared, each as a multiset of keys:
 
-- ``frames``: the downlink frames made up to the horizon, by ``t_s`` (later ones may not
-  have come down when a run stopped);
+- ``frames``: the downlink frames, by ``t_s``;
 - ``events``: by time, kind and text, but the server's own start notices (a restart adds
   one each);
 - ``commands``: the command rows, by sequence, step, command, status and start time (a
@@ -27,11 +26,11 @@ from bench.comm.checks import Stored
 KINDS = ("frames", "events", "commands", "stages", "status")
 
 
-def keys(stored: Stored, horizon_s: float) -> dict[str, Counter[Hashable]]:
+def keys(stored: Stored) -> dict[str, Counter[Hashable]]:
     """What is compared of ``stored``, each kind a multiset of keys (module docstring)."""
     names = {int(s["id"]): str(s["name"]) for s in stored.sequences}
     return {
-        "frames": Counter(round(t, 6) for t, _r in stored.frames if t <= horizon_s),
+        "frames": Counter(round(t, 6) for t, _r in stored.frames),
         "events": Counter(
             (round(t, 6), kind, text) for t, kind, text, _r in stored.events if kind != "server"
         ),
@@ -52,9 +51,9 @@ def keys(stored: Stored, horizon_s: float) -> dict[str, Counter[Hashable]]:
     }
 
 
-def compare(reference: Stored, killed: Stored, horizon_s: float) -> dict[str, dict[str, int]]:
+def compare(reference: Stored, killed: Stored) -> dict[str, dict[str, int]]:
     """Per kind of row: ``lost``, ``duplicated`` and ``extra`` (module docstring)."""
-    ref, got = keys(reference, horizon_s), keys(killed, horizon_s)
+    ref, got = keys(reference), keys(killed)
     out = {}
     for kind in KINDS:
         twice = {k: n - ref[kind][k] for k, n in got[kind].items() if n > ref[kind].get(k, n)}
@@ -66,9 +65,9 @@ def compare(reference: Stored, killed: Stored, horizon_s: float) -> dict[str, di
     return out
 
 
-def examples(reference: Stored, killed: Stored, horizon_s: float, n: int = 3) -> list[str]:
+def examples(reference: Stored, killed: Stored, n: int = 3) -> list[str]:
     """Up to ``n`` keys of each kind lost, duplicated and extra, in words."""
-    ref, got = keys(reference, horizon_s), keys(killed, horizon_s)
+    ref, got = keys(reference), keys(killed)
     out: list[str] = []
     for kind in KINDS:
         lost = list(ref[kind] - got[kind])

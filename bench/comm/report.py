@@ -13,17 +13,19 @@ Three parts, each with fixed seeds:
   the whole within theirs); then one sol with the store far too small
   (``overflow_accounted_pct``: the store's drops that its gaps name, target 100).
 - ``bench.comm.kills``: a real ``roverops serve --comm mission`` killed ``kills`` times
-  (``ROVEROPS_COMM_KILLS``, default 10) during an uplink's flight and during relay passes,
-  restarted on the same database each time, against a run never killed:
-  ``kill_mid_pass_lost`` and ``kill_mid_pass_duplicated`` (targets 0).
+  (``ROVEROPS_COMM_KILLS``, default 10) during an uplink (radiated, in flight, arriving)
+  and during passes (a drive in a relay pass, a status a pass brought down), restarted on
+  the same database each time, against a run never killed: ``kill_mid_pass_lost`` (rows of
+  the reference not stored) and ``kill_mid_pass_duplicated`` (rows stored more often than
+  in the reference, or not in it), targets 0.
 
 Over every run: ``early_arrivals``, products on the ground before their send time plus the
 relay's delay plus the light time, and stored frames and events received before their
 time plus the light time (target 0); ``uplink_before_window``, uplinks radiated outside an
 uplink window or onboard before their light time, and sequences started before received
-(target 0); ``products_lost_with_room``, products made that are neither on the ground, in
-the store, on their way nor counted as dropped, and products on the ground that are not
-stored (target 0).
+(target 0). Over the in-process runs: ``products_lost_with_room``, products made that are
+neither on the ground, in the store, on their way nor counted as dropped, and products on
+the ground that are not stored (target 0).
 
 Output contract: ``bench.result``; ``details`` beside it: examples of what failed, the
 comparison by kind of row, the kills' delays.

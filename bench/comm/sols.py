@@ -7,7 +7,10 @@ one sequence a sol (``drive_sequence``: ``@ 11:00 LMST`` a NADIR_UPDATE, then a 
 the first uploaded at the start (08:33 LMST of sol 100, before that sol's 09:00 uplink
 window), each next one once the rover's clock is past the window that carried the one
 before (in practice while that sol's drive is computed: the clock stands at its start), so
-it goes up in the next sol's window.
+it goes up in the next sol's window. The sequence of the sol after the last is sent too:
+while a sequence is on the ground, on its way or onboard unreported, the operators wait for
+it and the clock skips on from one thing the link brings to the next (with nothing on its
+way it would run in real time).
 
 A ``LinkTap`` on the runtime's link records what the link itself did (every product on the
 ground, every uplink radiated); the database is read after the server stopped. What one run
@@ -139,7 +142,7 @@ def run_sols(
             uploads = [_upload(server, runtime, drive_sequence(0, drive_m))]
             runtime.set_clock(speed=math.inf)
             runtime.start()
-            for k in range(1, sols):
+            for k in range(1, sols + 1):
                 _until(runtime, uplinks[k - 1].end_t_s + AFTER_WINDOW_S, deadline)
                 if runtime.t_s >= uplinks[k].start_t_s:
                     raise RuntimeError(f"sol {k}'s sequence missed its window: sent too late")
