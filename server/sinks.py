@@ -131,9 +131,13 @@ class RuntimeListener(Protocol):
         """A stage of an uplinked sequence (its command history, ``server.comm``) at ``t_s``,
         as the ground knows it now; a stage recorded already is not recorded again."""
 
-    def link_event(self, rover: str, t_s: float, event: dict[str, str], recovering: bool) -> None:
-        """An event of the link the ground learns (a gap, a cancel's outcome); with
-        ``recovering`` it may be stored already (delivered again after a restart)."""
+    def link_event(
+        self, rover: str, t_s: float, event: dict[str, str], recovering: bool,
+        received_t_s: float | None = None,
+    ) -> None:  # fmt: skip
+        """An event of the link the ground learns (a gap, a cancel's outcome) at
+        ``received_t_s``; with ``recovering`` it may be stored already (delivered again
+        after a restart)."""
 
     def stored_frame_times(self, rover: str, downlinks: list[DownlinkDict]) -> set[float]:
         """Which of ``downlinks`` (their ``t_s``) storage holds already."""

@@ -257,12 +257,15 @@ class Server:
         except KeyError:  # a sequence of a test's own, never stored
             log.warning("stage %s of unknown sequence #%s", stage, sequence_id)
 
-    def link_event(self, rover: str, t_s: float, event: dict[str, str], recovering: bool) -> None:
+    def link_event(
+        self, rover: str, t_s: float, event: dict[str, str], recovering: bool,
+        received_t_s: float | None = None,
+    ) -> None:  # fmt: skip
         if recovering and any(
             e["text"] == event["text"] for e in self.store.events(rover, t_s, t_s)
         ):
             return  # stored before the restart
-        self._server_event(rover, t_s, event)
+        self._server_event(rover, t_s, event, received_t_s)
 
     def stored_frame_times(self, rover: str, downlinks: list[DownlinkDict]) -> set[float]:
         return self.store.stored_frame_times(rover, (float(d["t_s"]) for d in downlinks))
@@ -292,13 +295,16 @@ class Server:
             "text": why + (f"; cancelled: {names}" if names else ""),
             "kind": "sequence", "severity": "warning"})  # fmt: skip
 
-    def _server_event(self, rover: str, t_s: float | None, event: dict[str, str]) -> None:
+    def _server_event(
+        self, rover: str, t_s: float | None, event: dict[str, str],
+        received_t_s: float | None = None,
+    ) -> None:  # fmt: skip
         """An event the server makes (``estimation.events``: kinds ``sequence``, ``alarm``),
         at ``t_s`` or the rover's clock now: stored for the event log and sent as an
-        ``event`` notice (it is in no frame)."""
+        ``event`` notice (it is in no frame); ``received_t_s``: a link's, as it came down."""
         t = self.rovers[rover].t_s if t_s is None else t_s
         when = self._when(rover, t)
-        self.writer.events(rover, [(t, event)])
+        self.writer.events(rover, [(t, event)], received_t_s)
         self.hub.notify(rover, EventNotice(
             {**event, "t_s": t, "sol": when["sol"], "lmst_h": when["lmst_h"]}))  # fmt: skip
 

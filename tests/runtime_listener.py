@@ -48,7 +48,10 @@ class RecordingListener:
     ) -> None:
         self.stages.append((sequence_id, stage, t_s))
 
-    def link_event(self, rover: str, t_s: float, event: dict[str, str], recovering: bool) -> None:
+    def link_event(
+        self, rover: str, t_s: float, event: dict[str, str], recovering: bool,
+        received_t_s: float | None = None,
+    ) -> None:  # fmt: skip
         self.events.append((t_s, event))
 
     def stored_frame_times(self, rover: str, downlinks: list[Any]) -> set[float]:

@@ -360,9 +360,13 @@ class RuntimeComm:
             listener.sequence_stage(sequence_id, stage, t_s, detail)
             listener.queue_changed(self.runtime.spec.name)  # a stage moves it on the queue
 
-    def event(self, t_s: float, event: dict[str, str], recovering: bool) -> None:
+    def event(
+        self, t_s: float, event: dict[str, str], recovering: bool, received_t_s: float
+    ) -> None:
         if self.runtime.listener is not None:
-            self.runtime.listener.link_event(self.runtime.spec.name, t_s, event, recovering)
+            self.runtime.listener.link_event(
+                self.runtime.spec.name, t_s, event, recovering, received_t_s
+            )
 
     # ---- checkpoint -------------------------------------------------------------------
 

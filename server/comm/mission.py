@@ -61,7 +61,9 @@ class LinkHost(Protocol):
     def stage(self, sequence_id: int, stage: str, t_s: float, detail: str | None = None) -> None:
         """A stage of an uplinked sequence the ground knows of now (at ``t_s``)."""
 
-    def event(self, t_s: float, event: dict[str, str], recovering: bool) -> None:
+    def event(
+        self, t_s: float, event: dict[str, str], recovering: bool, received_t_s: float
+    ) -> None:
         """An event of the link the ground learns (a gap, a cancel's outcome)."""
 
 
@@ -186,17 +188,15 @@ class MissionLink:
                     f"the cancel of sequence #{sequence_id} reached the rover after the "
                     "sequence had ended: nothing to cancel"
                 )
-                self.host.event(
-                    t_s, {"text": text, "kind": "sequence", "severity": "warning"}, recovering
-                )
+                self.host.event(t_s, {"text": text, "kind": "sequence", "severity": "warning"},
+                                recovering, sent.arrival_t_s)  # fmt: skip
         elif kind == "gap":
             self.gaps = [
                 *self.gaps[-PASSES_KEPT + 1 :],
                 {**report, "received_t_s": sent.arrival_t_s},
             ]
-            self.host.event(
-                t_s, {"text": gap_text(report), "kind": "comm", "severity": "warning"}, recovering
-            )
+            self.host.event(t_s, {"text": gap_text(report), "kind": "comm", "severity": "warning"},
+                            recovering, sent.arrival_t_s)  # fmt: skip
 
     def _count(self, sent: Sent) -> None:
         """What each pass brought, as the ground tallies it on arrival."""
