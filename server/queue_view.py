@@ -98,7 +98,6 @@ def queue_json(runtime: RoverRuntime, store: Store | None = None) -> list[dict[s
             "next_step": e.next_step,
             "step_count": len(e.sequence.steps),
             "steps": [_step(runtime, e, i, s) for i, s in enumerate(e.sequence.steps)],
-            "side": "onboard",  # the link is instant: accepted is onboard
         }
         for position, e in enumerate(entries)
     ]

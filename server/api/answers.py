@@ -229,7 +229,7 @@ class QueueEntry(Answer):
     next_step: int
     step_count: int
     steps: list[QueueStep]
-    side: Literal["ground", "onboard"] = "onboard"  # across light time: which side
+    side: Literal["ground", "onboard"] | None = None  # across light time: which side
     stages: list[dict[str, Any]] = []  # its command history: stage, t_s, detail, when
 
 

@@ -14,7 +14,8 @@ predicts from published ephemerides (``sim.comm.windows``) and the light time fr
   ``DOWNLINK_SOLS`` (3) sols more for the drives' results; the windows are cached by sol
   (``sim.comm.windows``), so a rover's later validations cost little;
 - ``uplink_from_t_s``: the uplinks already waiting on the ground go first, each radiated in
-  turn as the link does (``sequences.comm_timing.radiation``); this sequence after them;
+  turn as the link does (``sequences.comm_timing.radiation``; one that no window holds fails
+  on the ground and blocks none); this sequence after them;
 - the one-way light time both ways, sampled a quarter sol apart on a grid fixed in TT (each
   sample cached), interpolated by the walk within a few milliseconds.
 
@@ -76,10 +77,8 @@ class RoverLink:
                 break
             found = self._windows(self.t_s, until)
             when = radiation(found, bits, start, until)
-            if when is None:
-                after = math.inf
-                break
-            after = when[1]
+            if when is not None:  # one no window holds fails on the ground: the rest go on
+                after = when[1]
         search_end = min(after + SEARCH_SOLS * SOL_S, limit)
         horizon = min(search_end + DOWNLINK_SOLS * SOL_S, limit)
         found = self._windows(self.t_s, horizon)

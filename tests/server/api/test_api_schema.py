@@ -111,6 +111,10 @@ def test_every_frame_field_the_console_reads_is_in_the_schema(
     for record in ("downlink", "truth"):
         got = c.get(f"/api/schema/{record}", headers={"Authorization": f"Bearer {TOKEN}"})
         fields |= set(got.json()["properties"])
+    # and what the WebSocket's frame message adds to the records (its arrival across light
+    # time, the truth view's live truth time)
+    ws = c.get("/api/schema/ws", headers={"Authorization": f"Bearer {TOKEN}"}).json()
+    fields |= {"received_t_s", "truth_t_s"} & set(ws["$defs"]["FrameMessage"]["properties"])
     read: dict[str, set[str]] = {}
     for script, name in FRAME_NAMES.items():
         text = (WEB / script).read_text(encoding="utf-8")
