@@ -70,6 +70,9 @@ def page(server: str) -> Iterator[Page]:
 def sign_in(page: Page, token: str = TOKEN, who: str = "bootstrap · admin") -> None:
     """Sign the console in (once: a signed-in page stays signed in)."""
     signed = page.get_by_test_id("signed-in")
+    # the console has asked who it is (data-role set): its sign-in handler is attached, and
+    # a click before would be lost on a busy machine
+    expect(signed).to_have_attribute("data-role", re.compile(".*"))
     if signed.text_content() == who:
         return
     page.fill("[data-testid=token]", token)

@@ -85,6 +85,7 @@ def test_a_refused_token_is_reported_as_the_api_words_it(
     page = _open(context, server)
     assert _header_rows(page) == 1  # not signed in (the widest header) at 1280 px
     # a token a header cannot carry (not Latin-1) is still checked, and refused in words
+    expect(page.get_by_test_id("signed-in")).to_have_attribute("data-role", re.compile(".*"))
     page.fill("[data-testid=token]", "токен-оператора")
     page.click("[data-testid=sign-in]")
     expect(page.get_by_test_id("sequence-status")).to_have_text(

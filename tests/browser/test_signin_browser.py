@@ -52,6 +52,7 @@ def test_a_private_server_shows_nothing_before_sign_in(page: Page) -> None:
 def test_a_viewer_reads_live_and_may_not_command(
     page: Page, server: tuple[str, dict[str, str]]
 ) -> None:
+    expect(page.get_by_test_id("signed-in")).to_have_attribute("data-role", re.compile(".*"))
     page.fill("[data-testid=token]", server[1]["viewer"])
     page.click("[data-testid=sign-in]")
     expect(page.get_by_test_id("signed-in")).to_have_text("viewer1 · viewer")
@@ -108,6 +109,7 @@ def test_a_tab_reads_the_timeline_with_its_token_when_another_tab_signed_out(
     21: the timeline's own fetch sent no token and was refused 401 without the cookie)."""
     if page.get_by_test_id("sign-out").is_visible():
         page.click("[data-testid=sign-out]")
+    expect(page.get_by_test_id("signed-in")).to_have_attribute("data-role", re.compile(".*"))
     page.fill("[data-testid=token]", server[1]["operator"])
     page.click("[data-testid=sign-in]")
     expect(page.get_by_test_id("signed-in")).to_have_text("operator1 · operator")

@@ -15,6 +15,7 @@ test-artifacts/."""
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -116,6 +117,7 @@ def test_a_wrong_token_is_reported_at_the_sign_in_form(page: Page, server: str) 
     assert refused.status_code == 403
     detail = refused.json()["detail"]
     assert detail.startswith("wrong token: ")
+    expect(page.get_by_test_id("signed-in")).to_have_attribute("data-role", re.compile(".*"))
     page.fill("[data-testid=token]", "not-the-token")
     page.click("[data-testid=sign-in]")
     error = page.get_by_test_id("sign-in-error")

@@ -165,6 +165,9 @@ def test_the_console_answers_with_the_view_running_and_collapsing_unloads_it(ser
             frame.wait_for_function(SCENE_LOADED)  # the view is loaded and drawing
             assert any(u.startswith(frame.url) for u in _viser_targets(page)), frame.url
 
+            expect(page.get_by_test_id("signed-in")).to_have_attribute(
+                "data-role", re.compile(".*")
+            )
             page.fill("[data-testid=token]", TOKEN)
             page.click("[data-testid=sign-in]")
             expect(page.get_by_test_id("signed-in")).to_have_text("bootstrap · admin")
