@@ -28,6 +28,7 @@ def quick() -> dict[str, Any]:
         hga_min=1.0,
         blank_lines=10_000,
         upload_bytes=100_000,
+        sol_repeats=1,  # one sol on one server: the figures' sense, not their spread
         channel_every_s=600.0,  # 7 sols of a frame every 10 min
     )
 

@@ -18,19 +18,21 @@ from collections.abc import Iterator
 from typing import Any
 
 import httpx
+import pytest
 from playwright.sync_api import Browser, Page, expect, sync_playwright
 
-from tests.browser.test_console_browser import (
-    ARTIFACTS,
-    CHROMIUM,
-    LAUNCH_ARGS,
-    TOKEN,
-    server,  # noqa: F401  (the module's server fixture)
-    sign_in,
-)
-from tests.server.test_server_restart import _wait
+from tests.browser.test_console_browser import ARTIFACTS, CHROMIUM, LAUNCH_ARGS, TOKEN, sign_in
+from tests.server.test_server_restart import _wait, serving
 
 AUTH = {"Authorization": f"Bearer {TOKEN}"}
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    """The real server without its 3D views: the consoles below never load them (their
+    viser frames are aborted), so their scenes would be drawn with nobody watching."""
+    with serving(tmp_path_factory.mktemp("alarms"), TOKEN, three_d=False) as base:
+        yield base
 
 
 @contextlib.contextmanager
@@ -73,7 +75,7 @@ def _run(base: str, command: str, **args: Any) -> None:
     _wait(done, 120.0)
 
 
-def test_alarms_raise_acknowledge_clear_in_two_browsers(server: str) -> None:  # noqa: F811
+def test_alarms_raise_acknowledge_clear_in_two_browsers(server: str) -> None:
     # The new rover's attitude is Unknown: the AQF alarms with the first frames, and only it
     # (a finite speed: at max an idle rover's clock stands still).
     r = httpx.post(f"{server}/api/rovers/spirit/clock", headers=AUTH, json={"speed": 100})
