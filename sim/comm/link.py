@@ -305,7 +305,8 @@ class CommLink:
         self._deliver_down(t_to_s, progress)
 
     def _deliver_down(self, t_to_s: float, progress: Progress) -> None:
-        n = bisect.bisect_right([s.arrival_t_s for s in self.falling], t_to_s)
+        # every tick: search the sorted list without copying its thousands of arrival times
+        n = bisect.bisect_right(self.falling, t_to_s, key=lambda s: s.arrival_t_s)
         progress.on_ground.extend(self.falling[:n])
         del self.falling[:n]
 

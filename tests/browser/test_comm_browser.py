@@ -20,7 +20,14 @@ from typing import Any
 import httpx
 import pytest
 
-from tests.browser.test_console_browser import ARTIFACTS, CHROMIUM, LAUNCH_ARGS, TOKEN, sign_in
+from tests.browser.test_console_browser import (
+    ARTIFACTS,
+    CHROMIUM,
+    LAUNCH_ARGS,
+    TOKEN,
+    new_token,
+    open_console,
+)
 from tests.server.test_server_restart import _wait, serving
 
 if not Path(CHROMIUM).exists():
@@ -51,22 +58,6 @@ def browser() -> Iterator[Browser]:
         chromium = p.chromium.launch(executable_path=CHROMIUM, args=LAUNCH_ARGS)
         yield chromium
         chromium.close()
-
-
-def _token(server: str, name: str, role: str) -> str:
-    r = httpx.post(f"{server}/api/users", json={"name": name, "role": role}, headers=ADMIN)
-    assert r.status_code == 201, r.text
-    token: str = r.json()["token"]
-    return token
-
-
-def _console(browser: Browser, server: str, token: str, who: str) -> Page:
-    page = browser.new_context(viewport={"width": 1280, "height": 900}).new_page()
-    page.goto(f"{server}/?rover={ROVER}")
-    # the modules have loaded (and checked for a sign-in) before the form is used
-    expect(page.get_by_test_id("signed-in")).to_have_text("reading only")
-    sign_in(page, token, who)
-    return page
 
 
 def _clock(server: str, body: dict[str, Any]) -> None:
@@ -105,8 +96,12 @@ def test_a_drive_across_light_time(browser: Browser, server: str) -> None:
     _clock(server, {"action": "pause"})
     comm = _get(server, "comm")
     assert comm["mode"] == "mission"
-    operator = _console(browser, server, _token(server, "opal", "operator"), "opal · operator")
-    conductor = _console(browser, server, _token(server, "cora", "conductor"), "cora · conductor")
+    operator = open_console(
+        browser, server, new_token(server, "opal", "operator"), "opal · operator", ROVER
+    )
+    conductor = open_console(
+        browser, server, new_token(server, "cora", "conductor"), "cora · conductor", ROVER
+    )
 
     # ---- the header: the link, as the ground knows it ----------------------------------
     expect(operator.get_by_test_id("link-mode")).to_have_text("link: mission")

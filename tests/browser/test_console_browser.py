@@ -37,7 +37,7 @@ if not Path(CHROMIUM).exists():
         raise RuntimeError("Chromium is missing: `make test` installs Debian's chromium")
     pytest.skip("Chromium not installed (make test installs it)", allow_module_level=True)
 
-from playwright.sync_api import Frame, Locator, Page, expect, sync_playwright  # noqa: E402
+from playwright.sync_api import Browser, Frame, Locator, Page, expect, sync_playwright  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -78,6 +78,26 @@ def sign_in(page: Page, token: str = TOKEN, who: str = "bootstrap · admin") -> 
     page.fill("[data-testid=token]", token)
     page.click("[data-testid=sign-in]")
     expect(signed).to_have_text(who)
+
+
+def new_token(server: str, name: str, role: str) -> str:
+    """A new user's token, made by the bootstrap admin."""
+    r = httpx.post(
+        f"{server}/api/users",
+        json={"name": name, "role": role},
+        headers={"Authorization": f"Bearer {TOKEN}"},
+    )
+    assert r.status_code == 201, r.text
+    token: str = r.json()["token"]
+    return token
+
+
+def open_console(browser: Browser, server: str, token: str, who: str, rover: str) -> Page:
+    """A console of ``rover`` in a context of its own, signed in as ``who``."""
+    page = browser.new_context(viewport={"width": 1280, "height": 900}).new_page()
+    page.goto(f"{server}/?rover={rover}")
+    sign_in(page, token, who)
+    return page
 
 
 def test_errors_show_at_their_lines_and_nothing_is_queued(page: Page, server: str) -> None:

@@ -13,13 +13,20 @@ from pathlib import Path
 import httpx
 import pytest
 
-from tests.browser.test_console_browser import ARTIFACTS, CHROMIUM, LAUNCH_ARGS, TOKEN, sign_in
+from tests.browser.test_console_browser import (
+    ARTIFACTS,
+    CHROMIUM,
+    LAUNCH_ARGS,
+    TOKEN,
+    new_token,
+    open_console,
+)
 from tests.server.test_server_restart import serving
 
 if not Path(CHROMIUM).exists():
     pytest.skip("Chromium not installed (make test installs it)", allow_module_level=True)
 
-from playwright.sync_api import Browser, Page, expect, sync_playwright
+from playwright.sync_api import Browser, expect, sync_playwright
 
 ADMIN = {"Authorization": f"Bearer {TOKEN}"}
 
@@ -40,27 +47,18 @@ def browser() -> Iterator[Browser]:
         chromium.close()
 
 
-def _token(server: str, role: str) -> str:
-    r = httpx.post(f"{server}/api/users", json={"name": f"{role}_f", "role": role}, headers=ADMIN)
-    assert r.status_code == 201, r.text
-    token: str = r.json()["token"]
-    return token
-
-
-def _console(browser: Browser, server: str, token: str, who: str) -> Page:
-    page = browser.new_context(viewport={"width": 1280, "height": 900}).new_page()
-    page.goto(f"{server}/?rover=spirit")
-    expect(page.get_by_test_id("sol-clock")).to_contain_text("LMST")
-    sign_in(page, token, who)
-    return page
-
-
 def test_a_conductor_injects_an_operator_sees_it_only_once_revealed(
     browser: Browser, server: str
 ) -> None:
-    conductor = _console(browser, server, _token(server, "conductor"), "conductor_f · conductor")
-    operator_token = _token(server, "operator")
-    operator = _console(browser, server, operator_token, "operator_f · operator")
+    conductor = open_console(
+        browser,
+        server,
+        new_token(server, "conductor_f", "conductor"),
+        "conductor_f · conductor",
+        "spirit",
+    )
+    operator_token = new_token(server, "operator_f", "operator")
+    operator = open_console(browser, server, operator_token, "operator_f · operator", "spirit")
     expect(operator.get_by_test_id("faults-panel")).to_be_hidden()
     expect(conductor.get_by_test_id("faults-panel")).to_be_visible()
     conductor.select_option("[data-testid=fault-kind]", "sand_trap")
