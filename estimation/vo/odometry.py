@@ -22,10 +22,11 @@ Site frame at the previous pair (for the sanity constraints only). Mast angles a
 
 from __future__ import annotations
 
+import dataclasses
 import enum
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -79,12 +80,30 @@ class VoMotion:
         return out
 
 
+_NO_PX = np.zeros((0, 2))
+
+
+@dataclass(frozen=True)
+class VoFeatures:
+    """What a step saw, in pixels of the rig's images (the paper's Figs. 5-6 draw these):
+    ``features_uv_px`` (N, 2) the new pair's stereo-matched features in its left image;
+    ``tracked_previous_uv_px`` and ``tracked_uv_px`` (M, 2) the previous pair's features
+    tracked into the new left image, before and after; ``inlier`` (M,) those RANSAC kept
+    (all False when no motion was estimated)."""
+
+    features_uv_px: FloatArray = field(default_factory=lambda: _NO_PX.copy())
+    tracked_previous_uv_px: FloatArray = field(default_factory=lambda: _NO_PX.copy())
+    tracked_uv_px: FloatArray = field(default_factory=lambda: _NO_PX.copy())
+    inlier: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
+
+
 @dataclass(frozen=True)
 class VoResult:
     """One step's outcome: ``status`` and a human ``reason``; ``motion`` only when
     converged; ``update`` (the change VO makes to wheel odometry) once a motion was
     estimated, even if the sanity check refused it; the counts: features stereo-matched in
-    the new pair, previous features tracked into it, RANSAC inliers, ML iterations."""
+    the new pair, previous features tracked into it, RANSAC inliers, ML iterations;
+    ``features`` their pixels."""
 
     status: VoStatus
     reason: str
@@ -94,6 +113,7 @@ class VoResult:
     n_tracked: int
     n_inliers: int
     ml_iterations: int
+    features: VoFeatures = field(default_factory=VoFeatures)
 
     @property
     def converged(self) -> bool:
@@ -210,24 +230,31 @@ class VisualOdometry:
         new_frame = self._stereo_features(pair, left_pyramid, right_padded)
         previous, self._previous = self._previous, new_frame
         n_new = len(new_frame.uv_px)
+        seen = VoFeatures(features_uv_px=new_frame.uv_px.copy())
         if previous is None:
-            return _result(VoStatus.INITIALISED, "first pair", n_features=n_new)
+            return _result(VoStatus.INITIALISED, "first pair", n_features=n_new, features=seen)
         if len(previous.uv_px) < p.min_features:
             reason = f"{len(previous.uv_px)} stereo features in the previous pair"
             return _result(VoStatus.TOO_FEW_FEATURES, f"{reason}, need {p.min_features}",
-                           n_features=n_new)  # fmt: skip
+                           n_features=n_new, features=seen)  # fmt: skip
         tracked = self._track(previous, new_frame, right_padded, pair, R_pred, t_pred)
         n_tracked = len(tracked.index)
+        seen = VoFeatures(
+            seen.features_uv_px, previous.uv_px[tracked.index], tracked.uv_left_px.copy(),
+            np.zeros(n_tracked, dtype=bool),
+        )  # fmt: skip
         if n_tracked < p.min_features:
             reason = f"{n_tracked} features tracked, need {p.min_features}"
             return _result(VoStatus.TOO_FEW_FEATURES, reason, n_features=n_new,
-                           n_tracked=n_tracked)  # fmt: skip
+                           n_tracked=n_tracked, features=seen)  # fmt: skip
         ransac = self._ransac(pair, tracked)
         n_inliers = ransac.score
+        seen = dataclasses.replace(seen, inlier=np.asarray(ransac.inliers, dtype=bool).copy())
         if n_inliers < p.min_inliers:
             reason = f"{n_inliers} RANSAC inliers of {n_tracked}, need {p.min_inliers}"
             return _result(VoStatus.TOO_FEW_INLIERS, reason, n_features=n_new,
-                           n_tracked=n_tracked, n_inliers=n_inliers)  # fmt: skip
+                           n_tracked=n_tracked, n_inliers=n_inliers,
+                           features=seen)  # fmt: skip
 
         inl = ransac.inliers
         ml = refine_ml(
@@ -239,7 +266,7 @@ class VisualOdometry:
             reason = f"maximum-likelihood refinement did not converge in {ml.iterations} steps"
             return _result(VoStatus.NO_CONVERGENCE, reason, n_features=n_new,
                            n_tracked=n_tracked, n_inliers=n_inliers,
-                           ml_iterations=ml.iterations)  # fmt: skip
+                           ml_iterations=ml.iterations, features=seen)  # fmt: skip
 
         motion = body_motion(ml.R, ml.T, ml.covariance)
         update = update_of(motion.R_b0_b1, motion.p_b1_b0, R_pred, t_pred, R_s)
@@ -249,6 +276,7 @@ class VisualOdometry:
             status, problem or f"{n_inliers} inliers of {n_tracked} tracked features",
             motion if problem is None else None, update, n_features=n_new,
             n_tracked=n_tracked, n_inliers=n_inliers, ml_iterations=ml.iterations,
+            features=seen,
         )  # fmt: skip
 
     def _track(
@@ -364,6 +392,10 @@ def _result(
     n_tracked: int = 0,
     n_inliers: int = 0,
     ml_iterations: int = 0,
+    features: VoFeatures | None = None,
 ) -> VoResult:
     """A step without a motion (initialisation or a failure)."""
-    return VoResult(status, reason, None, update, n_features, n_tracked, n_inliers, ml_iterations)
+    return VoResult(
+        status, reason, None, update, n_features, n_tracked, n_inliers, ml_iterations,
+        features if features is not None else VoFeatures(),
+    )  # fmt: skip
