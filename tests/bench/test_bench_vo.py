@@ -15,7 +15,7 @@ from scipy.spatial.transform import Rotation
 
 from bench.registry import BENCHES
 from bench.vo import bench_vo
-from bench.vo_baseline import body_motion_from_camera
+from bench.vo.baseline import body_motion_from_camera
 from sim.errors import InputError
 from sim.loop.vo_drive import VO_RIG
 

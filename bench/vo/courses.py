@@ -6,7 +6,7 @@ VO (``estimation.vo``) on 256 x 256 pairs (``sim.loop.vo_drive.VO_RIG``), SAPP's
 on each converged step. The attitude starts Fine, loaded from the truth, so the position
 error measured is VO's (and wheel odometry's), not a heading error's. A wrapper around the
 flight VO (``RecordingVO``) keeps, for every pair, the truth pose, VO's outcome and the
-baseline's (``bench.vo_baseline``: ORB, StereoSGBM, solvePnPRansac) on the same images.
+baseline's (``bench.vo.baseline``: ORB, StereoSGBM, solvePnPRansac) on the same images.
 
 - Rock course (Cheng, Maimone and Matthies 2005 sec. 3, Fig. 4): 2.45 m commanded straight over
 rocks 8-20 cm tall
@@ -57,7 +57,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from bench.result import bench_result
-from bench.vo_baseline import OrbPnpBaseline
+from bench.vo.baseline import OrbPnpBaseline
 from estimation.protection.limits import SPECS
 from estimation.sapp.aqf import AttitudeQuality
 from estimation.vo.odometry import VisualOdometry, VoResult, VoStatus
