@@ -45,6 +45,7 @@ from sequences.command_base import ArgSpec as ArgSpec
 from sequences.command_base import Argument as Argument
 from sequences.command_base import Command as Command
 from sequences.command_base import shown as shown
+from sequences.imaging import KEEP_IMAGES_SPECS, NavcamStereo, check_keep_images
 
 # The shared limits, re-exported: the dictionary's users read them as ``cmd.MAX_DRIVE_M``.
 from sequences.limits import MAX_DRIVE_M as MAX_DRIVE_M
@@ -84,6 +85,7 @@ VO_SPECS: Mapping[str, ArgSpec] = {
     ),
     "vo_attitude": ArgSpec("boolean", note="with vo=on: VO updates the attitude too"),
     "drag_wheel": ArgSpec("string", note=f"{'|'.join(WHEEL_KEYS)}: not driven but dragged"),
+    **KEEP_IMAGES_SPECS,  # images sent down (sequences.imaging)
 }
 
 
@@ -155,6 +157,7 @@ def _check_vo(command: Command) -> None:
         raise ValueError("vo_attitude: needs vo=on")
     if (drag := getattr(command, "drag_wheel", None)) not in (None, *WHEEL_KEYS):
         raise ValueError(f"drag_wheel: must be one of {', '.join(WHEEL_KEYS)}, got {shown(drag)}")
+    check_keep_images(command)
     _check_protection(command)
 
 
@@ -172,6 +175,7 @@ class DriveStraight(Command):
     vo: bool | None = None  # None: off
     vo_attitude: bool | None = None
     drag_wheel: str | None = None  # None: all six wheels driven
+    vo_keep_images: bool | None = None  # None: off
     slip_limit_pct: float | None = None  # None: the rover's limits (PROTECTION_SPECS)
     vo_fail: str | None = None
     timeout_s: float | None = None
@@ -212,6 +216,7 @@ class DriveArc(Command):
     vo: bool | None = None  # None: off
     vo_attitude: bool | None = None
     drag_wheel: str | None = None  # None: all six wheels driven
+    vo_keep_images: bool | None = None  # None: off
     slip_limit_pct: float | None = None  # None: the rover's limits (PROTECTION_SPECS)
     vo_fail: str | None = None
     timeout_s: float | None = None
@@ -245,6 +250,7 @@ class TurnInPlace(Command):
     vo: bool | None = None  # None: off
     vo_attitude: bool | None = None
     drag_wheel: str | None = None  # None: all six wheels driven
+    vo_keep_images: bool | None = None  # None: off
     slip_limit_pct: float | None = None  # None: the rover's limits (PROTECTION_SPECS)
     vo_fail: str | None = None
     timeout_s: float | None = None
@@ -275,6 +281,7 @@ class DriveTo(Command):
     vo: bool | None = None  # None: off
     vo_attitude: bool | None = None
     drag_wheel: str | None = None  # None: all six wheels driven
+    vo_keep_images: bool | None = None  # None: off
     slip_limit_pct: float | None = None  # None: the rover's limits (PROTECTION_SPECS)
     vo_fail: str | None = None
     timeout_s: float | None = None
@@ -563,6 +570,7 @@ COMMANDS: dict[str, type[Command]] = {
         KeepoutAdd,
         KeepoutClear,
         ClearMobilityFault,
+        NavcamStereo,
     )
 }
 

@@ -55,6 +55,7 @@ from estimation.sapp.sun_modes import SungazeParams
 from sequences import commands as cmd
 from sequences.comm_timing import CommTiming, CommWalk
 from sequences.drive_safety import DriveSafety
+from sequences.imaging import NAVCAM_STEREO_S, NavcamStereo
 from sequences.language import (
     Diagnostic,
     Sequence,
@@ -177,6 +178,7 @@ _DURATION_S: dict[type[cmd.Command], Callable[[Any, float], float]] = {
     cmd.KeepoutAdd: _fixed(0.0),
     cmd.KeepoutClear: _fixed(0.0),
     cmd.ClearMobilityFault: _fixed(0.0),
+    NavcamStereo: _fixed(NAVCAM_STEREO_S),
 }
 
 

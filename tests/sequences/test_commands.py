@@ -117,7 +117,7 @@ def test_commands_are_immutable_and_the_dictionary_holds_each_once() -> None:
     c = cmd.DriveStraight(distance_m=2.0)
     with pytest.raises(AttributeError):
         c.distance_m = 200.0  # type: ignore[misc]
-    assert len(cmd.COMMANDS) == 23
+    assert len(cmd.COMMANDS) == 24
     for name, kind in cmd.COMMANDS.items():
         assert kind.name == name and name.isupper()
     # the keyword is the class name in upper snake case
