@@ -45,7 +45,8 @@ from sequences.command_base import ArgSpec as ArgSpec
 from sequences.command_base import Argument as Argument
 from sequences.command_base import Command as Command
 from sequences.command_base import shown as shown
-from sequences.imaging import KEEP_IMAGES_SPECS, NavcamStereo, check_keep_images
+from sequences.imaging import KEEP_IMAGES_SPECS, check_keep_images
+from sequences.imaging import NavcamStereo as NavcamStereo
 
 # The shared limits, re-exported: the dictionary's users read them as ``cmd.MAX_DRIVE_M``.
 from sequences.limits import MAX_DRIVE_M as MAX_DRIVE_M

@@ -3,8 +3,7 @@
 A ``RoverRuntime`` owns one rover's session (flight software in the loop, ``sim.loop.session``),
 its queue of accepted sequences, and a thread that runs the clock:
 
-- The clock runs at ``speed`` simulated seconds per wall second (1 to ``MAX_SPEED``), or
-  as fast as the machine allows (``speed = inf``); it can be paused and resumed.
+- The clock runs at ``speed`` sim s per wall s (1 to ``MAX_SPEED``; ``inf``: flat out); it pauses.
 - The next step of the queue starts when its time tag comes (``sequences.language``): an
   LMST tag the next time the rover's LMST reads it, a sol-and-LMST tag at that moment, a
   relative tag that long after the previous command completed, no tag at once. Until then
@@ -31,11 +30,10 @@ frames published before it; restored, it resumes there: frames published again u
 last stored (``watermark_t_s``) are dropped, steps run again keep one row each. A clock
 change, the operators' intent, is stored before ``set_clock`` returns; ``stop`` checkpoints.
 
-What it publishes is the downlink with the truth beside it (``server.sinks.FrameBatch``);
+It publishes the downlink, the truth beside it and the images (``server.sinks.FrameBatch``);
 ``last_frame`` is the newest downlink on the ground, ``reported`` what its events report of
-the onboard tables (``server.validation.reported``). Across light time (``comm``,
-``server.comm.hosting``) sequences wait for their uplink window, the downlink for a pass,
-the truth goes out live.
+the onboard tables (``server.validation.reported``). Across light time (``server.comm``)
+sequences wait for their uplink window, the downlink for a pass, the truth goes out live.
 """
 
 from __future__ import annotations
@@ -464,6 +462,7 @@ class RoverRuntime:
         frames = self.session.take_frames()  # they live on in the play-out, storage and hub
         with self.lock:
             self._playout.extend(frames)
+            self.comm.rover_images(session.take_images())  # played out with the frames
         del session.reports[:]  # and the report in storage: the checkpoint stays small
         if item.wait_left_s is not None and item.wait_left_s > 1e-9:
             return  # more of the WAIT to come
@@ -515,10 +514,11 @@ class RoverRuntime:
         self._clock_t_s = max(self._clock_t_s, float(pairs[-1][0]["t_s"]))
         if self.comm.rover_frames(pairs):
             return  # into the rover's store, the truth out live
+        images = self.comm.due_images(float(pairs[-1][0]["t_s"]))  # stored once (by time)
         pairs = [p for p in pairs if p[0]["t_s"] > self.watermark_t_s]
         if not pairs:
             return
-        batch = FrameBatch([d for d, _ in pairs], [t for _, t in pairs])
+        batch = FrameBatch([d for d, _ in pairs], [t for _, t in pairs], images=images)
         self.last_frame, self.last_truth = pairs[-1]
         self.note_reported(e for d in batch.downlink for e in d.get("events", ()))
         self.publish(batch)

@@ -1,7 +1,8 @@
 """Where a rover's telemetry and reports go: the frame sinks and the runtime's listener.
 
 A ``RoverRuntime`` plays its frames out as its clock reaches them and hands each batch, in
-order, to every sink in its ``sinks`` list: storage (the records and their events), the alarm
+order, to every sink in its ``sinks`` list: storage (the records, their events and the
+images that came with them), the alarm
 engine, the WebSocket hub and the 3D view. A batch (``FrameBatch``) is two lists of the same
 length: the rover's downlink records (``sim.loop.downlink.DownlinkDict``, what
 ``Downlink.as_dict()`` gives) and, at the same times, the scorer's truth records
@@ -22,10 +23,11 @@ checkpoint, a queue change) goes to the one ``RuntimeListener`` it is built with
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Protocol, cast
 
 from sim.loop.downlink import DownlinkDict
+from sim.loop.images import ImageDict
 from sim.scoring.truth import TruthDict, merged
 
 if TYPE_CHECKING:
@@ -42,11 +44,14 @@ class FrameBatch:
     time the two records part: the truth goes out live as the clock plays it out (a batch
     of truth records alone), the downlink when it reaches the ground (a batch of downlink
     records alone, ``received_t_s`` when it arrived; older data may come after newer, as
-    a pass fills in the telemetry it sent decimated first)."""
+    a pass fills in the telemetry it sent decimated first). ``images``: the image products
+    (``sim.loop.images``) that came with the downlink (played out with the frames after
+    them, or down in the same pass); never with a batch of truth alone."""
 
     downlink: list[DownlinkDict]
     truth: list[TruthDict]
     received_t_s: float | None = None  # on the ground then (None: as it was made)
+    images: list[ImageDict] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         if self.downlink and self.truth and len(self.downlink) != len(self.truth):
@@ -155,3 +160,5 @@ class StorageSink:
         events = [(float(f["t_s"]), e) for f in batch.downlink for e in f.get("events", [])]
         # one call: a flush never parts a frame from its events
         self.writer.frames(rover, batch.downlink, batch.truth, events, batch.received_t_s)
+        if batch.images:  # stored once, as PNG, off the clock thread (server.storage.images)
+            self.writer.images(rover, batch.images, batch.received_t_s)

@@ -38,6 +38,7 @@ from sim.world.marsclock import get_mission
 if TYPE_CHECKING:
     from server.rovers import RoverSpec
     from sim.loop.downlink import DownlinkDict
+    from sim.loop.images import ImageDict
     from sim.scoring.truth import TruthDict
 
 log = logging.getLogger(__name__)
@@ -106,6 +107,7 @@ class RuntimeComm:
         self.plan = CommPlan()
         self.mission: MissionLink | None = None
         self.last_received_t_s: float | None = None  # the newest downlink came down then
+        self.images: list[ImageDict] = []  # images made, waiting for the clock (play-out)
         self._request: tuple[CommMode | None, CommPlan | None] | None = None
         self._applied = threading.Event()
         if check_comm_mode(mode) == "mission":
@@ -235,9 +237,22 @@ class RuntimeComm:
             rising = [u.sequence_id for u in self.mission.link.rising if u.kind == "sequence"]
             return [*self.mission.waiting_ids(), *rising, *sorted(self.mission.radiated_ids)]
 
+    def rover_images(self, images: list[ImageDict]) -> None:
+        """Images a command made: they are played out with the first frames at or after
+        them (``due_images``), as the telemetry is (the caller holds the runtime's lock)."""
+        self.images.extend(images)
+
+    def due_images(self, t_s: float) -> list[ImageDict]:
+        """The images made by ``t_s``, taken for the batch played out to then."""
+        with self.runtime.lock:
+            due = [i for i in self.images if i["t_s"] <= t_s]
+            self.images = [i for i in self.images if i["t_s"] > t_s]
+        return due
+
     def rover_frames(self, pairs: list[PlayedFrame]) -> bool:
-        """Across light time, played-out frames: the downlink into the rover's store, the
-        truth out live (True); with the link instant, False (the runtime publishes them)."""
+        """Across light time, played-out frames: the downlink (and the images made by its
+        last frame) into the rover's store, the truth out live (True); with the link
+        instant, False (the runtime publishes them, with ``due_images``)."""
         if self.mission is None:
             return False
         runtime = self.runtime
@@ -245,8 +260,9 @@ class RuntimeComm:
         if live:
             runtime.last_truth = live[-1]
             runtime.publish(FrameBatch([], live))
+        images = self.due_images(pairs[-1][0]["t_s"])
         with runtime.lock:
-            self.mission.rover_frames([d for d, _ in pairs])
+            self.mission.rover_frames([d for d, _ in pairs], images)
         return True
 
     def command_reported(self, record: CommandRecord) -> None:
@@ -333,11 +349,13 @@ class RuntimeComm:
         if recovering and runtime.listener is not None:
             stored = runtime.listener.stored_frame_times(runtime.spec.name, batch.downlink)
             fresh = [d for d in batch.downlink if d["t_s"] not in stored]
-            if not fresh:
+            if not fresh and not batch.images:  # images stored already are not stored again
                 return
-            batch = FrameBatch(fresh, [], batch.received_t_s)
-        newest = max(batch.downlink, key=lambda d: d["t_s"])
-        if runtime.last_frame is None or newest["t_s"] > runtime.last_frame["t_s"]:
+            batch = FrameBatch(fresh, [], batch.received_t_s, batch.images)
+        newest = max(batch.downlink, key=lambda d: d["t_s"], default=None)  # a pass of images
+        if newest is not None and (
+            runtime.last_frame is None or newest["t_s"] > runtime.last_frame["t_s"]
+        ):
             runtime.last_frame = newest
             self.last_received_t_s = batch.received_t_s
         runtime.note_reported(e for d in batch.downlink for e in d.get("events", ()))
@@ -375,6 +393,7 @@ class RuntimeComm:
             "plan": self.plan.as_json(),
             "mission": None if self.mission is None else self.mission.state(),
             "last_received_t_s": self.last_received_t_s,
+            "images": list(self.images),
         }
 
     def load_state(self, state: Mapping[str, Any] | None) -> None:
@@ -383,6 +402,7 @@ class RuntimeComm:
             return
         self.plan = CommPlan.from_json(state["plan"])
         self.last_received_t_s = state["last_received_t_s"]
+        self.images = list(state.get("images", []))  # none before images came down
         self.mission = None
         if state["mission"] is not None:
             self._start(self.runtime.t_s)

@@ -24,7 +24,7 @@ handed on ``recovering``: the host stores of it only what storage does not hold 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any, Protocol
 
 from sequences.language import to_text
@@ -34,6 +34,7 @@ from sim.comm.link import SEARCH_SOLS, CommLink, Progress, Sent, Uplink
 from sim.comm.plan import CommPlan
 from sim.comm.store import HEADER_BITS
 from sim.loop.downlink import DownlinkDict
+from sim.loop.images import ImageDict, as_image, image_bits
 
 PASSES_KEPT = 64  # the passes the ground remembers what it received from
 
@@ -102,9 +103,16 @@ class MissionLink:
         """The sequences on the ground, waiting for a window, in order."""
         return [u.sequence_id for u in self.link.waiting if u.kind == "sequence"]
 
-    def rover_frames(self, downlinks: list[DownlinkDict]) -> None:
+    def rover_frames(self, downlinks: list[DownlinkDict], images: Sequence[ImageDict] = ()) -> None:
+        """Into the store in the rover's time order, the images among the frames."""
+        store, waiting = self.link.store, sorted(images, key=lambda i: i["t_s"])
         for frame in downlinks:
-            self.link.store.add_frame(frame)
+            while waiting and waiting[0]["t_s"] <= frame["t_s"]:
+                image = waiting.pop(0)
+                store.add_image(image, image_bits(image["width_px"], image["height_px"]))
+            store.add_frame(frame)
+        for image in waiting:
+            store.add_image(image, image_bits(image["width_px"], image["height_px"]))
 
     def rover_report(self, t_s: float, report: Mapping[str, Any]) -> None:
         self.link.store.add_report(t_s, report)
@@ -149,15 +157,18 @@ class MissionLink:
                 report = {"type": "cancel", "sequence_id": uplink.sequence_id, **found}
             self.rover_report(at, report)
         frames: list[DownlinkDict] = []
+        images: list[ImageDict] = []
         for sent in progress.on_ground:
             self._count(sent)
             if sent.product.kind == "frame":
                 frames.append(sent.product.payload)  # type: ignore[arg-type]
+            elif sent.product.kind == "image":
+                images.append(as_image(sent.product.payload))
             else:
                 self._report_arrived(sent)
-        if frames:  # one batch, stamped with its last arrival: never earlier than any
+        if frames or images:  # one batch, stamped with its last arrival: never earlier than any
             received = progress.on_ground[-1].arrival_t_s
-            batch = FrameBatch(frames, [], received)
+            batch = FrameBatch(frames, [], received, images)
             self.host.downlink_arrived(batch, recovering=received <= self.received_until_t_s)
 
     def _report_arrived(self, sent: Sent) -> None:
@@ -270,7 +281,7 @@ def stage_of(status: str, detail: str | None) -> str:
 
 def gap_text(gap: Mapping[str, Any]) -> str:
     """A gap the store reports, in words."""
-    what = {0: "reports", 1: "decimated telemetry frames", 2: "telemetry frames"}
+    what = {0: "reports", 1: "decimated telemetry frames and images", 2: "telemetry frames"}
     span_min = (float(gap["last_t_s"]) - float(gap["first_t_s"])) / 60.0
     return (
         f"downlink gap: the onboard store was full and dropped {gap['count']} "

@@ -8,7 +8,9 @@ as JSON) and a priority, 0 the highest:
 - 0 ``PRIORITY_REPORT``: command reports, acknowledgements, gaps, the store's own status,
   and every telemetry frame that carries an event (the event rides its frame);
 - 1 ``PRIORITY_DECIMATED``: the telemetry decimated, one frame per ``decimate_s`` of the
-  rover's clock and every frame whose NATE mode changed;
+  rover's clock and every frame whose NATE mode changed; and the images (``add_image``:
+  Navcam pairs, ``sim.loop.images``), which the drivers plan the next sol from, as MER's
+  tactical downlink put its Navcam images ahead of the full-rate engineering data;
 - 2 ``PRIORITY_FULL``: the rest of the telemetry, at full rate.
 
 A pass takes the highest priority first and, within one, the oldest (``next_ready``).
@@ -27,7 +29,7 @@ from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from typing import Any, Literal
 
-ProductKind = Literal["frame", "report", "gap"]
+ProductKind = Literal["frame", "report", "gap", "image"]
 PRIORITY_REPORT, PRIORITY_DECIMATED, PRIORITY_FULL = 0, 1, 2
 PRIORITIES = (PRIORITY_REPORT, PRIORITY_DECIMATED, PRIORITY_FULL)
 HEADER_BITS = 48  # a CCSDS space packet's primary header
@@ -124,6 +126,13 @@ class OnboardStore:
             self._last_decimated_t_s = t_s
         self._last_mode = mode
         self._add("frame", priority, t_s, HEADER_BITS + packed_bits(frame), dict(frame))
+
+    def add_image(self, image: Mapping[str, Any], image_bits: int) -> None:
+        """An image product (``sim.loop.images.ImageDict``): its compressed frames'
+        ``image_bits`` and its metadata packed; priority 1 (module docstring)."""
+        meta = {k: v for k, v in image.items() if k not in ("left", "right")}
+        bits = HEADER_BITS + packed_bits(meta) + int(image_bits)
+        self._add("image", PRIORITY_DECIMATED, float(image["t_s"]), bits, dict(image))
 
     def add_report(self, t_s: float, report: Mapping[str, Any]) -> None:
         """A report (a dict with its ``type``) at the rover's clock ``t_s``: priority 0."""

@@ -55,6 +55,7 @@ class LoopContext:
     vo_options: VoDriveOptions
     protection: MobilityProtection
     results: list[Any] = field(default_factory=list)
+    keep_vo_images: bool = False  # the vo=on drive running keeps its pairs (vo_keep_images)
 
     def event(self, text: str, kind: str, severity: Severity = "info") -> None:
         """An event for the next frame."""

@@ -24,6 +24,7 @@ from sequences import commands as cmd
 from sim.errors import InputError
 from sim.loop import guard
 from sim.loop.context import CommandRefusedError, LoopContext
+from sim.loop.imaging import take_image
 from sim.loop.rover_sim import Segment
 from sim.loop.vo_drive import (
     VO_MAST_AZ_RAD,
@@ -113,6 +114,7 @@ def move(
     if monitor is None:
         monitor = guard.begin_drive(ctx, c)
     if c.vo:
+        ctx.keep_vo_images = bool(c.vo_keep_images)  # sim.loop.imaging
         return drive_vo(ctx, command, kind, args, bool(c.vo_attitude), monitor)
     return drive(ctx, command, kind, *args, monitor=monitor)
 
@@ -213,6 +215,9 @@ def _vo_step(
         _vo_failed(ctx, step)
         ctx.event(f"VO step {step}/{steps} failed: {exc}; wheel odometry kept", "vo", "warning")
         return None
+    if ctx.keep_vo_images:  # the pair and what the step saw, sent down (sim.loop.imaging)
+        rig_pointing = (VO_MAST_AZ_RAD, VO_MAST_EL_RAD)
+        take_image(ctx, pair, "vo_pair", *rig_pointing, vo=(result, step, steps, before))
     if step == 0:
         return None  # the first pair: nothing to compare with yet
     if not result.converged or result.motion is None:

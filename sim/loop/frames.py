@@ -35,6 +35,7 @@ from estimation.sapp.hga_pointing import PointingKnowledge, hga_boresights_b, po
 from estimation.sapp.nate import Nate, NateOutput, NateSeries
 from estimation.sapp.sun_modes import SunResult
 from sim.loop.downlink import Downlink
+from sim.loop.images import ImageDict
 from sim.loop.rover_sim import RoverSim, Segment
 from sim.loop.side.estimators import SideEstimators
 from sim.loop.side.kinematic import SideEstimate
@@ -60,6 +61,7 @@ class FrameRecorder:
         self.frame_every_s = frame_every_s
         self.downlinks: list[Downlink] = []
         self.truths: list[Truth] = []
+        self.images: list[ImageDict] = []  # the pairs the rover sends (sim.loop.imaging)
         self.events: list[Event] = []
         # truth events waiting for the next frame's truth record (a fault applied: sim.faults)
         self.truth_events: list[Event] = []

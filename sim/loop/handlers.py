@@ -34,7 +34,7 @@ from estimation.sapp.nate import DriveCommand, Nate
 from estimation.sapp.sun_modes import SunResult
 from estimation.sapp.wheel_odometry import DriveKind
 from sequences import commands as cmd
-from sim.loop import drives
+from sim.loop import drives, imaging
 from sim.loop.context import CommandRefusedError, LoopContext, imu_sample, imu_series
 from sim.rover.truth import CONTROL_DT_S
 
@@ -239,4 +239,5 @@ HANDLERS: Mapping[type[cmd.Command], Handler] = {
     cmd.ClearMobilityFault: clear_mobility_fault,
     **{kind: acquisition for kind in ACQUISITIONS},
     cmd.SuncheckSungaze: suncheck_sungaze,
+    cmd.NavcamStereo: imaging.navcam_stereo,
 }

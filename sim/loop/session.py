@@ -42,6 +42,7 @@ from sim.loop.context import CommandRefusedError, LoopContext
 from sim.loop.downlink import Downlink, DownlinkDict
 from sim.loop.frames import FrameRecorder
 from sim.loop.handlers import HANDLERS
+from sim.loop.images import ImageDict
 from sim.loop.rover_sim import Placement, RoverSim
 from sim.loop.side.estimators import SideEstimators
 from sim.loop.vo_drive import VO_RIG, VoDriveOptions
@@ -159,6 +160,12 @@ class RoverSession:
         ]
         del self.downlinks[:], self.truths[:]
         return pairs
+
+    def take_images(self) -> list[ImageDict]:
+        """The image products made so far (``sim.loop.images``), handed over: emptied."""
+        images = list(self.loop.recorder.images)
+        del self.loop.recorder.images[:]
+        return images
 
     @property
     def vo(self) -> VisualOdometry:
