@@ -46,6 +46,7 @@ from server.api.deps import AUTH_ERRORS, install_error_handlers
 from server.api.routing import AuthFirstRoute, allow_every_method, document_public_reads
 from server.comm import api as comm
 from server.faults import api as faults
+from server.images import api as images
 from server.state import Server, ServerConfig
 from server.storage import data_dir_url
 
@@ -88,6 +89,6 @@ def create_app(config: ServerConfig) -> FastAPI:
 
     app.mount("/static", StaticFiles(directory=WEB_DIR), name="static")
     for api in (rovers, sequences, queue, telemetry, events, channels, alarms, viewer, users,
-                audit, faults, comm):  # fmt: skip
+                audit, faults, comm, images):  # fmt: skip
         app.include_router(api.routes)
     return app

@@ -1,8 +1,8 @@
 """The server's tables and how an existing database is brought up to them.
 
-``metadata`` declares every table (sequences, commands, events, frames, checkpoints,
-users, tokens, the audit log, alarms and their limits); ``upgrade_schema`` adds, when a
-database is opened, the columns and indexes this version declares and an older database
+``metadata`` declares every table (sequences, commands, events, frames, images,
+checkpoints, users, tokens, the audit log, alarms and their limits); ``upgrade_schema`` adds,
+when a database is opened, the columns and indexes this version declares and an older database
 lacks, so it keeps working (a column added this way must be nullable or have a
 ``server_default``), and ``server.storage.migrate`` then moves the data of an older layout.
 Events stored before events had a kind and severity read back as ``LEGACY_KIND`` /
@@ -140,6 +140,29 @@ truth_frames = Table(
     *TRUTH.table_columns(),
     Index("ix_truth_frames_rover_t", "rover", "t_s"),
     Index("ix_truth_frames_rover_id", "rover", "id"),
+)
+
+
+# The images the rover sent (sim.loop.images), stored once when they arrive
+# (server.storage.images): their metadata in columns and JSON (the features of a VO pair
+# apart), the two 8-bit images encoded as PNG then, served as they are. A rover's image is
+# one moment and kind: the unique index keeps it once when it is delivered again.
+images_table = Table(
+    "images",
+    metadata,
+    Column("id", Integer, primary_key=True, autoincrement=True),
+    Column("rover", String(64), nullable=False),
+    Column("t_s", Double, nullable=False),
+    Column("kind", String(32), nullable=False),
+    Column("width_px", Integer, nullable=False),
+    Column("height_px", Integer, nullable=False),
+    # on the ground then, across light time (server.comm); null: as it was made
+    Column("received_t_s", Double, nullable=True),
+    Column("meta", JSON, nullable=False),
+    Column("features", JSON, nullable=True),
+    Column("left_png", LargeBinary, nullable=False),
+    Column("right_png", LargeBinary, nullable=False),
+    Index("ux_images_rover_t_kind", "rover", "t_s", "kind", unique=True),
 )
 
 

@@ -1,5 +1,5 @@
-"""``BatchWriter``: the high-rate writes (frames, events, commands, checkpoints) taken off
-the simulation threads and committed together at least once per ``interval_s``.
+"""``BatchWriter``: the high-rate writes (frames, events, images, commands, checkpoints)
+taken off the simulation threads and committed together at least once per ``interval_s``.
 """
 
 from __future__ import annotations
@@ -8,12 +8,16 @@ import logging
 import threading
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from sqlalchemy.engine import Connection
 
+from server.storage.images import ImageRows, insert_images
 from server.storage.records import CommandRecord, command_row
 from server.storage.store import EventRow, FrameRows, Store
+
+if TYPE_CHECKING:
+    from sim.loop.images import ImageDict
 
 log = logging.getLogger(__name__)
 
@@ -45,6 +49,7 @@ class BatchWriter:
         self._thread: threading.Thread | None = None
         self._frames: list[FrameRows] = []
         self._events: list[EventRow] = []
+        self._images: list[ImageRows] = []
         self._commands: list[dict[str, Any]] = []
         self._checkpoints: dict[str, tuple[float, bytes]] = {}
         store.commit_queued_with(self.flush)  # the store's reads see what is queued here
@@ -83,6 +88,14 @@ class BatchWriter:
         with self._lock:
             self._events.extend((rover, float(t), e, received_t_s) for t, e in events)
 
+    def images(
+        self, rover: str, images: Sequence[ImageDict], received_t_s: float | None = None
+    ) -> None:
+        """Queue image products (``sim.loop.images``); a flush encodes each to PNG and
+        stores it once (``server.storage.images``), off the clock thread."""
+        with self._lock:
+            self._images.append((rover, list(images), received_t_s))
+
     def command(self, rover: str, record: CommandRecord) -> None:
         """Queue one command execution."""
         row = command_row(rover, record)
@@ -100,14 +113,16 @@ class BatchWriter:
             with self._lock:
                 frames, self._frames = self._frames, []
                 events, self._events = self._events, []
+                images, self._images = self._images, []
                 commands_, self._commands = self._commands, []
                 saved, self._checkpoints = self._checkpoints, {}
-            if not (frames or events or commands_ or saved):
+            if not (frames or events or images or commands_ or saved):
                 return
             store = self.store
             parts: list[tuple[str, Callable[[Connection], None]]] = [
                 ("frames", lambda conn: store._insert_frames(conn, frames)),
                 ("events", lambda conn: store._insert_events(conn, events)),
+                ("images", lambda conn: insert_images(conn, images)),
                 ("commands", lambda conn: store._record_commands(conn, commands_)),
                 ("checkpoints", lambda conn: store._replace_checkpoints(conn, saved)),
             ]

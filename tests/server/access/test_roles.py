@@ -43,6 +43,10 @@ ROUTES: list[tuple[str, str, str, dict[str, Any]]] = [
     ("GET", "/api/rovers/spirit/channels", "viewer", {}),
     ("GET", "/api/rovers/spirit/channels/tilt_accel_deg", "viewer", {}),
     ("GET", "/api/rovers/spirit/scene", "viewer", {}),
+    ("GET", "/api/rovers/spirit/images", "viewer", {}),
+    ("GET", "/api/rovers/spirit/images/1", "viewer", {}),  # none taken: 404 once allowed
+    ("GET", "/api/rovers/spirit/images/1/left.png", "viewer", {}),
+    ("GET", "/api/rovers/spirit/images/1/right.png", "viewer", {}),
     ("GET", "/viser/spirit", "viewer", {}),
     ("GET", "/viser/spirit/index.html", "viewer", {}),
     ("POST", "/api/rovers/spirit/sequences", "operator", {"content": SEQ}),
@@ -127,7 +131,7 @@ def test_every_route_has_a_role_here(setup: tuple[TestClient, dict[str, str], bo
     listed = {(m, p) for m, p, _, _ in ROUTES} | OPEN
     templates = {"{rover}": "spirit", "{sequence_id:int}": "1", "{sol}": "0", "{name}": "victim",
                  "{path:path}": "index.html", "{channel}": "tilt_accel_deg",
-                 "{alarm_id}": "1"}  # fmt: skip
+                 "{alarm_id}": "1", "{image_id}": "1"}  # fmt: skip
     missing = []
     # iter_route_contexts opens the included routers (server.api: one per resource)
     for context in iter_route_contexts(client.app.routes):  # type: ignore[attr-defined]
