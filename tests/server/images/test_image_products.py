@@ -9,8 +9,8 @@ import pytest
 
 from sim.comm.store import HEADER_BITS, PRIORITY_DECIMATED, OnboardStore, packed_bits
 from sim.loop.images import (
-    METADATA_FIELDS,
     BITS_PER_PIXEL,
+    METADATA_FIELDS,
     image_bits,
     image_record,
     metadata,
