@@ -84,9 +84,8 @@ def image_row(rover: str, record: ImageDict, received_t_s: float | None) -> dict
     }
 
 
-def insert_images(conn: Connection, rows: Sequence[ImageRows]) -> int:
-    """Store the images of ``rows`` that are not stored yet (module docstring); how many."""
-    stored = 0
+def insert_images(conn: Connection, rows: Sequence[ImageRows]) -> None:
+    """Store the images of ``rows`` that are not stored yet (module docstring)."""
     seen: set[tuple[str, float, str]] = set()
     for rover, records, received in rows:
         for record in records:
@@ -100,11 +99,9 @@ def insert_images(conn: Connection, rows: Sequence[ImageRows]) -> int:
                 continue
             seen.add(key)
             conn.execute(insert(images_table), [image_row(rover, record, received)])
-            stored += 1
-    return stored
 
 
-def _listed(row: Mapping[str, Any]) -> dict[str, Any]:
+def _listed(row: Mapping[Any, Any]) -> dict[str, Any]:
     return {
         "id": int(row["id"]),
         "t_s": float(row["t_s"]),

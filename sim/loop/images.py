@@ -22,11 +22,10 @@ pair 4,194,304.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from typing import Any, Literal, cast
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 from typing_extensions import TypedDict
 
 from estimation.vo.odometry import VoFeatures, VoResult
@@ -121,7 +120,7 @@ def vo_step_dict(
     result: VoResult,
     step: int,
     steps: int,
-    vo_pose: tuple[Sequence[float], Sequence[float]] | None,
+    vo_pose: tuple[ArrayLike, ArrayLike] | None,
 ) -> VoStepDict:
     """A VO step's outcome; ``vo_pose`` the ``(p_mission, q_b_ll)`` it measured (converged)."""
     return {
@@ -148,9 +147,9 @@ def image_record(
     mast_az_rad: float,
     mast_el_rad: float,
     site_index: int,
-    p_s_est: Sequence[float],
-    p_mission_est: Sequence[float],
-    q_b_ll_est: Sequence[float],
+    p_s_est: ArrayLike,
+    p_mission_est: ArrayLike,
+    q_b_ll_est: ArrayLike,
     vo: VoStepDict | None = None,
     features: FeaturesDict | None = None,
 ) -> ImageDict:

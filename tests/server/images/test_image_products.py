@@ -4,6 +4,8 @@ decimated telemetry's), the 8-bit companding, and the record carrying no truth."
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 
@@ -11,6 +13,7 @@ from sim.comm.store import HEADER_BITS, PRIORITY_DECIMATED, OnboardStore, packed
 from sim.loop.images import (
     BITS_PER_PIXEL,
     METADATA_FIELDS,
+    ImageDict,
     image_bits,
     image_record,
     metadata,
@@ -18,7 +21,7 @@ from sim.loop.images import (
 )
 
 
-def _record(width: int, t_s: float = 100.0) -> dict:
+def _record(width: int, t_s: float = 100.0) -> ImageDict:
     rng = np.random.default_rng(5)
     left = rng.uniform(0.0, 4095.0, (width, width)).astype(np.float32)
     return image_record(
@@ -78,10 +81,10 @@ def test_the_record_holds_what_the_rover_knows_and_its_images() -> None:
     assert record["left"].dtype == np.uint8 and record["left"].shape == (256, 256)
     assert record["mast_az_deg"] == pytest.approx(np.degrees(0.1))
     with pytest.raises(ValueError, match="kind"):
-        image_record(**{**_kwargs(), "kind": "selfie"})  # type: ignore[arg-type]
+        image_record(**{**_kwargs(), "kind": "selfie"})
 
 
-def _kwargs() -> dict:
+def _kwargs() -> dict[str, Any]:
     z = np.zeros((4, 4), np.float32)
     return dict(t_s=0.0, kind="vo_pair", left_dn=z, right_dn=z, f_px=1.0, baseline_m=0.2,
                 mast_az_rad=0.0, mast_el_rad=0.0, site_index=0, p_s_est=[0, 0, 0],

@@ -95,7 +95,8 @@ def test_the_list_filters_by_time_and_kind_and_pages(
     def get(**params: Any) -> dict[str, Any]:
         answer = client.get("/api/rovers/opportunity/images", params=params, headers=AUTH)
         assert answer.status_code == 200, answer.text
-        return answer.json()
+        body: dict[str, Any] = answer.json()
+        return body
 
     assert [i["t_s"] for i in get()["images"]] == [10.0, 20.0, 30.0]
     assert [i["t_s"] for i in get(kind="vo_pair")["images"]] == [10.0, 30.0]
