@@ -15,6 +15,7 @@ import "./alarms.js";
 import "./eventlog.js";
 import "./queue.js";
 import "./comm.js";
+import "./images.js";
 
 // The browser tests' hook (tests/browser): the bus, and the console's state (its WebSocket).
 window.roverops = { on: bus.on, emit: bus.emit, state };

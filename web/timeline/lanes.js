@@ -1,9 +1,11 @@
-// The sol timeline's lanes: commands, NATE modes, AQF bands, events, VO steps, alarms, faults,
-// the link's windows (comm.js) as absolutely positioned divs over the sol's LMST span, and the LMST axis under them.
+// The sol timeline's lanes: commands, NATE modes, AQF bands, events, VO steps, the images sent
+// down (images.js), alarms, faults, the link's windows (comm.js) as absolutely positioned divs
+// over the sol's LMST span, and the LMST axis under them.
 import { $, el } from "../lib/dom.js";
 import { LMST_HOUR_S, lmstAt, lmstText } from "../lib/marstime.js";
 import { tickMinutes, view } from "./view.js";
 import { commLane } from "./comm.js";
+import { imageLane } from "./images.js";
 
 // ---- lanes (absolutely positioned divs over the sol's span) -----------------------
 // Each element carries its LMST start and end as CSS variables (--s, --e) and the lanes
@@ -266,6 +268,7 @@ export const LANES = {
   aqf: bandLane("lane-aqf", "aqf", "timeline-aqf", "aqf", "aqf"),
   events: eventLane,
   vo: voLane,
+  images: imageLane,
   alarms: alarmLane,
   faults: faultLane,
   comm: commLane,

@@ -27,6 +27,7 @@ import {
 } from "./plots.js";
 import { setStatus, view } from "./view.js";
 import { commPath, receivedSignature, windowsSpan } from "./comm.js";
+import { fetchImages } from "./images.js";
 import { gapAfterS } from "../lib/gaps.js";
 
 const MAX_POINTS = 2000; // the plots ask the server for at most about this many frames
@@ -121,10 +122,12 @@ function pickSol() { return showSol(Number($("timeline-sol").value)); }
 async function fetchSol(sol) {
   const rover = view.rover;
   const timeline = await getJson(`/api/rovers/${encodeURIComponent(rover)}/sols/${sol}/timeline`);
-  const [frames, comm] = await Promise.all([
+  const [frames, comm, images] = await Promise.all([
     getJson(telemetryPath(rover, timeline)),
     api(commPath(rover, timeline)).then((r) => (r.ok ? r.body : null)), // a server without it: none
+    fetchImages(rover, timeline), // the Images lane's (images.js)
   ]);
+  timeline.images = images;
   return { timeline, frames, comm };
 }
 

@@ -213,6 +213,7 @@ def crawl(tmp_path: Any, truth_view: str) -> Iterator[Crawl]:
             "sol": [str(sols[-1])],
             "channel": [c["name"] for c in channels],
             "sequence_id": ["1"],
+            "image_id": ["1"],
         }
         paths = [p for route in _get_routes(base) for p in _fill(route, values)]
         for role, token in tokens.items():
