@@ -20,6 +20,7 @@ from tests.test_layout import ROOT, import_graph
 GROUND_KNOWLEDGE = frozenset({
     "sim.errors",  # the simulator's input errors, raised on bad arguments
     "sim.loop.downlink",  # what the rover sends: the ground's own record
+    "sim.loop.images",  # the images the rover sends: their record (its estimate, no truth)
     "sim.world.marsclock",  # Mars time
     "sim.world.ephemeris",  # JPL's ephemeris, as a mission's navigation team has it
     "sim.world.light_time",  # Earth-Mars light time, from that ephemeris
