@@ -89,3 +89,19 @@ def _kwargs() -> dict[str, Any]:
     return dict(t_s=0.0, kind="vo_pair", left_dn=z, right_dn=z, f_px=1.0, baseline_m=0.2,
                 mast_az_rad=0.0, mast_el_rad=0.0, site_index=0, p_s_est=[0, 0, 0],
                 p_mission_est=[0, 0, 0], q_b_ll_est=[0, 0, 0, 1])  # fmt: skip
+
+
+def test_an_image_in_the_store_survives_a_checkpoint_pixel_for_pixel() -> None:
+    from server.storage.checkpoint import decode, encode
+
+    record = _record(256)
+    store = OnboardStore(capacity_bits=10**9)
+    store.add_image(record, image_bits(256, 256))
+    back = OnboardStore.from_state(decode("spirit", encode("spirit", store.state())))
+    product = back.next_ready(1e9)
+    assert product is not None and product.kind == "image"
+    assert product.bits == store.used_bits == back.used_bits
+    for side in ("left", "right"):
+        assert product.payload[side].dtype == np.uint8
+        assert np.array_equal(product.payload[side], record[side])
+    assert product.payload["p_mission_est"] == record["p_mission_est"]
