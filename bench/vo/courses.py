@@ -310,7 +310,7 @@ def drive_run(spec: DriveSpec) -> dict[str, Any]:
         if whole else math.nan,
         steps=len(steps), vo_converged=len(vo_errors), baseline_converged=len(base_errors),
         vo_step_errors=vo_errors, baseline_step_errors=base_errors,
-        vo_converged_walls_s=[c.vo_s for _, c in steps if c.vo_motion],
+        vo_step_walls_s=[(c.vo_s, c.vo_motion is not None) for _, c in steps],
         failures=dict(Counter(c.status.value for _, c in steps if not c.vo_motion)),
         step_slip_max=max((1.0 - float(np.linalg.norm(c.p_s_true - p.p_s_true))
                            / float(np.linalg.norm(c.p_pred_b0)) for p, c in steps), default=0.0),

@@ -39,6 +39,7 @@ def test_a_two_step_run_gives_consistent_figures() -> None:
     assert accepted + failed == 2  # every step converged or failed for a reason
     assert m["convergence_pct_gusev_1024"] == pytest.approx(100.0 * accepted / 2)
     assert 0 <= m["false_update_count_gusev_1024"] <= accepted
+    assert 0.0 < m["vo_step_all_s_1024"] < 60.0  # every step is timed
     if accepted:
         assert 0.0 < m["vo_step_s_1024"] < 60.0
     else:
