@@ -258,28 +258,6 @@ def test_the_rover_shadow_appears_only_when_asked() -> None:
     assert dn_at(with_rover.left, beside) == dn_at(plain.left, beside)
 
 
-@pytest.mark.parametrize("height", [64, 96])
-def test_the_pixels_do_not_depend_on_the_order_the_rows_are_cast(
-    monkeypatch: pytest.MonkeyPatch, height: int
-) -> None:
-    # the caster spreads each thread's rows over the image (camera._row_stride); any order
-    # that casts every row once gives the same pixels, bit for bit, as row after row
-    from sim.sensors.navcam import camera
-
-    stride = camera._row_stride(height)
-    assert math.gcd(stride, height) == 1 and stride > 1
-    terrain = make_terrain("gusev", 2)
-    rig = NAVCAM.at_resolution(height)
-    pose = (np.array([1.0, -2.0, -0.3 - float(terrain.height_m(1.0, -2.0))]), LEVEL)
-    args = (terrain, *pose, sun_from(40, 200), rig)
-    spread = render_navcam_pair(*args, rover_shadow=True, noise=False)
-    monkeypatch.setattr(camera, "_row_stride", lambda height: 1)
-    in_order = render_navcam_pair(*args, rover_shadow=True, noise=False)
-    for name in ("left", "right", "depth_left_m", "depth_right_m"):
-        np.testing.assert_array_equal(getattr(spread, name), getattr(in_order, name))
-    assert np.isfinite(spread.depth_left_m).mean() > 0.5  # ground in view, not only sky
-
-
 # ---- the detector ---------------------------------------------------------------------
 
 
