@@ -45,14 +45,15 @@ from sequences.command_base import ArgSpec as ArgSpec
 from sequences.command_base import Argument as Argument
 from sequences.command_base import Command as Command
 from sequences.command_base import shown as shown
-from sequences.imaging import KEEP_IMAGES_SPECS, check_keep_images
 from sequences.imaging import NavcamStereo as NavcamStereo
+from sequences.imaging import check_keep_images
 
 # The shared limits, re-exported: the dictionary's users read them as ``cmd.MAX_DRIVE_M``.
 from sequences.limits import MAX_DRIVE_M as MAX_DRIVE_M
 from sequences.limits import VO_PROCESSING_S as VO_PROCESSING_S
 from sequences.limits import VO_STEP_MAX_DEG as VO_STEP_MAX_DEG
 from sequences.limits import VO_STEP_MAX_M as VO_STEP_MAX_M
+from sequences.vo_settings import VO_PARAM_NOTE, VO_SPECS, check_vo_pointing, check_vo_setting
 
 MAX_WAIT_S = 2 * 88775.244  # two sols
 MAX_HGA_PASS_MIN = 120.0
@@ -76,18 +77,6 @@ _TOLERANCE_DEG = ArgSpec("number", "deg", 0.0, 90.0, lo_open=True, note="omit: t
 _DRIVE_TO_NOTE = (
     f"the goal must be 0.01-{MAX_DRIVE_M:g} m from the estimated position when it starts"
 )
-
-
-VO_SPECS: Mapping[str, ArgSpec] = {
-    "vo": ArgSpec(
-        "boolean",
-        note=f"visual odometry: steps of at most {VO_STEP_MAX_M:g} m and "
-        f"{VO_STEP_MAX_DEG:g} deg, a Navcam pair after each, SAPP's position updated",
-    ),
-    "vo_attitude": ArgSpec("boolean", note="with vo=on: VO updates the attitude too"),
-    "drag_wheel": ArgSpec("string", note=f"{'|'.join(WHEEL_KEYS)}: not driven but dragged"),
-    **KEEP_IMAGES_SPECS,  # images sent down (sequences.imaging)
-}
 
 
 # A drive's own mobility limits (``estimation.protection``): omitted, the rover's.
@@ -160,6 +149,7 @@ def _check_vo(command: Command) -> None:
         raise ValueError(f"drag_wheel: must be one of {', '.join(WHEEL_KEYS)}, got {shown(drag)}")
     check_keep_images(command)
     _check_protection(command)
+    check_vo_pointing(command)
 
 
 @dataclass(frozen=True)
@@ -177,6 +167,8 @@ class DriveStraight(Command):
     vo_attitude: bool | None = None
     drag_wheel: str | None = None  # None: all six wheels driven
     vo_keep_images: bool | None = None  # None: off
+    vo_az_deg: float | None = None  # None: VO_MAST_AZ_DEG (VO_POINTING_SPECS)
+    vo_el_deg: float | None = None
     slip_limit_pct: float | None = None  # None: the rover's limits (PROTECTION_SPECS)
     vo_fail: str | None = None
     timeout_s: float | None = None
@@ -218,6 +210,8 @@ class DriveArc(Command):
     vo_attitude: bool | None = None
     drag_wheel: str | None = None  # None: all six wheels driven
     vo_keep_images: bool | None = None  # None: off
+    vo_az_deg: float | None = None  # None: VO_MAST_AZ_DEG (VO_POINTING_SPECS)
+    vo_el_deg: float | None = None
     slip_limit_pct: float | None = None  # None: the rover's limits (PROTECTION_SPECS)
     vo_fail: str | None = None
     timeout_s: float | None = None
@@ -252,6 +246,8 @@ class TurnInPlace(Command):
     vo_attitude: bool | None = None
     drag_wheel: str | None = None  # None: all six wheels driven
     vo_keep_images: bool | None = None  # None: off
+    vo_az_deg: float | None = None  # None: VO_MAST_AZ_DEG (VO_POINTING_SPECS)
+    vo_el_deg: float | None = None
     slip_limit_pct: float | None = None  # None: the rover's limits (PROTECTION_SPECS)
     vo_fail: str | None = None
     timeout_s: float | None = None
@@ -283,6 +279,8 @@ class DriveTo(Command):
     vo_attitude: bool | None = None
     drag_wheel: str | None = None  # None: all six wheels driven
     vo_keep_images: bool | None = None  # None: off
+    vo_az_deg: float | None = None  # None: VO_MAST_AZ_DEG (VO_POINTING_SPECS)
+    vo_el_deg: float | None = None
     slip_limit_pct: float | None = None  # None: the rover's limits (PROTECTION_SPECS)
     vo_fail: str | None = None
     timeout_s: float | None = None
@@ -463,7 +461,7 @@ class SetParam(Command):
         "param": ArgSpec(
             "string",
             note="a NATE parameter by dotted name, e.g. sungaze.timer_s, or a mobility "
-            "limit, e.g. mobility.slip_limit",
+            f"limit, e.g. mobility.slip_limit, or {VO_PARAM_NOTE}",
         ),
         "value": ArgSpec("number_or_boolean", note="in the parameter's SI unit, or true/false"),
     }
@@ -478,6 +476,8 @@ class SetParam(Command):
                 check_limit(self.param.removeprefix("mobility."), self.value)
             except ValueError as exc:
                 raise ValueError(f"value: {exc}") from None
+        elif self.param.startswith("vo."):  # the ground knows the VO settings too
+            check_vo_setting(self.param, self.value)
 
 
 _ZONE_NAME = "letters, digits and _ (1-64); KEEPOUT_CLEAR zone=all clears every zone"
