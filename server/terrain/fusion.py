@@ -196,6 +196,17 @@ def _plane_fits(
     return CellFits(cells, coef, np.asarray(inv[:, 0, 0], np.float64), roughness, n)
 
 
+def _cell_medians(index: NDArray[np.intp], values: FloatArray, size: int) -> FloatArray:
+    """The median (upper middle) of ``values`` per cell index; 0 for empty cells."""
+    order = np.lexsort((values, index))
+    counts = np.bincount(index, minlength=size)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    out = np.zeros(size)
+    has = np.flatnonzero(counts)
+    out[has] = values[order[starts[has] + counts[has] // 2]]
+    return out
+
+
 def _robust_plane_fits(
     index: NDArray[np.intp],
     dx: FloatArray,
@@ -206,23 +217,25 @@ def _robust_plane_fits(
     min_points: int,
     cell_m: float,
 ) -> CellFits:
-    """``_plane_fits`` again without the points off their cell's plane by more than
-    ``OUTLIER_K`` times the larger of their own σ and the cell's robust residual scale
-    (1.4826 x the median absolute residual): a mismatched blob of disparities in a cell."""
-    first = _plane_fits(index, dx, dy, h, w, size, min_points, cell_m)
-    full = np.zeros((3, size))
-    full[:, first.cells] = first.coef.T
-    fitted = np.zeros(size, dtype=bool)
-    fitted[first.cells] = True
-    resid = np.abs(h - (full[0, index] + full[1, index] * dx + full[2, index] * dy))
-    order = np.lexsort((resid, index))
-    counts = np.bincount(index, minlength=size)
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    mad = np.zeros(size)
-    c = first.cells
-    mad[c] = resid[order[starts[c] + counts[c] // 2]]
-    scale = np.maximum(1.4826 * mad[index], 1.0 / np.sqrt(w))
-    keep = ~fitted[index] | (resid <= OUTLIER_K * scale)
+    """``_plane_fits`` without the points off their cell by more than ``OUTLIER_K`` times the
+    larger of their own σ and the cell's robust scale (1.4826 x the median absolute
+    deviation): a mismatched blob of disparities in a cell. Two passes: about the cell's
+    median height (robust to a blob of up to half the points; on a slope its spread holds
+    the slope's relief, so nothing of the slope is cut), then about the plane fitted to
+    what the first kept."""
+    sigma = 1.0 / np.sqrt(w)
+    keep = np.ones(h.shape, dtype=bool)
+    centre = _cell_medians(index, h, size)[index]
+    for second in (False, True):
+        if second:
+            fits = _plane_fits(index[keep], dx[keep], dy[keep], h[keep], w[keep], size,
+                               min_points, cell_m)  # fmt: skip
+            full = np.zeros((3, size))
+            full[:, fits.cells] = fits.coef.T
+            centre = full[0, index] + full[1, index] * dx + full[2, index] * dy
+        resid = np.abs(h - centre)
+        scale = 1.4826 * _cell_medians(index[keep], resid[keep], size)[index]
+        keep = resid <= OUTLIER_K * np.maximum(scale, sigma)
     return _plane_fits(index[keep], dx[keep], dy[keep], h[keep], w[keep], size, min_points, cell_m)
 
 
