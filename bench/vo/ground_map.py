@@ -21,6 +21,12 @@ in the mission frame (``session.mission_origin_world``), against the map's heigh
   (all drives pooled).
 - ``ground_map_sigma_coverage_pct``: the percentage of those cells with ``|map - truth| <= 2σ``,
   σ the map's reported ``sigma_m`` (2σ: 95.4 % for a Gaussian error of that σ).
+- ``ground_map_cells_scored``, ``ground_map_imaged_cells`` (all stereo cells, any range),
+  ``ground_map_pairs``, ``ground_map_drives``; per site the p95, the coverage, the median
+  error (a bias) and the median σ.
+- ``ground_map_disparity_z68``: on one extra pair per drive, rendered where the rover starts,
+  the 68th percentile of the refined disparity's error (against the rendered depth) over its
+  σ (``server.terrain.stereo.disparity_sigma_px``): 1 if that σ is right.
 """
 
 from __future__ import annotations
@@ -38,9 +44,15 @@ from estimation.sapp.aqf import AttitudeQuality
 from estimation.vo.odometry import VisualOdometry, VoResult
 from sequences import commands as cmd
 from server.terrain.service import DownlinkedPair, GroundMapService
+from server.terrain.stereo import (
+    disparity_px,
+    disparity_sigma_px,
+    refine_disparity,
+    window_px_for,
+)
 from sim.loop.rover_sim import RoverSim
 from sim.loop.session import RoverSession
-from sim.loop.vo_drive import VO_RIG
+from sim.loop.vo_drive import VO_MAST_AZ_RAD, VO_MAST_EL_RAD, VO_RIG
 from sim.world.mars_frames import elevation_rad, sun_ll_truth
 from sim.world.marsclock import utc_to_t_s
 from sim.world.sites import site
@@ -90,13 +102,28 @@ class KeepingVO(VisualOdometry):
 
 @dataclass(frozen=True)
 class DriveScore:
-    """One drive's cells: the errors (m) and reported σ (m) of the scored cells."""
+    """One drive's cells: the errors (m) and reported σ (m) of the scored cells; and the
+    disparity errors of a pair at its start over their σ (``disparity_z``)."""
 
     site_name: str
     errors_m: FloatArray
     sigma_m: FloatArray
     pairs: int
     imaged_cells: int
+    disparity_z: FloatArray
+
+
+def disparity_z(session: RoverSession) -> FloatArray:
+    """|refined disparity - the rendered depth's| / its σ (``server.terrain.stereo``), over
+    the pixels kept, for a VO pair taken where the rover stands."""
+    pair = session.sim.navcam_pair(VO_MAST_AZ_RAD, VO_MAST_EL_RAD, rig=VO_RIG)
+    left, right = to_u8(pair.left), to_u8(pair.right)
+    window = window_px_for(VO_RIG.camera.width_px)
+    d = refine_disparity(left, right, disparity_px(left, right, VO_RIG), window)
+    truth = VO_RIG.camera.f_px * VO_RIG.baseline_m / pair.depth_left_m.astype(np.float64)
+    ok = np.isfinite(d) & np.isfinite(truth)
+    out: FloatArray = np.abs(d[ok] - truth[ok]) / disparity_sigma_px(left, window)[ok]
+    return out
 
 
 def _sun_time(rng: np.random.Generator, site_name: str) -> datetime:
@@ -139,6 +166,7 @@ def drive_score(site_name: str, seed: int, steps: int) -> DriveScore:
     session = RoverSession(site_name, seed, utc, x_m=x, y_m=y, yaw_rad=yaw,
                            frame_every_s=3600.0, visual_odometry=KeepingVO)  # fmt: skip
     session.nate.load_attitude(session.q_b_ll_true(), AttitudeQuality.FINE)
+    z = disparity_z(session)
     for name, value in RELAXED_LIMITS.items():
         session.loop.protection.set_limit(name, value)
     vo = session.vo
@@ -162,7 +190,7 @@ def drive_score(site_name: str, seed: int, steps: int) -> DriveScore:
     o = session.mission_origin_world
     truth = np.asarray(session.sim.terrain.height_m(north + o[0], east + o[1])) + o[2]
     return DriveScore(site_name, ground.height_m[i, j] - truth, ground.sigma_m[i, j], pairs,
-                      int(np.count_nonzero(ground.imaged)))  # fmt: skip
+                      int(np.count_nonzero(ground.imaged)), z)  # fmt: skip
 
 
 def ground_map_metrics(drives_per_site: int = 2, steps: int = 4, seed0: int = 0) -> dict[str, Any]:
@@ -181,6 +209,10 @@ def ground_map_metrics(drives_per_site: int = 2, steps: int = 4, seed0: int = 0)
         "ground_map_cells_scored": int(err.size),
         "ground_map_pairs": int(sum(s.pairs for s in scores)),
         "ground_map_drives": len(scores),
+        "ground_map_disparity_z68": float(
+            np.percentile(np.concatenate([s.disparity_z for s in scores]), 68)
+        ),
+        "ground_map_imaged_cells": int(sum(s.imaged_cells for s in scores)),
     }
     for name in SITES:
         e = np.concatenate([s.errors_m for s in scores if s.site_name == name])

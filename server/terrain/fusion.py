@@ -64,6 +64,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from estimation.sapp.gyrocompass import NADIR_TILT_SIGMA_RAD
 from server.terrain.ground_map import GroundMap
 from server.terrain.stereo import StereoPoints
 from sim.rover.geometry import MER_GEOMETRY
@@ -77,9 +78,10 @@ OUTLIER_K = 3.0  # points this many robust σ off their cell's plane are dropped
 MIN_OVERLAP_CELLS = 30  # cells shared with the map for a pair's vertical alignment
 SLOPE_PRIOR = 1.0  # 1σ of a cell's slopes in the plane fit (45°)
 BODY_HEIGHT_M = MER_GEOMETRY.wheel_centre_z_m + MER_GEOMETRY.wheel_radius_m  # 0.30 m
-# The attitude's knowledge in the pose σ (approximate): tilt from the accelerometers to
-# ~0.1°, heading to ~1° (3σ) after a sun update.
-TILT_SIGMA_RAD = math.radians(0.1)
+# The attitude's knowledge in the pose σ: the tilt's 1σ is the flight software's own, the
+# accelerometers' 300 µg bias over Mars gravity (0.045°); the heading's ~1° (3σ) after a sun
+# update (approximate).
+TILT_SIGMA_RAD = NADIR_TILT_SIGMA_RAD
 HEADING_SIGMA_RAD = math.radians(1.0) / 3.0
 
 

@@ -23,6 +23,7 @@ import viser.transforms as vtf
 from fastapi.testclient import TestClient
 from scipy.spatial.transform import Rotation
 
+from estimation.vo.stereo_rig import NAVCAM
 from sequences import commands as cmd
 from server.app import ServerConfig, create_app, data_dir_url
 from server.runtime import ROVERS, RoverRuntime
@@ -155,6 +156,36 @@ def test_a_rover_without_frames_has_its_ground_drawn_at_start(
     nodes = rover_scene.server.scene._handle_from_node_name
     assert GROUND_NODE in nodes and nodes[GROUND_NODE].visible  # the ground's map, shown
     assert TRUTH_NODE in nodes and not nodes[TRUTH_NODE].visible  # the truth beside it
+
+
+def test_the_ground_map_is_drawn_again_when_a_pair_refines_it(
+    scene: tuple[RoverScene, RoverRuntime],
+) -> None:
+    """A pair added to the rover's ground map (a new version) is drawn at the next draw
+    without the rover moving; the truth view's toggle swaps the two terrains."""
+    rover_scene, runtime = scene
+    assert rover_scene.server is not None
+    nodes = rover_scene.server.scene._handle_from_node_name
+    before = nodes[GROUND_NODE]
+    rig = NAVCAM.at_resolution(256)
+    pair = runtime.session.sim.navcam_pair(0.0, math.radians(-35.0), rig=rig, noise=False)
+    to_u8 = lambda dn: np.clip(np.rint(dn * 255.0 / 4095.0), 0, 255).astype(np.uint8)  # noqa: E731
+    version = rover_scene.ground.version
+    rover_scene.ground.add_pair(
+        to_u8(pair.left), to_u8(pair.right), 256, 0.0, math.radians(-35.0),
+        np.zeros(3), runtime.session.q_b_ll_true(),
+    )  # fmt: skip
+    assert rover_scene.ground.version == version + 1
+    centre = rover_scene._terrain_centre
+    assert centre is not None
+    rover_scene._recut_terrain(np.array([centre[0], centre[1], 0.0]))
+    assert rover_scene._ground_version == version + 1
+    assert nodes[GROUND_NODE] is not before  # a new mesh under the same name
+    np.testing.assert_allclose(rover_scene._terrain_centre, centre)  # not re-cut elsewhere
+    rover_scene.show_truth_terrain(True)
+    assert nodes[TRUTH_NODE].visible and not nodes[GROUND_NODE].visible
+    rover_scene.show_truth_terrain(False)
+    assert nodes[GROUND_NODE].visible and not nodes[TRUTH_NODE].visible
 
 
 def test_the_scene_follows_the_frames(
