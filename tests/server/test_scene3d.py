@@ -17,12 +17,14 @@ from typing import Any
 import msgspec
 import numpy as np
 import pytest
+import trimesh
 import uvicorn
 import viser
 import viser.transforms as vtf
 from fastapi.testclient import TestClient
 from scipy.spatial.transform import Rotation
 
+from bench.vo.ground_map import to_u8
 from estimation.vo.stereo_rig import NAVCAM
 from sequences import commands as cmd
 from server.app import ServerConfig, create_app, data_dir_url
@@ -103,7 +105,9 @@ def test_the_terrain_patch_follows_the_ground_with_faces_up() -> None:
     normals = np.cross(b - a, c - a)
     assert np.all(normals[:, 2] < 0.0)  # z is Down: every face looks up
     # a colour per vertex, brighter where the terrain's albedo is
-    rgb = np.asarray(mesh.visual.vertex_colors)[:, :3].astype(float).sum(axis=1)
+    visual = mesh.visual
+    assert isinstance(visual, trimesh.visual.ColorVisuals)
+    rgb = np.asarray(visual.vertex_colors)[:, :3].astype(float).sum(axis=1)
     quarter = 0.25 * TERRAIN_STEP_M
     albedo = np.mean(
         [terrain.albedo(vertices[:, 0] + 3.0 + dn, vertices[:, 1] - 2.0 + de)
@@ -169,7 +173,6 @@ def test_the_ground_map_is_drawn_again_when_a_pair_refines_it(
     before = nodes[GROUND_NODE]
     rig = NAVCAM.at_resolution(256)
     pair = runtime.session.sim.navcam_pair(0.0, math.radians(-35.0), rig=rig, noise=False)
-    to_u8 = lambda dn: np.clip(np.rint(dn * 255.0 / 4095.0), 0, 255).astype(np.uint8)  # noqa: E731
     version = rover_scene.ground.version
     rover_scene.ground.add_pair(
         to_u8(pair.left), to_u8(pair.right), 256, 0.0, math.radians(-35.0),
@@ -181,6 +184,7 @@ def test_the_ground_map_is_drawn_again_when_a_pair_refines_it(
     rover_scene._recut_terrain(np.array([centre[0], centre[1], 0.0]))
     assert rover_scene._ground_version == version + 1
     assert nodes[GROUND_NODE] is not before  # a new mesh under the same name
+    assert rover_scene._terrain_centre is not None
     np.testing.assert_allclose(rover_scene._terrain_centre, centre)  # not re-cut elsewhere
     rover_scene.show_truth_terrain(True)
     assert nodes[TRUTH_NODE].visible and not nodes[GROUND_NODE].visible
