@@ -30,17 +30,17 @@ solvable); its value at the cell's centre is the cell's height. Its variance:
   ``σ_pose² = σ_p² + (s σ_p)² + (r σ_t)² + (s r σ_ψ)²`` (see "Alignment" for the first and
   third terms of a pair that overlaps the map).
 
-**Alignment**: a pair's heights carry its pose's vertical error whole (a drive's vertical
-drift, a few mm to cm per step). Where the pair overlaps cells the map already has from
-stereo (``MIN_OVERLAP_CELLS`` at least; MER's drivers kept 60 % overlap between VO steps),
-its datum is moved onto the map's: a plane ``δ + t_n Δn + t_e Δe`` (``Δ`` a cell's offset
-from the camera) fitted to the differences by weighted least squares (the cells' variances
-of both; a second pass without differences beyond 3σ), an offset and a tilt. The fit's
-covariance (Birge-scaled), carried to each cell, plus the overlapped cells' own pose
-variance, replaces the pair's ``σ_p² + (r σ_t)²``. Where the overlap is too narrow to fix the
-tilt better than ``σ_t`` only the offset is fitted and the tilt term kept. The first pair, or
-one seeing no stereo yet, keeps its reported pose. The horizontal position is not aligned:
-its terms stay.
+**Alignment**: a pair's heights carry its pose's error whole: a drive's vertical drift (a few
+mm to cm per step), its tilt, its horizontal position. Where the pair overlaps cells the map
+already has from stereo (``MIN_OVERLAP_CELLS`` at least; MER's drivers kept 60 % overlap
+between VO steps) its datum is moved onto the map's: the differences are fitted by weighted
+least squares (the cells' variances of both; a second pass without differences beyond 3σ)
+with ``δ + t_n Δn + t_e Δe - ∂h/∂n s_n - ∂h/∂e s_e``: an offset (free), a tilt (prior σ
+``σ_t``) and a horizontal shift ``s`` (prior σ ``σ_p``, moving the cell's plane of slope
+``∂h``), ``Δ`` a cell's offset from the camera. The fit's covariance (Birge-scaled), carried
+to each cell, plus the overlapped cells' own pose variance replaces the pair's
+``σ_p² + (s σ_p)² + (r σ_t)²``; where the overlap cannot tell a parameter its prior keeps it.
+The first pair, or one seeing no stereo yet, keeps its reported pose.
 
 **Many pairs**: the cells' stereo heights are averaged with inverse-variance weights on the
 fit and roughness variances; the pose's variance is not averaged down (consecutive pairs share
@@ -287,8 +287,11 @@ class MapFusion:
         off_n, off_e = p.north0_m + ci * p.cell_m - cam[0], p.east0_m + cj * p.cell_m - cam[1]
         r = np.hypot(off_n, off_e)
         sp = pose.position_m
-        a, v_datum = self._align(cells, a, v, off_n, off_e, pose)
-        v_pose = v_datum + (slope * sp) ** 2 + (slope * r * pose.heading_rad) ** 2
+        ones = np.ones_like(a)
+        design = np.stack([ones, off_n, off_e, -fits.coef[:, 1], -fits.coef[:, 2]], 1)
+        sigmas = np.array([math.inf, pose.tilt_rad, pose.tilt_rad, sp, sp])
+        a, v_datum = self._align(cells, a, v, design, sigmas, sp**2)
+        v_pose = v_datum + (slope * r * pose.heading_rad) ** 2
         flat = (self._w.reshape(-1), self._wh.reshape(-1), self._whh.reshape(-1))
         flat[0][cells] += 1.0 / v
         flat[1][cells] += a / v
@@ -306,15 +309,19 @@ class MapFusion:
         cells: NDArray[np.intp],
         a: FloatArray,
         v: FloatArray,
-        offset_n: FloatArray,
-        offset_e: FloatArray,
-        pose: PoseSigma,
+        design: FloatArray,
+        prior_sigma: FloatArray,
+        position_var: float,
     ) -> tuple[FloatArray, FloatArray]:
         """The pair's heights moved onto the map where they overlap cells it already has from
-        stereo (module docstring, "Alignment"), and each cell's variance of that datum (its
-        vertical and tilt pose terms). ``offset_*`` the cells' offsets from the camera, m."""
-        r2 = offset_n**2 + offset_e**2
-        unaligned = pose.position_m**2 + r2 * pose.tilt_rad**2
+        stereo (module docstring, "Alignment"), and each cell's variance of that datum.
+
+        ``design`` (K, 5) each cell's ``[1, Δn, Δe, -∂h/∂n, -∂h/∂e]``: the height change of
+        an offset, a tilt and a horizontal shift of the pair; ``prior_sigma`` (5,) their 1σ
+        before the overlap is seen (inf: free; 0: fixed); ``position_var`` the vertical
+        offset's variance without an overlap."""
+        prior_var = np.where(np.isfinite(prior_sigma), prior_sigma**2, 0.0)
+        unaligned = position_var + design[:, 1:] ** 2 @ prior_var[1:]
         seen = self._n.reshape(-1)[cells] > 0
         if np.count_nonzero(seen) < MIN_OVERLAP_CELLS:
             self.offsets_m.append(math.nan)
@@ -322,29 +329,26 @@ class MapFusion:
         h_s, var_s, var_pose = (x.reshape(-1)[cells[seen]] for x in self._stereo_parts())
         resid = a[seen] - h_s
         w = 1.0 / (v[seen] + var_s)
-        design = np.stack([np.ones_like(resid), offset_n[seen], offset_e[seen]], 1)
+        free = prior_sigma > 0.0  # a parameter with a zero σ stays at zero
+        x_all = design[:, free]
+        x = x_all[seen]
+        precision = np.diag(np.where(np.isfinite(prior_sigma), 1.0 / np.maximum(prior_var, 1e-30),
+                                     0.0)[free])  # fmt: skip
         keep = np.ones(resid.shape, dtype=bool)
         for _ in range(2):  # a fit, then again without the differences beyond 3σ
-            normal = design[keep].T @ (w[keep, None] * design[keep])
-            cov = np.linalg.inv(normal)
-            coef = cov @ (design[keep].T @ (w[keep] * resid[keep]))
-            fit = design @ coef
-            keep = np.abs(resid - fit) <= 3.0 / np.sqrt(w)
+            cov = np.linalg.inv(x[keep].T @ (w[keep, None] * x[keep]) + precision)
+            coef = cov @ (x[keep].T @ (w[keep] * resid[keep]))
+            keep = np.abs(resid - x @ coef) <= 3.0 / np.sqrt(w)
             if np.count_nonzero(keep) < MIN_OVERLAP_CELLS:
                 self.offsets_m.append(math.nan)
                 return a, unaligned
         m = int(np.count_nonzero(keep))
-        chi2 = float(np.sum(w[keep] * (resid[keep] - fit[keep]) ** 2))
-        cov = cov * max(1.0, chi2 / (m - 3))
+        chi2 = float(np.sum(w[keep] * (resid[keep] - x[keep] @ coef) ** 2))
+        cov = cov * max(1.0, chi2 / max(m - x.shape[1], 1))
         inherited = float(np.sum(w[keep] * var_pose[keep]) / np.sum(w[keep]))
-        everywhere = np.stack([np.ones_like(a), offset_n, offset_e], 1)
-        if max(cov[1, 1], cov[2, 2]) > pose.tilt_rad**2:  # the overlap too narrow for a tilt
-            coef = np.array([float(np.sum(w[keep] * resid[keep]) / np.sum(w[keep])), 0.0, 0.0])
-            var_datum = max(1.0, chi2 / (m - 1)) / float(np.sum(w[keep])) + r2 * pose.tilt_rad**2
-        else:
-            var_datum = np.einsum("ki,ij,kj->k", everywhere, cov, everywhere)
         self.offsets_m.append(float(coef[0]))
-        out: FloatArray = a - everywhere @ coef
+        out: FloatArray = a - x_all @ coef
+        var_datum: FloatArray = np.einsum("ki,ij,kj->k", x_all, cov, x_all)
         return out, inherited + var_datum
 
     def _add_looks(
