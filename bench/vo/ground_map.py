@@ -42,6 +42,8 @@ from numpy.typing import ArrayLike, NDArray
 from estimation.protection.limits import SPECS
 from estimation.sapp.aqf import AttitudeQuality
 from estimation.vo.odometry import VisualOdometry, VoResult
+from estimation.vo.params import VoParams
+from estimation.vo.stereo_rig import StereoRig
 from sequences import commands as cmd
 from server.terrain.service import DownlinkedPair, GroundMapService
 from server.terrain.stereo import (
@@ -88,8 +90,8 @@ Kept = tuple[NDArray[np.uint8], NDArray[np.uint8], float, float]
 class KeepingVO(VisualOdometry):
     """The flight VO on ``VO_RIG``, keeping the last pair it was given (a bench wrapper)."""
 
-    def __init__(self, sim: RoverSim) -> None:
-        super().__init__(VO_RIG)
+    def __init__(self, sim: RoverSim, rig: StereoRig = VO_RIG) -> None:
+        super().__init__(rig, VoParams().for_width(rig.camera.width_px))
         self.first: Kept | None = None
         self.last: Kept | None = None
 
@@ -153,7 +155,7 @@ def _downlinked(kept: Kept | None, pose: Pose) -> DownlinkedPair:
     assert kept is not None
     left, right, az, el = kept
     p_mission, q_b_ll, sigma = pose
-    return DownlinkedPair(left, right, VO_RIG.camera.width_px, az, el, p_mission, q_b_ll, sigma)
+    return DownlinkedPair(left, right, left.shape[1], az, el, p_mission, q_b_ll, sigma)
 
 
 def drive_score(site_name: str, seed: int, steps: int) -> DriveScore:
