@@ -80,8 +80,8 @@ from bench.server import measure_sol
 from bench.server_process import RunningServer, running_server
 from sequences import commands as cmd
 from server.runtime import ROVERS, RoverRuntime
-from server.scene3d.model import TERRAIN_STEP_M, terrain_patch
 from server.scene3d.scene import TERRAIN_RECUT_M, VIEW_RATE_HZ, RoverScene
+from server.scene3d.terrain_mesh import TERRAIN_STEP_M, terrain_patch
 from server.storage import Store
 from sim.errors import InputError
 from sim.scoring.truth import merged
@@ -106,7 +106,7 @@ CHROMIUM_ARGS = [
     "--no-first-run",
 ]  # fmt: skip  # WebGL in software, as without a GPU
 CONSOLE_TIMEOUT_MS = 180_000  # a console that takes this long is broken, not slow
-SCENE_LOADED = "() => !!window.__viserMutable?.nodeRefFromName?.['/terrain/band_0']"
+SCENE_LOADED = "() => !!window.__viserMutable?.nodeRefFromName?.['/terrain/ground']"
 
 
 # ---- a viewer without a browser -------------------------------------------------------------

@@ -1,5 +1,6 @@
-"""What the 3D view draws of one frame: the rover model, its pose, the terrain patch, the
-traverses and the vectors (``server.scene3d.scene`` runs the viser server that shows them).
+"""What the 3D view draws of one frame: the rover model, its pose, the traverses and the
+vectors (``server.scene3d.scene`` runs the viser server that shows them; the terrain is
+``server.scene3d.terrain_mesh``'s).
 
 The rover is the shape table of ``sim.rover.geometry`` (boxes and cylinders, the one the
 Navcam's rover shadow uses too) with its six wheels placed on their rocker and bogie angles
@@ -28,18 +29,13 @@ from sim.rover.geometry import (
     STEERED_INDEX,
     wheel_kinematics,
 )
-from sim.world.terrain import Terrain
 
 FloatArray = NDArray[np.float64]
 
-TERRAIN_HALF_M = 16.0  # the patch reaches this far from its centre
-TERRAIN_STEP_M = 0.16  # grid spacing: 201 x 201 vertices, ~2 MB once per re-cut
-ALBEDO_BANDS = 6  # the terrain faces are drawn in this many shades of the albedo
 TRACK_STEP_M = 0.05  # a traverse gets a new vertex after this much motion
 TRACK_CHUNK = 200  # vertices per traverse node (10 m): a draw re-sends one chunk
 ARROW_LENGTH_M = 2.0
 
-SOIL_RGB = np.array([178.0, 118.0, 82.0])  # Gusev/Meridiani ochre at albedo 0.25
 TRUE_RGB = (230, 230, 225)
 GHOST_RGB = (90, 170, 255)
 SUN_RGB = (255, 205, 60)
@@ -119,58 +115,6 @@ def wheel_poses_b(pose: RoverPose) -> list[tuple[FloatArray, FloatArray]]:
         r = Rotation.from_euler("YZX", [kin.link_rad[i], steer[i], -math.pi / 2])
         out.append((kin.centre_b[i], r.as_quat()))
     return out
-
-
-def terrain_patch(
-    terrain: Terrain, centre_w: FloatArray, origin_world: FloatArray
-) -> tuple[FloatArray, list[tuple[NDArray[np.uint32], tuple[int, int, int]]]]:
-    """Vertices (mission frame) of the square patch around ``centre_w`` (mission x, y), and
-    its faces grouped in ``ALBEDO_BANDS`` shades of the albedo, each with its colour.
-
-    ``origin_world`` is the mission frame's origin in the simulator's frame; the terrain's
-    heights are elevations (up), the mission frame's z is Down.
-    """
-    n = round(2 * TERRAIN_HALF_M / TERRAIN_STEP_M) + 1
-    offsets = np.linspace(-TERRAIN_HALF_M, TERRAIN_HALF_M, n)
-    gx, gy = np.meshgrid(centre_w[0] + offsets, centre_w[1] + offsets, indexing="ij")
-    xw, yw = gx + origin_world[0], gy + origin_world[1]
-    height = np.asarray(terrain.height_m(xw.ravel(), yw.ravel()), dtype=float)
-    vertices = np.stack([gx.ravel(), gy.ravel(), -height - origin_world[2]], axis=1)
-    idx = np.arange(n * n).reshape(n, n)
-    a, b, c, d = idx[:-1, :-1], idx[1:, :-1], idx[:-1, 1:], idx[1:, 1:]
-    # Both triangles wind so that their normals point up (-z): x North, y East, z Down.
-    faces = np.concatenate(
-        [np.stack([a, c, b], -1).reshape(-1, 3), np.stack([b, c, d], -1).reshape(-1, 3)]
-    ).astype(np.uint32)
-    # A face's shade is the mean albedo of four points inside it: one point would alias
-    # the texture's millimetre grain into a checkerboard.
-    x0 = (gx[:-1, :-1] + origin_world[0]).ravel()
-    y0 = (gy[:-1, :-1] + origin_world[1]).ravel()
-    quarter = (0.25 * TERRAIN_STEP_M, 0.75 * TERRAIN_STEP_M)
-    albedo_face = np.mean(
-        [terrain.albedo(x0 + dx, y0 + dy) for dx in quarter for dy in quarter], axis=0
-    )
-    albedo = np.tile(np.asarray(albedo_face, dtype=float), 2)
-    edges = np.quantile(albedo, np.linspace(0.0, 1.0, ALBEDO_BANDS + 1)[1:-1])
-    band = np.searchsorted(edges, albedo)
-    groups = []
-    for k in range(ALBEDO_BANDS):
-        mask = band == k
-        if not np.any(mask):
-            continue
-        shade = float(np.clip(np.mean(albedo[mask]) / 0.25, 0.4, 1.6))
-        rgb = np.clip(SOIL_RGB * shade, 0, 255).astype(int)
-        groups.append((faces[mask], (int(rgb[0]), int(rgb[1]), int(rgb[2]))))
-    return vertices, groups
-
-
-def compact(
-    vertices: FloatArray, faces: NDArray[np.uint32]
-) -> tuple[FloatArray, NDArray[np.uint32]]:
-    """The vertices ``faces`` use and the faces re-indexed to them: each albedo band is
-    sent with its own vertices only, not the whole patch's."""
-    used, index = np.unique(faces, return_inverse=True)
-    return vertices[used], index.reshape(faces.shape).astype(np.uint32)
 
 
 @dataclass

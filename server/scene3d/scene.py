@@ -4,8 +4,11 @@ One ``RoverScene`` per rover runs its own ``viser.ViserServer`` on a loopback po
 FastAPI app proxies it under ``/viser/{rover}/`` (``server.scene3d.proxy``) so the console and
 the 3D view share one origin. The scene shows
 
-- the terrain around the rover (a patch of the simulator's heightmap, re-cut when the
-  rover nears its edge, its faces shaded in bands of the site's albedo);
+- the terrain around the rover as terrain looks (``server.scene3d.terrain_mesh``: albedo and
+  hill shading per vertex), re-cut when the rover nears the patch's edge: the ground's own
+  map (``server.terrain``: the orbital DEM refined by the rover's stereo), drawn again when
+  it changes (its ``version``); in the truth view the simulator's terrain too, in its place
+  when a viewer ticks "Truth terrain" (for every viewer of that scene: its nodes are shared);
 - the rover model (``server.scene3d.model``: body, solar deck, mast and camera head, HGA,
   six wheels placed on their rocker and bogie angles and steered) at the true pose, and a
   translucent ghost at SAPP's estimated pose;
@@ -61,24 +64,22 @@ import viser
 from server.runtime import RoverRuntime
 from server.scene3d.marks import Marks
 from server.scene3d.model import (
-    ALBEDO_BANDS,
     GHOST_RGB,
     REPLAY_NODES,
     SIDE_RGB,
-    TERRAIN_STEP_M,
     TRACK_RGB,
     TRUE_RGB,
     FloatArray,
     RoverModel,
     RoverPose,
     Track,
-    compact,
     draw_vectors,
     status_text,
-    terrain_patch,
 )
+from server.scene3d.terrain_mesh import TERRAIN_STEP_M, ground_map_of, ground_mesh, terrain_patch
 from server.sinks import FrameBatch, live_frame, with_truth
 from server.storage import Store
+from server.terrain.service import GroundMapService
 from sim.scoring.truth import TruthDict, merged
 from sim.world.sites import make_terrain
 
@@ -90,6 +91,9 @@ HISTORY_EVERY_S = 5.0  # stored frames are read back at this spacing (traverses,
 CAMERA_OFFSET_W = np.array([-7.0, -5.0, -5.0])  # behind, to the left of and above the rover
 NARROW_VIEW_PX = 1000  # a 3D view narrower than this starts with its controls minimized
 SLIDER_LABEL = "Sol time (LMST h)"
+TRUTH_TERRAIN_LABEL = "Truth terrain"
+GROUND_NODE = "/terrain/ground"
+TRUTH_NODE = "/terrain/truth"
 
 
 def guarded(
@@ -140,6 +144,14 @@ class Viewer:
         self.slider = gui.add_slider(SLIDER_LABEL, min=0.0, max=24.0, step=0.01, initial_value=0.0)
         self.follow.on_update(guarded("Follow live", self._on_follow))
         self.slider.on_update(guarded("the sol slider", self._on_slider))
+        self.truth_terrain: viser.GuiCheckboxHandle | None = None
+        if scene.truth:  # the truth terrain in place of the ground's map
+            self.truth_terrain = gui.add_checkbox(
+                TRUTH_TERRAIN_LABEL,
+                False,
+                hint="the simulator's terrain instead of the ground's map",
+            )
+            self.truth_terrain.on_update(guarded(TRUTH_TERRAIN_LABEL, self._on_truth_terrain))
         self.placed = False  # the controls' placement, decided on the first camera report
         client.camera.on_update(self._on_camera)
 
@@ -184,6 +196,11 @@ class Viewer:
         self.show_replay(frame)
         if not self.slider.min <= value <= self.slider.max:  # back onto the sol's span
             self.slider.value = float(frame["lmst_h"])  # type: ignore[misc]  # viser's props
+
+    def _on_truth_terrain(self, event: viser.GuiEvent[Any]) -> None:
+        if event.client is None or self.truth_terrain is None:
+            return
+        self.scene.show_truth_terrain(bool(self.truth_terrain.value))
 
     # ---- what the viewer sees ----------------------------------------------------------
 
@@ -276,10 +293,19 @@ class RoverScene:
     """One rover's 3D view (module docstring): listens to the runtime's played-out frames;
     with the truth, or from the downlink alone (``truth`` False)."""
 
-    def __init__(self, runtime: RoverRuntime, store: Store, truth: bool = True) -> None:
+    def __init__(
+        self,
+        runtime: RoverRuntime,
+        store: Store,
+        truth: bool = True,
+        ground: GroundMapService | None = None,
+    ) -> None:
         self.runtime = runtime
         self.store = store
         self.truth = truth
+        self.ground = ground if ground is not None else ground_map_of(runtime)
+        self._ground_version = -1  # the ground map's version drawn
+        self._truth_shown = False  # the truth terrain in place of the ground's map
         self.pose = "true" if truth else "est"  # the pose the solid rover is drawn at
         self.rover = runtime.spec.name
         # The scene's own terrain (same site and seed: the same ground); the simulator's
@@ -511,24 +537,46 @@ class RoverScene:
         self.frames_drawn += 1
 
     def _recut_terrain(self, p_w: FloatArray) -> None:
+        """Draw the terrain around ``p_w`` when the rover nears the patch's edge, and the
+        ground's map again whenever it has changed (its ``version``)."""
         centre = self._terrain_centre
-        if centre is not None and float(np.linalg.norm(p_w[:2] - centre)) < TERRAIN_RECUT_M:
+        moved = centre is None or float(np.linalg.norm(p_w[:2] - centre)) >= TERRAIN_RECUT_M
+        version = self.ground.version
+        if not moved and version == self._ground_version:
             return
         assert self.server is not None
-        centre = np.round(p_w[:2] / TERRAIN_STEP_M) * TERRAIN_STEP_M  # keep vertices on a grid
-        vertices, groups = terrain_patch(self.terrain, centre, self.origin_world)
+        if moved or centre is None:
+            centre = np.round(p_w[:2] / TERRAIN_STEP_M) * TERRAIN_STEP_M  # vertices on a grid
+        mesh = ground_mesh(self.ground.ground_map(), centre)
+        truth = (
+            terrain_patch(self.terrain, centre, self.origin_world) if self.truth and moved else None
+        )
         with self.server.atomic():
-            for k in range(ALBEDO_BANDS):
-                self.server.scene.remove_by_name(f"/terrain/band_{k}")
-            for k, (faces, rgb) in enumerate(groups):
-                band_vertices, band_faces = compact(vertices, faces)
-                self.server.scene.add_mesh_simple(
-                    f"/terrain/band_{k}", band_vertices, band_faces, color=rgb, side="double"
+            self.server.scene.add_mesh_trimesh(
+                GROUND_NODE, mesh, visible=not self._truth_shown, cast_shadow=False
+            )
+            if truth is not None:
+                self.server.scene.add_mesh_trimesh(
+                    TRUTH_NODE, truth, visible=self._truth_shown, cast_shadow=False
                 )
         self._terrain_centre = centre
-        # New viewers start behind and above the rover, looking at it (-z is up).
-        self.server.initial_camera.look_at = tuple(p_w)
-        self.server.initial_camera.position = tuple(p_w + CAMERA_OFFSET_W)
+        self._ground_version = version
+        if moved:  # new viewers start behind and above the rover, looking at it (-z is up)
+            self.server.initial_camera.look_at = tuple(p_w)
+            self.server.initial_camera.position = tuple(p_w + CAMERA_OFFSET_W)
+
+    def show_truth_terrain(self, shown: bool) -> None:
+        """The truth view: the simulator's terrain in place of the ground's map, or back (for
+        every viewer of this scene: viser shares its nodes)."""
+        if not self.truth or self.server is None:
+            return
+        self._truth_shown = shown
+        handles = self.server.scene._handle_from_node_name
+        with self.server.atomic():
+            for name, visible in ((GROUND_NODE, not shown), (TRUTH_NODE, shown)):
+                handle = handles.get(name)
+                if handle is not None:
+                    handle.visible = visible
 
     def _slider_span(self) -> tuple[float, float] | None:
         if not self._sol_frames or self._latest is None:

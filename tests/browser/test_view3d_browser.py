@@ -130,7 +130,7 @@ def test_one_viewer_scrubs_while_the_other_keeps_following(server: str) -> None:
             browser.close()
 
 
-SCENE_LOADED = "() => !!window.__viserMutable?.nodeRefFromName?.['/terrain/band_0']"
+SCENE_LOADED = "() => !!window.__viserMutable?.nodeRefFromName?.['/terrain/ground']"
 
 
 def _view_frame(page: Page) -> Frame:

@@ -17,30 +17,30 @@ from typing import Any
 import msgspec
 import numpy as np
 import pytest
+import trimesh
 import uvicorn
 import viser
 import viser.transforms as vtf
 from fastapi.testclient import TestClient
 from scipy.spatial.transform import Rotation
 
+from bench.vo.ground_map import to_u8
+from estimation.vo.stereo_rig import NAVCAM
 from sequences import commands as cmd
 from server.app import ServerConfig, create_app, data_dir_url
 from server.runtime import ROVERS, RoverRuntime
 from server.scene3d.model import (
-    TERRAIN_HALF_M,
-    TERRAIN_STEP_M,
     TRACK_CHUNK,
     TRACK_RGB,
     RoverPose,
     Track,
-    compact,
     status_text,
-    terrain_patch,
     wheel_poses_b,
     wxyz_from_q,
 )
 from server.scene3d.proxy import MAX_VIEWER_MESSAGE_BYTES, refusal
-from server.scene3d.scene import HISTORY_EVERY_S, RoverScene
+from server.scene3d.scene import GROUND_NODE, HISTORY_EVERY_S, TRUTH_NODE, RoverScene
+from server.scene3d.terrain_mesh import TERRAIN_HALF_M, TERRAIN_STEP_M, terrain_patch
 from server.sinks import FrameBatch
 from server.storage import Store
 from sim.loop.downlink import downlink_fields
@@ -93,19 +93,27 @@ def test_each_wheel_sits_on_the_kinematics_with_its_axle_along_local_z() -> None
 def test_the_terrain_patch_follows_the_ground_with_faces_up() -> None:
     terrain = make_terrain("gusev", 1)
     origin_world = np.array([3.0, -2.0, -0.3])
-    vertices, groups = terrain_patch(terrain, np.array([1.0, 2.0]), origin_world)
+    mesh = terrain_patch(terrain, np.array([1.0, 2.0]), origin_world)
+    vertices, faces = np.asarray(mesh.vertices, float), np.asarray(mesh.faces)
     n = round(2 * TERRAIN_HALF_M / TERRAIN_STEP_M) + 1
     assert vertices.shape == (n * n, 3)
     expected_z = -terrain.height_m(vertices[:, 0] + 3.0, vertices[:, 1] - 2.0) + 0.3
-    np.testing.assert_allclose(vertices[:, 2], expected_z, atol=1e-9)
-    faces = np.concatenate([f for f, _ in groups])
+    np.testing.assert_allclose(vertices[:, 2], expected_z, atol=1e-5)  # float32 vertices
     assert len(faces) == 2 * (n - 1) ** 2
     assert len(np.unique(np.sort(faces, axis=1), axis=0)) == len(faces)  # each face once
     a, b, c = (vertices[faces[:, k]] for k in range(3))
     normals = np.cross(b - a, c - a)
     assert np.all(normals[:, 2] < 0.0)  # z is Down: every face looks up
-    shades = [sum(rgb) for _, rgb in groups]
-    assert shades == sorted(shades)  # darker bands for darker albedo
+    # a colour per vertex, brighter where the terrain's albedo is
+    visual = mesh.visual
+    assert isinstance(visual, trimesh.visual.ColorVisuals)
+    rgb = np.asarray(visual.vertex_colors)[:, :3].astype(float).sum(axis=1)
+    quarter = 0.25 * TERRAIN_STEP_M
+    albedo = np.mean(
+        [terrain.albedo(vertices[:, 0] + 3.0 + dn, vertices[:, 1] - 2.0 + de)
+         for dn in (-quarter, quarter) for de in (-quarter, quarter)], axis=0,
+    )  # fmt: skip
+    assert np.corrcoef(rgb, albedo)[0, 1] > 0.5
 
 
 def test_a_track_grows_only_with_motion_and_resends_only_its_last_chunk() -> None:
@@ -123,14 +131,6 @@ def test_a_track_grows_only_with_motion_and_resends_only_its_last_chunk() -> Non
     np.testing.assert_allclose(chunks[1][0, 0], chunks[0][-1, 1])  # the chunks join
     track.add([1e3, 0.0, 0.0])
     assert sorted(track.take_dirty()) == [1]
-
-
-def test_a_band_carries_only_its_own_vertices() -> None:
-    vertices = np.arange(30.0).reshape(10, 3)
-    faces = np.array([[7, 2, 9], [9, 2, 4]], dtype=np.uint32)
-    own, reindexed = compact(vertices, faces)
-    assert len(own) == 4
-    np.testing.assert_array_equal(own[reindexed], vertices[faces])
 
 
 @pytest.fixture(scope="module")
@@ -157,7 +157,39 @@ def test_a_rover_without_frames_has_its_ground_drawn_at_start(
     assert rover_scene._terrain_centre is not None
     np.testing.assert_allclose(rover_scene._terrain_centre, start_w[:2], atol=TERRAIN_STEP_M)
     assert rover_scene.server is not None
-    assert "/terrain/band_0" in rover_scene.server.scene._handle_from_node_name
+    nodes = rover_scene.server.scene._handle_from_node_name
+    assert GROUND_NODE in nodes and nodes[GROUND_NODE].visible  # the ground's map, shown
+    assert TRUTH_NODE in nodes and not nodes[TRUTH_NODE].visible  # the truth beside it
+
+
+def test_the_ground_map_is_drawn_again_when_a_pair_refines_it(
+    scene: tuple[RoverScene, RoverRuntime],
+) -> None:
+    """A pair added to the rover's ground map (a new version) is drawn at the next draw
+    without the rover moving; the truth view's toggle swaps the two terrains."""
+    rover_scene, runtime = scene
+    assert rover_scene.server is not None
+    nodes = rover_scene.server.scene._handle_from_node_name
+    before = nodes[GROUND_NODE]
+    rig = NAVCAM.at_resolution(256)
+    pair = runtime.session.sim.navcam_pair(0.0, math.radians(-35.0), rig=rig, noise=False)
+    version = rover_scene.ground.version
+    rover_scene.ground.add_pair(
+        to_u8(pair.left), to_u8(pair.right), 256, 0.0, math.radians(-35.0),
+        np.zeros(3), runtime.session.q_b_ll_true(),
+    )  # fmt: skip
+    assert rover_scene.ground.version == version + 1
+    centre = rover_scene._terrain_centre
+    assert centre is not None
+    rover_scene._recut_terrain(np.array([centre[0], centre[1], 0.0]))
+    assert rover_scene._ground_version == version + 1
+    assert nodes[GROUND_NODE] is not before  # a new mesh under the same name
+    assert rover_scene._terrain_centre is not None
+    np.testing.assert_allclose(rover_scene._terrain_centre, centre)  # not re-cut elsewhere
+    rover_scene.show_truth_terrain(True)
+    assert nodes[TRUTH_NODE].visible and not nodes[GROUND_NODE].visible
+    rover_scene.show_truth_terrain(False)
+    assert nodes[GROUND_NODE].visible and not nodes[TRUTH_NODE].visible
 
 
 def test_the_scene_follows_the_frames(
