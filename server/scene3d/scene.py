@@ -76,9 +76,10 @@ from server.scene3d.model import (
     draw_vectors,
     status_text,
 )
-from server.scene3d.terrain_mesh import TERRAIN_STEP_M, ground_map_of, ground_mesh, terrain_patch
+from server.scene3d.terrain_mesh import TERRAIN_STEP_M, ground_mesh, terrain_patch
 from server.sinks import FrameBatch, live_frame, with_truth
 from server.storage import Store
+from server.terrain.feed import ground_feed
 from server.terrain.service import GroundMapService
 from sim.scoring.truth import TruthDict, merged
 from sim.world.sites import make_terrain
@@ -303,7 +304,9 @@ class RoverScene:
         self.runtime = runtime
         self.store = store
         self.truth = truth
-        self.ground = ground if ground is not None else ground_map_of(runtime)
+        self.feed = ground_feed(runtime, store, ground)  # the ground's map, fed with the pairs
+        self.ground = self.feed.service
+        self._pairs_came = threading.Event()  # an image product reached the ground
         self._ground_version = -1  # the ground map's version drawn
         self._truth_shown = False  # the truth terrain in place of the ground's map
         self.pose = "true" if truth else "est"  # the pose the solid rover is drawn at
@@ -367,6 +370,8 @@ class RoverScene:
         self.runtime.sinks.append(self)
         self._thread = threading.Thread(target=self._run, name=f"scene-{self.rover}", daemon=True)
         self._thread.start()
+        self._pairs_came.set()  # the pairs stored before (a restart): taken on the scene's thread
+        self._dirty.set()
 
     def stop(self) -> None:
         self._stop.set()
@@ -429,7 +434,10 @@ class RoverScene:
     # ---- frames in (runtime thread) ----------------------------------------------------
 
     def publish(self, rover: str, batch: FrameBatch) -> None:
-        """A frame sink (``server.sinks``): keep the traverses and the newest frame."""
+        """A frame sink (``server.sinks``): keep the traverses and the newest frame; note
+        the pairs that came (the map takes them from storage, on the scene's thread)."""
+        if batch.images:
+            self._pairs_came.set()
         with self._lock:
             if batch.paired:
                 for d, t in zip(batch.downlink, batch.truth, strict=True):
@@ -485,6 +493,12 @@ class RoverScene:
             if self._stop.is_set():
                 return
             self._dirty.clear()
+            if self._pairs_came.is_set():
+                self._pairs_came.clear()
+                try:  # the ground's map takes the pairs stored since (redrawn by the next draw)
+                    self.feed.catch_up()
+                except Exception:  # a map that cannot take a pair must not end the view
+                    log.exception("3D view of %s: the ground map's pairs failed", self.rover)
             with self._lock:
                 latest = self._latest
             if latest is not None:

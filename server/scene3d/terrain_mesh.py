@@ -22,20 +22,13 @@ normals point up (-z).
 from __future__ import annotations
 
 import math
-import threading
-import weakref
-from typing import TYPE_CHECKING
 
 import numpy as np
 import trimesh
 from numpy.typing import NDArray
 
 from server.terrain.ground_map import GroundMap
-from server.terrain.service import GroundMapService
 from sim.world.terrain import Terrain
-
-if TYPE_CHECKING:
-    from server.runtime import RoverRuntime
 
 FloatArray = NDArray[np.float64]
 
@@ -45,25 +38,6 @@ SOIL_RGB = np.array([178.0, 118.0, 82.0])  # Gusev/Meridiani ochre at albedo 0.2
 LIGHT_AZIMUTH_DEG = 315.0  # from the North-West, as maps are hill-shaded
 LIGHT_ELEVATION_DEG = 45.0
 AMBIENT = 0.35
-GROUND_HALF_M = 40.0  # a rover's ground map in the view (ground_map_of): 80 m square
-_GROUND_MAPS: weakref.WeakKeyDictionary[RoverRuntime, GroundMapService] = (
-    weakref.WeakKeyDictionary()
-)
-_GROUND_LOCK = threading.Lock()
-
-
-def ground_map_of(runtime: RoverRuntime) -> GroundMapService:
-    """The rover's ground map (``server.terrain.service``), one per runtime, shared by its
-    scenes: the orbital product of its site around where it was placed (the landing point
-    the mission localised), refined as the rover's pairs are added to it."""
-    with _GROUND_LOCK:
-        service = _GROUND_MAPS.get(runtime)
-        if service is None:
-            start_n, start_e = runtime.session.sim.start_xy_m
-            service = GroundMapService(runtime.spec.site, runtime.spec.seed, start_n, start_e,
-                                       half_m=GROUND_HALF_M)  # fmt: skip
-            _GROUND_MAPS[runtime] = service
-        return service
 
 
 def hillshade(height_up_m: FloatArray, step_m: float) -> FloatArray:

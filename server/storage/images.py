@@ -188,9 +188,11 @@ def stereo_pairs(
     t_from: float | None = None,
     t_to: float | None = None,
     after_id: int = 0,
+    limit: int | None = None,
 ) -> list[StereoPair]:
     """A rover's pairs (both kinds) with their images decoded, in time order; ``after_id``:
-    only those stored after that id (a map that has taken the earlier ones)."""
+    only those stored after that id (a map that has taken the earlier ones), in the order
+    stored when ``limit`` (at most that many) is given."""
     store._commit_queued()
     t = images_table.c
     where = [t.rover == rover, t.id > after_id]
@@ -198,7 +200,8 @@ def stereo_pairs(
         where.append(t.t_s >= t_from)
     if t_to is not None:
         where.append(t.t_s <= t_to)
-    query = select(*_LISTED, t.left_png, t.right_png).where(*where).order_by(t.t_s, t.id)
+    query = select(*_LISTED, t.left_png, t.right_png).where(*where)
+    query = query.order_by(t.t_s, t.id) if limit is None else query.order_by(t.id).limit(limit)
     with store.engine.connect() as conn:
         rows = list(conn.execute(query).mappings())
     return [
