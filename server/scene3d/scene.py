@@ -4,16 +4,16 @@ One ``RoverScene`` per rover runs its own ``viser.ViserServer`` on a loopback po
 FastAPI app proxies it under ``/viser/{rover}/`` (``server.scene3d.proxy``) so the console and
 the 3D view share one origin. The scene shows
 
-- the terrain around the rover as terrain looks (``server.scene3d.terrain_mesh``: albedo and
-  hill shading per vertex), re-cut when the rover nears the patch's edge: the ground's own
-  map (``server.terrain``: the orbital DEM refined by the rover's stereo), drawn again when
-  it changes (its ``version``); in the truth view the simulator's terrain too, in its place
-  when a viewer ticks "Truth terrain" (for every viewer of that scene: its nodes are shared);
+- the terrain as terrain looks (``server.scene3d.terrain_mesh``: albedo and hill shading per
+  vertex), re-cut when the rover nears the patch's edge: the ground's own map
+  (``server.terrain``: the orbital DEM refined by the stereo pairs that came down), drawn
+  again when it changes, each viewer told how many pairs it holds; in the truth view the
+  simulator's terrain too, in its place when a viewer ticks "Truth terrain" (for everyone);
 - the rover model (``server.scene3d.model``: body, solar deck, mast and camera head, HGA,
   six wheels placed on their rocker and bogie angles and steered) at the true pose, and a
   translucent ghost at SAPP's estimated pose;
 - the true and estimated traverses, the Site frames as labelled axes;
-- the sun and Earth directions from the mast head, and the HGA boresight from the dish;
+- the sun and Earth directions from the mast head, the HGA boresight from the dish;
 - a time slider over the current sol: dragging it scrubs back through the stored frames;
   "Follow live" returns to the telemetry as it plays out.
 
@@ -34,8 +34,7 @@ the terrain around the estimate; the true rover, its traverse, the true sun, Ear
 boresight and the position error are never made, so no node or message of theirs exists
 for its viewers. With ``roverops serve --truth-view conductor`` each rover has both scenes,
 each a viser server of its own, and the relay connects each viewer to the one its token
-allows (``server.state.Server.scene_for``): viser broadcasts a scene's shared nodes to all
-its clients, so one scene cannot keep the truth from some of them.
+allows (``server.state.Server.scene_for``): viser sends a scene's nodes to all its clients.
 
 Coordinates are the mission frame of the frames' ``p_mission_*`` (the first Site: x North,
 y East, z Down, metres), drawn with -z up. Attitudes come from the frames' ``q_b_ll``: LL
@@ -76,7 +75,7 @@ from server.scene3d.model import (
     draw_vectors,
     status_text,
 )
-from server.scene3d.terrain_mesh import TERRAIN_STEP_M, ground_mesh, terrain_patch
+from server.scene3d.terrain_mesh import TERRAIN_STEP_M, ground_mesh, terrain_note, terrain_patch
 from server.sinks import FrameBatch, live_frame, with_truth
 from server.storage import Store
 from server.terrain.feed import ground_feed
@@ -138,6 +137,7 @@ class Viewer:
         self.shown_p: FloatArray | None = None  # its rover's position then (the chase)
         gui = client.gui
         self.status = gui.add_markdown(f"**{scene.rover}**")
+        self.terrain_note = gui.add_markdown(terrain_note(scene.ground.version))
         self.follow = gui.add_checkbox("Follow live", True)
         self.chase = gui.add_checkbox(
             "Camera follows the rover", True, hint="keep your view's angle as the rover moves"
@@ -575,6 +575,8 @@ class RoverScene:
                 )
         self._terrain_centre = centre
         self._ground_version = version
+        for viewer in list(self.viewers.values()):
+            viewer.terrain_note.content = terrain_note(version)
         if moved:  # new viewers start behind and above the rover, looking at it (-z is up)
             self.server.initial_camera.look_at = tuple(p_w)
             self.server.initial_camera.position = tuple(p_w + CAMERA_OFFSET_W)

@@ -40,6 +40,12 @@ LIGHT_ELEVATION_DEG = 45.0
 AMBIENT = 0.35
 
 
+def terrain_note(pairs: int) -> str:
+    """What the view's terrain is, for its viewers: the ground's map and what refined it."""
+    refined = f"{pairs} stereo pair{'s' if pairs != 1 else ''}" if pairs else "no stereo yet"
+    return f"Terrain: the ground's map (orbital DEM, {refined})"
+
+
 def hillshade(height_up_m: FloatArray, step_m: float) -> FloatArray:
     """``max(0, n · l)`` per grid point (module docstring); rows along North, columns East."""
     dh_dn, dh_de = np.gradient(np.asarray(height_up_m, dtype=np.float64), step_m)

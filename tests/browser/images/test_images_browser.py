@@ -4,10 +4,12 @@ TESTING.md) against the real server on a temporary database: an operator uploads
 pairs appear as marks on the sol timeline's Images lane, and a click on a converged step's
 mark opens the pair: both images load (decoded: ``naturalWidth`` > 0), and the features,
 tracked features and inliers drawn over the left image are as many as the API says, inliers
-and outliers apart. Screenshots go to test-artifacts/."""
+and outliers apart. The 3D view beside it then shows the ground's map refined by those three
+pairs (its terrain note counts them). Screenshots go to test-artifacts/."""
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterator
 
 import httpx
@@ -15,6 +17,7 @@ import pytest
 from playwright.sync_api import Browser, Page, expect, sync_playwright
 
 from tests.browser.test_console_browser import ARTIFACTS, CHROMIUM, LAUNCH_ARGS, sign_in
+from tests.browser.test_view3d_browser import SCENE_LOADED, TIMEOUT_MS, VIEWER, _view_frame
 from tests.server.test_server_restart import _wait, serving
 
 TOKEN = "images-browser-token"
@@ -24,7 +27,12 @@ DRIVE = "SEQUENCE vo_images\nDRIVE_STRAIGHT distance_m=1.2 vo=on vo_keep_images=
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    with serving(tmp_path_factory.mktemp("images_browser"), TOKEN) as base:
+    with serving(
+        tmp_path_factory.mktemp("images_browser"),
+        TOKEN,
+        ready="/api/rovers/spirit/scene",
+        three_d=True,
+    ) as base:
         yield base
 
 
@@ -100,3 +108,17 @@ def test_a_vo_pair_opens_from_its_mark_with_its_features_drawn(page: Page, serve
     dialog.screenshot(path=str(ARTIFACTS / "vo_pair.png"))
     page.get_by_test_id("image-close").click()
     expect(dialog).to_be_hidden()
+    # the ground's map in the 3D view has taken the three pairs (the view draws it again)
+    # out of sight the view is paused (display: none): bring its panel into sight
+    page.locator("section.view3d").scroll_into_view_if_needed()
+    frame = _view_frame(page)
+    frame.wait_for_function(SCENE_LOADED, timeout=TIMEOUT_MS)
+    page.get_by_test_id("view3d").screenshot(path=str(ARTIFACTS / "ground_map_view3d.png"))
+    # the view in a tab of its own ("open in a tab"), its panel open: the terrain's note
+    tab = page.context.new_page()
+    tab.set_viewport_size(VIEWER)
+    tab.goto(f"{server}/viser/spirit/")
+    tab.wait_for_function(SCENE_LOADED, timeout=TIMEOUT_MS)
+    note = tab.get_by_text(re.compile("Terrain: the ground.s map"))
+    expect(note).to_contain_text("3 stereo pairs", timeout=TIMEOUT_MS)
+    tab.screenshot(path=str(ARTIFACTS / "ground_map_tab.png"))
