@@ -22,7 +22,6 @@ Site frame at the previous pair (for the sanity constraints only). Mast angles a
 
 from __future__ import annotations
 
-import dataclasses
 import enum
 import math
 from collections.abc import Mapping
@@ -36,7 +35,7 @@ from scipy.spatial.transform import Rotation
 from estimation.camera_model import check_rotation_matrix
 from estimation.vo.features import detect_features
 from estimation.vo.geometry import PointedPair
-from estimation.vo.ml_motion import refine_ml, skew
+from estimation.vo.ml_motion import MlMotion, refine_ml, skew
 from estimation.vo.motion import GapFunction, RansacMotion, motion_weights, ransac_motion
 from estimation.vo.params import VoParams
 from estimation.vo.sanity import Update, update_of, violation
@@ -131,6 +130,18 @@ class _Frame:
     cov_b: FloatArray
 
 
+@dataclass(frozen=True)
+class _Fit:
+    """One tracking pass's estimate: its ``tracked`` features, the RANSAC winner (``None``
+    with fewer tracked than a sample), its ML refinement (``None`` with fewer inliers than a
+    sample or when it did not converge, after ``ml_iterations``)."""
+
+    tracked: Tracked
+    ransac: RansacMotion | None
+    ml: MlMotion | None
+    ml_iterations: int = 0
+
+
 class VisualOdometry:
     """MER visual odometry for one stereo rig (module docstring).
 
@@ -157,6 +168,7 @@ class VisualOdometry:
         self.pad_px = int(
             p.window_px + 2 + max(p.max_disparity_px, p.track_coarse_radius_px, p.row_slack_px)
             + p.track_search_radius_px / 2**self.levels + p.track_refine_radius_px
+            + math.ceil(p.track_near_radius_px)
         )  # fmt: skip
         self._previous: _Frame | None = None
 
@@ -237,37 +249,82 @@ class VisualOdometry:
             reason = f"{len(previous.uv_px)} stereo features in the previous pair"
             return _result(VoStatus.TOO_FEW_FEATURES, f"{reason}, need {p.min_features}",
                            n_features=n_new, features=seen)  # fmt: skip
+        # Sec. 2 "Feature Tracking", from the wheel-odometry prediction, then (module
+        # docstring) again from each pass's own estimate while that keeps more inliers.
         tracked = self._track(previous, new_frame, right_padded, pair, R_pred, t_pred)
-        n_tracked = len(tracked.index)
-        seen = VoFeatures(
-            seen.features_uv_px, previous.uv_px[tracked.index], tracked.uv_left_px.copy(),
-            np.zeros(n_tracked, dtype=bool),
-        )  # fmt: skip
-        if n_tracked < p.min_features:
-            reason = f"{n_tracked} features tracked, need {p.min_features}"
-            return _result(VoStatus.TOO_FEW_FEATURES, reason, n_features=n_new,
-                           n_tracked=n_tracked, features=seen)  # fmt: skip
-        ransac = self._ransac(pair, tracked)
-        n_inliers = ransac.score
-        seen = dataclasses.replace(seen, inlier=np.asarray(ransac.inliers, dtype=bool).copy())
-        if n_inliers < p.min_inliers:
-            reason = f"{n_inliers} RANSAC inliers of {n_tracked}, need {p.min_inliers}"
-            return _result(VoStatus.TOO_FEW_INLIERS, reason, n_features=n_new,
-                           n_tracked=n_tracked, n_inliers=n_inliers,
-                           features=seen)  # fmt: skip
+        fit = self._fit(pair, tracked, None)
+        for _ in range(p.track_passes - 1):
+            if fit.ml is None or fit.ransac is None or fit.ransac.score < p.track_guide_min_inliers:
+                break
+            guide = body_motion(fit.ml.R, fit.ml.T, fit.ml.covariance)
+            if violation(update_of(guide.R_b0_b1, guide.p_b1_b0, R_pred, t_pred, R_s), p.sanity):
+                break  # an insane estimate guides nothing: the step is judged on it
+            near = self._track(
+                previous, new_frame, right_padded, pair, guide.R_b0_b1, guide.p_b1_b0,
+                near_radius_px=math.ceil(p.track_near_radius_px),
+            )  # fmt: skip
+            refit = self._fit(pair, near, (fit.ml.R, fit.ml.T))
+            if refit.ml is None or refit.ransac is None or refit.ransac.score <= fit.ransac.score:
+                break
+            tracked, fit = near, refit
+        return self._judge(fit, seen, previous, n_new, R_pred, t_pred, R_s)
 
+    def _fit(
+        self,
+        pair: PointedPair,
+        tracked: Tracked,
+        hypothesis: tuple[FloatArray, FloatArray] | None,
+    ) -> _Fit:
+        """RANSAC (with ``hypothesis`` rescored among its samples) and the ML refinement of
+        its winner, as far as the tracked features allow."""
+        p = self.params
+        n_tracked = len(tracked.index)
+        if n_tracked < p.ransac_sample_size:
+            return _Fit(tracked, None, None)
+        ransac = self._ransac(pair, tracked, hypothesis)
+        if ransac.score < p.ransac_sample_size:
+            return _Fit(tracked, ransac, None)
         inl = ransac.inliers
         ml = refine_ml(
             tracked.p_b0[inl], tracked.p_b1[inl], tracked.cov_b0[inl], tracked.cov_b1[inl],
             ransac.R, ransac.T, max_iterations=p.ml_max_iterations, tol_rad=p.ml_tol_rad,
             tol_m=p.ml_tol_m,
         )  # fmt: skip
-        if not ml.converged:
-            reason = f"maximum-likelihood refinement did not converge in {ml.iterations} steps"
-            return _result(VoStatus.NO_CONVERGENCE, reason, n_features=n_new,
-                           n_tracked=n_tracked, n_inliers=n_inliers,
-                           ml_iterations=ml.iterations, features=seen)  # fmt: skip
+        return _Fit(tracked, ransac, ml if ml.converged else None, ml.iterations)
 
+    def _judge(
+        self,
+        fit: _Fit,
+        seen: VoFeatures,
+        previous: _Frame,
+        n_new: int,
+        R_pred: FloatArray,
+        t_pred: FloatArray,
+        R_s: FloatArray,
+    ) -> VoResult:
+        """The step's outcome from its last fit: MER's minimum counts, convergence and the
+        sanity constraints (sec. 2, "Robust Motion Estimation"; the February 2005 checks)."""
+        p = self.params
+        tracked, ransac, ml = fit.tracked, fit.ransac, fit.ml
+        n_tracked = len(tracked.index)
+        n_inliers = 0 if ransac is None else ransac.score
+        inlier = np.zeros(n_tracked, dtype=bool) if ransac is None else ransac.inliers.copy()
+        seen = VoFeatures(
+            seen.features_uv_px, previous.uv_px[tracked.index], tracked.uv_left_px.copy(),
+            np.asarray(inlier, dtype=bool),
+        )  # fmt: skip
+        counts: dict[str, Any] = {"n_features": n_new, "n_tracked": n_tracked,
+                                  "n_inliers": n_inliers, "features": seen}  # fmt: skip
+        if n_tracked < p.min_features:
+            reason = f"{n_tracked} features tracked, need {p.min_features}"
+            return _result(VoStatus.TOO_FEW_FEATURES, reason, **counts)
+        if n_inliers < p.min_inliers:
+            reason = f"{n_inliers} RANSAC inliers of {n_tracked}, need {p.min_inliers}"
+            return _result(VoStatus.TOO_FEW_INLIERS, reason, **counts)
+        if ml is None:
+            reason = f"maximum-likelihood refinement did not converge in {fit.ml_iterations} steps"
+            return _result(VoStatus.NO_CONVERGENCE, reason, ml_iterations=fit.ml_iterations,
+                           **counts)  # fmt: skip
         motion = body_motion(ml.R, ml.T, ml.covariance)
         update = update_of(motion.R_b0_b1, motion.p_b1_b0, R_pred, t_pred, R_s)
         problem = violation(update, p.sanity)
@@ -287,8 +344,10 @@ class VisualOdometry:
         pair: PointedPair,
         R_b0_b1_predicted: FloatArray,
         p_b1_b0_predicted: FloatArray,
+        near_radius_px: int = 0,
     ) -> Tracked:
-        """The previous pair's features tracked into the new pair (``tracking``)."""
+        """The previous pair's features tracked into the new pair (``tracking``); a second
+        pass searches ``± near_radius_px`` at full resolution."""
         p = self.params
         return track_features(
             previous_left=previous.left_pyramid, new_left=new.left_pyramid, new_right=right,
@@ -300,16 +359,22 @@ class VisualOdometry:
             min_score=p.min_score, track_min_score=p.track_min_score,
             cov_scale=p.peak_cov_scale, min_sigma_px=p.min_sigma_px,
             max_gap_m=p.max_gap_m, max_range_m=p.max_range_m, max_error_m=p.track_max_error_m,
-            max_rotation_error_rad=p.track_max_rotation_error_rad,
+            max_rotation_error_rad=p.track_max_rotation_error_rad, near_radius_px=near_radius_px,
         )  # fmt: skip
 
-    def _ransac(self, pair: PointedPair, tracked: Tracked) -> RansacMotion:
+    def _ransac(
+        self,
+        pair: PointedPair,
+        tracked: Tracked,
+        hypothesis: tuple[FloatArray, FloatArray] | None = None,
+    ) -> RansacMotion:
         """RANSAC over the closed-form fit (``motion``, eqs. 12-14)."""
         p = self.params
         return ransac_motion(
             tracked.p_b0, tracked.p_b1, motion_weights(tracked.cov_b0, tracked.cov_b1),
             _reprojection_gaps(pair, tracked), iterations=p.ransac_iterations,
             sample_size=p.ransac_sample_size, threshold_px=p.ransac_threshold_px, rng=self.rng,
+            hypothesis=hypothesis,
         )  # fmt: skip
 
     def _image(self, image: ArrayLike, name: str) -> NDArray[np.float32]:

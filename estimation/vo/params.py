@@ -71,6 +71,9 @@ class VoParams:
     track_coarse_radius_px: float = 32.0
     track_max_levels: int = 3
     track_refine_radius_px: int = 2
+    track_passes: int = 3
+    track_near_radius_px: float = 12.0
+    track_guide_min_inliers: int = 6
     track_max_error_m: float = 0.6
     track_max_rotation_error_rad: float = math.radians(6.0)
     ransac_iterations: int = 200
@@ -126,6 +129,10 @@ class VoParams:
             )
         if self.min_inliers < self.ransac_sample_size:
             raise ValueError("min_inliers: must be at least ransac_sample_size")
+        if not self.ransac_sample_size <= self.track_guide_min_inliers <= self.min_inliers:
+            raise ValueError(
+                "track_guide_min_inliers: must be in [ransac_sample_size, min_inliers]"
+            )
         if self.min_features < self.min_inliers:
             raise ValueError("min_features: must be at least min_inliers")
 
@@ -154,5 +161,6 @@ class VoParams:
             max_disparity_px=self.max_disparity_px * s,
             track_search_radius_px=self.track_search_radius_px * s,
             track_coarse_radius_px=max(4.0, self.track_coarse_radius_px * math.sqrt(s)),
+            track_near_radius_px=max(2.0, self.track_near_radius_px * s),
             ransac_threshold_px=self.ransac_threshold_px * s,
         )

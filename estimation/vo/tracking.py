@@ -140,6 +140,37 @@ def track_left(
     return SearchResult(uv, score, cov, ok)
 
 
+def track_near(
+    previous: PaddedImage,
+    new: PaddedImage,
+    uv_previous_px: ArrayLike,
+    uv_predicted_px: ArrayLike,
+    *,
+    window_px: int,
+    radius_px: int,
+    cov_scale: float,
+    min_sigma_px: float,
+) -> SearchResult:
+    """The previous full-resolution windows searched ``± radius_px`` around their predicted
+    pixels in the new full-resolution image, no pyramid (the second tracking pass, whose
+    prediction comes from the first pass's estimated motion: module docstring). A peak on
+    the search's edge is no match (``search`` keeps interior maxima only)."""
+    if radius_px < 1:
+        raise ValueError(f"radius_px: must be at least 1, got {radius_px}")
+    uv0 = np.asarray(uv_previous_px, dtype=np.float64).reshape(-1, 2)
+    predicted = np.asarray(uv_predicted_px, dtype=np.float64).reshape(-1, 2)
+    finite = np.all(np.isfinite(predicted), axis=1)
+    templates, inside = previous.templates_at(np.rint(uv0), window_px)
+    start = np.rint(np.where(finite[:, None], predicted, uv0)).astype(np.intp) - radius_px
+    found = search(
+        templates, new, start[:, 1], start[:, 0], 2 * radius_px + 1, 2 * radius_px + 1,
+        cov_scale=cov_scale, min_sigma_px=min_sigma_px,
+    )  # fmt: skip
+    ok = found.ok & finite & inside
+    uv = np.where(ok[:, None], found.uv_px, np.nan)
+    return SearchResult(uv, found.score, found.cov_px2, ok)
+
+
 @dataclass(frozen=True)
 class Tracked:
     """Features tracked from the previous pair into the new one (all arrays over M tracked
@@ -193,6 +224,7 @@ def track_features(
     max_range_m: float,
     max_error_m: float,
     max_rotation_error_rad: float,
+    near_radius_px: int = 0,
 ) -> Tracked:
     """Steps 1-4 of the module docstring for the previous features (N,).
 
@@ -200,6 +232,8 @@ def track_features(
     ``cov_b0`` (N, 3, 3) their points; ``R_b0_b1``, ``p_b1_b0`` the predicted motion.
     ``track_min_score`` is the least correlation accepted between the pairs (lower than the
     stereo ``min_score``: the viewpoint changed, so the windows foreshorten and rescale).
+    ``near_radius_px`` > 0: the second pass, searching ``± near_radius_px`` at full
+    resolution only (:func:`track_near`) instead of the pyramid's ``± search_radius_px``.
     Returns the survivors only.
     """
     if not max_error_m > 0.0:
@@ -213,11 +247,17 @@ def track_features(
         raise ValueError("uv_previous_px/p_b0/cov_b0: need the same number of features")
     predicted_b1 = predict_points_b1(points_b0, R_b0_b1, p_b1_b0)  # step 1
     uv_predicted, _ = new_pair.project(predicted_b1)
-    found = track_left(  # step 2
-        previous_left, new_left, uv0, uv_predicted,
-        window_px=window_px, search_radius_px=search_radius_px,
-        refine_radius_px=refine_radius_px, cov_scale=cov_scale, min_sigma_px=min_sigma_px,
-    )  # fmt: skip
+    if near_radius_px > 0:  # step 2, second pass
+        found = track_near(
+            previous_left[0], new_left[0], uv0, uv_predicted, window_px=window_px,
+            radius_px=near_radius_px, cov_scale=cov_scale, min_sigma_px=min_sigma_px,
+        )  # fmt: skip
+    else:  # step 2, first pass
+        found = track_left(
+            previous_left, new_left, uv0, uv_predicted,
+            window_px=window_px, search_radius_px=search_radius_px,
+            refine_radius_px=refine_radius_px, cov_scale=cov_scale, min_sigma_px=min_sigma_px,
+        )  # fmt: skip
     keep = np.flatnonzero(found.ok & (found.score >= track_min_score))
     predicted = predicted_b1[keep]
     # Step 3: the disparities a point within the tolerance of its prediction can have.
