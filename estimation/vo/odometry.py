@@ -28,6 +28,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
@@ -166,7 +167,8 @@ class VisualOdometry:
         )
         # Pad enough for any window the searches gather near an edge.
         self.pad_px = int(
-            p.window_px + 2 + max(p.max_disparity_px, p.track_coarse_radius_px, p.row_slack_px)
+            max(p.window_px, p.track_window_px) + 2
+            + max(p.max_disparity_px, p.track_coarse_radius_px, p.row_slack_px)
             + p.track_search_radius_px / 2**self.levels + p.track_refine_radius_px
             + math.ceil(p.track_near_radius_px)
         )  # fmt: skip
@@ -360,6 +362,7 @@ class VisualOdometry:
             cov_scale=p.peak_cov_scale, min_sigma_px=p.min_sigma_px,
             max_gap_m=p.max_gap_m, max_range_m=p.max_range_m, max_error_m=p.track_max_error_m,
             max_rotation_error_rad=p.track_max_rotation_error_rad, near_radius_px=near_radius_px,
+            track_window_px=p.track_window_px,
         )  # fmt: skip
 
     def _ransac(
@@ -397,12 +400,17 @@ class VisualOdometry:
         """Detect, match and triangulate the new pair's features (kept for the next step)."""
         p = self.params
         left = left_pyramid[0]
-        uv, _ = detect_features(
-            left.image, n_features=p.n_features, cell_px=p.grid_cell_px,
-            min_separation_px=p.min_separation_px,
-            border_px=p.window_px // 2 + p.track_refine_radius_px + 1,
+        # Features are detected at pyramid level ``feature_level`` (params), in its pixels.
+        image, scale = left.image, 2**p.feature_level
+        for _ in range(p.feature_level):
+            image = np.asarray(cv2.pyrDown(image), dtype=np.float32)
+        border_px = max(p.window_px, p.track_window_px) // 2 + p.track_refine_radius_px + 1
+        uv_level, _ = detect_features(
+            image, n_features=p.n_features, cell_px=p.grid_cell_px,
+            min_separation_px=p.min_separation_px, border_px=math.ceil(border_px / scale),
             block_px=p.harris_block_px, aperture_px=p.harris_aperture_px, harris_k=p.harris_k,
         )  # fmt: skip
+        uv = uv_level * scale
         stereo = stereo_points(
             pair, left, right, uv.astype(np.float64), p.min_disparity_px, p.max_disparity_px,
             window_px=p.window_px, row_slack_px=p.row_slack_px, min_score=p.min_score,

@@ -52,12 +52,14 @@ class VoParams:
     """
 
     n_features: int = 200
-    grid_cell_px: int = 16
-    min_separation_px: float = 40.0
-    harris_block_px: int = 5
+    feature_level: int = 2
+    grid_cell_px: int = 4
+    min_separation_px: float = 10.0
+    harris_block_px: int = 2
     harris_aperture_px: int = 3
     harris_k: float = 0.04
     window_px: int = 13
+    track_window_px: int = 29
     min_score: float = 0.7
     track_min_score: float = 0.5
     peak_cov_scale: float = 0.003
@@ -100,6 +102,8 @@ class VoParams:
                 raise ValueError(f"{f.name}: must be a number, got {value!r}")
             if f.type == "int" and not isinstance(value, int):
                 raise ValueError(f"{f.name}: must be an integer, got {value!r}")
+            if f.name == "feature_level" and value == 0:
+                continue  # detection at full resolution
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{f.name}: must be positive and finite, got {value!r}")
         self._check_relations()
@@ -147,13 +151,19 @@ class VoParams:
             raise ValueError(f"width_px: must be at least 64, got {width_px}")
         s = width_px / _REFERENCE_WIDTH_PX
         window = max(7, 2 * round(0.5 * (self.window_px * math.sqrt(s) - 1)) + 1)
-        cell = max(2, round(self.grid_cell_px * s))
+        track_window = max(7, 2 * round(0.5 * (self.track_window_px * s - 1)) + 1)
+        # detection keeps an image about as wide as the reference's detection level
+        level = max(0, self.feature_level + round(math.log2(s)))
+        s_level = (width_px / 2**level) / (_REFERENCE_WIDTH_PX / 2**self.feature_level)
+        cell = max(2, round(self.grid_cell_px * s_level))
         return dataclasses.replace(
             self,
+            feature_level=level,
             grid_cell_px=cell,
-            min_separation_px=max(self.min_separation_px * s, cell + 1.0),
-            harris_block_px=max(2, round(self.harris_block_px * math.sqrt(s))),
+            min_separation_px=max(self.min_separation_px * s_level, cell + 1.0),
+            harris_block_px=max(2, round(self.harris_block_px * math.sqrt(s_level))),
             window_px=window,
+            track_window_px=track_window,
             # The score's noise variance falls as the window's pixel count grows.
             peak_cov_scale=self.peak_cov_scale * (self.window_px / window) ** 2,
             min_sigma_px=self.min_sigma_px * s,

@@ -78,6 +78,17 @@ def build_pyramid(image: ArrayLike, levels: int, pad_px: int) -> list[PaddedImag
     return out
 
 
+def level_window_px(window_px: int, level: int) -> int:
+    """The template size at pyramid ``level`` for ``window_px`` at full resolution: the same
+    patch of the scene, halved per level, odd, never under 7 px (or ``window_px``).
+
+    >>> level_window_px(29, 0), level_window_px(29, 1), level_window_px(29, 2), level_window_px(7, 2)
+    (29, 15, 7, 7)
+    """
+    size = 2 * round(0.5 * (window_px / 2**level - 1)) + 1
+    return max(min(7, window_px), size)
+
+
 def track_left(
     previous: list[PaddedImage],
     new: list[PaddedImage],
@@ -99,6 +110,8 @@ def track_left(
     template would cover the margin) with a search of ``± ceil(search_radius_px / 2^L)``;
     each finer level searches ``± refine_radius_px`` around the doubled estimate. Returns
     the full-resolution match (subpixel, with covariance); ``uv_px`` is NaN where not ok.
+    ``window_px`` is the full-resolution template; coarser levels use
+    :func:`level_window_px`, the same patch of the scene.
     """
     if len(previous) != len(new) or not previous:
         raise ValueError("previous/new: need two non-empty pyramids of equal depth")
@@ -115,7 +128,7 @@ def track_left(
     for level in range(len(previous) - 1, -1, -1):
         scale = 2.0**level
         centre = np.rint(uv0 / scale)  # template centre at this level (integer)
-        templates, inside = previous[level].templates_at(centre, window_px)
+        templates, inside = previous[level].templates_at(centre, level_window_px(window_px, level))
         entering = alive & ~started & inside
         alive &= inside | ~started  # a started feature must stay trackable at each level
         groups = (
@@ -225,6 +238,7 @@ def track_features(
     max_error_m: float,
     max_rotation_error_rad: float,
     near_radius_px: int = 0,
+    track_window_px: int | None = None,
 ) -> Tracked:
     """Steps 1-4 of the module docstring for the previous features (N,).
 
@@ -234,6 +248,8 @@ def track_features(
     stereo ``min_score``: the viewpoint changed, so the windows foreshorten and rescale).
     ``near_radius_px`` > 0: the second pass, searching ``± near_radius_px`` at full
     resolution only (:func:`track_near`) instead of the pyramid's ``± search_radius_px``.
+    ``track_window_px``: the tracking template at full resolution (default ``window_px``,
+    the stereo template).
     Returns the survivors only.
     """
     if not max_error_m > 0.0:
@@ -247,15 +263,16 @@ def track_features(
         raise ValueError("uv_previous_px/p_b0/cov_b0: need the same number of features")
     predicted_b1 = predict_points_b1(points_b0, R_b0_b1, p_b1_b0)  # step 1
     uv_predicted, _ = new_pair.project(predicted_b1)
+    track_window = window_px if track_window_px is None else track_window_px
     if near_radius_px > 0:  # step 2, second pass
         found = track_near(
-            previous_left[0], new_left[0], uv0, uv_predicted, window_px=window_px,
+            previous_left[0], new_left[0], uv0, uv_predicted, window_px=track_window,
             radius_px=near_radius_px, cov_scale=cov_scale, min_sigma_px=min_sigma_px,
         )  # fmt: skip
     else:  # step 2, first pass
         found = track_left(
             previous_left, new_left, uv0, uv_predicted,
-            window_px=window_px, search_radius_px=search_radius_px,
+            window_px=track_window, search_radius_px=search_radius_px,
             refine_radius_px=refine_radius_px, cov_scale=cov_scale, min_sigma_px=min_sigma_px,
         )  # fmt: skip
     keep = np.flatnonzero(found.ok & (found.score >= track_min_score))
