@@ -82,8 +82,8 @@ def level_window_px(window_px: int, level: int) -> int:
     """The template size at pyramid ``level`` for ``window_px`` at full resolution: the same
     patch of the scene, halved per level, odd, never under 7 px (or ``window_px``).
 
-    >>> level_window_px(29, 0), level_window_px(29, 1), level_window_px(29, 2), level_window_px(7, 2)
-    (29, 15, 7, 7)
+    >>> [level_window_px(29, level) for level in range(3)], level_window_px(7, 2)
+    ([29, 15, 7], 7)
     """
     size = 2 * round(0.5 * (window_px / 2**level - 1)) + 1
     return max(min(7, window_px), size)
