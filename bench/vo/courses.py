@@ -103,7 +103,8 @@ KINDS = ("rock", "slope", "convergence", "shadow")
 # a few pixels of separation already spread them enough (docs/BENCHMARKS.md)
 MIN_SEPARATION_SMALL_PX = 1.01
 _SMALL = {"min_separation_px": MIN_SEPARATION_SMALL_PX, "grid_cell_px": 1}
-_MER_TRACKING = {"track_passes": 1}  # MER's single tracking pass, as flown on those sols
+# MER's single tracking pass and no precision check, as flown on those sols
+_MER_TRACKING = {"track_passes": 1, "max_sigma_m": 1.0, "max_sigma_rad": math.pi}
 VO_VARIANTS: dict[str, dict[str, Any]] = {
     "default": {},
     "separation_small": _SMALL,

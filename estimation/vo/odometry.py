@@ -57,6 +57,7 @@ class VoStatus(enum.Enum):
     TOO_FEW_INLIERS = "too few inliers"
     NO_CONVERGENCE = "no convergence"
     INSANE_UPDATE = "update violates a sanity constraint"
+    TOO_UNCERTAIN = "update too uncertain"
 
 
 @dataclass(frozen=True)
@@ -165,13 +166,14 @@ class VisualOdometry:
         self.levels = pyramid_levels(
             p.track_search_radius_px, p.track_coarse_radius_px, p.track_max_levels
         )
-        # Pad enough for any window the searches gather near an edge.
-        self.pad_px = int(
-            max(p.window_px, p.track_window_px) + 2
-            + max(p.max_disparity_px, p.track_coarse_radius_px, p.row_slack_px)
-            + p.track_search_radius_px / 2**self.levels + p.track_refine_radius_px
-            + math.ceil(p.track_near_radius_px)
+        # Pad enough for any window the searches gather near an edge: the left images for
+        # the tracking searches, the right one for the stereo search along the rows.
+        window = max(p.window_px, p.track_window_px) + 2
+        self.left_pad_px = window + math.ceil(
+            p.track_search_radius_px / 2**self.levels + p.track_refine_radius_px
+            + p.track_near_radius_px
         )  # fmt: skip
+        self.pad_px = window + math.ceil(max(p.max_disparity_px, p.row_slack_px))
         self._previous: _Frame | None = None
 
     def reset(self) -> None:
@@ -204,7 +206,9 @@ class VisualOdometry:
         self._previous = None
         if previous is not None:
             self._previous = _Frame(
-                build_pyramid(np.array(previous["left_px"], np.float32), self.levels, self.pad_px),
+                build_pyramid(
+                    np.array(previous["left_px"], np.float32), self.levels, self.left_pad_px
+                ),
                 np.array(previous["uv_px"], dtype=np.float64),
                 np.array(previous["p_b"], dtype=np.float64),
                 np.array(previous["cov_b"], dtype=np.float64),
@@ -239,7 +243,7 @@ class VisualOdometry:
                 raise ValueError(f"{name}: must be a finite angle in radians, got {angle!r}")
         pair = PointedPair.from_rig(self.rig, mast_az_rad, mast_el_rad)
 
-        left_pyramid = build_pyramid(left_img, self.levels, self.pad_px)
+        left_pyramid = build_pyramid(left_img, self.levels, self.left_pad_px)
         right_padded = PaddedImage(right_img, self.pad_px)
         new_frame = self._stereo_features(pair, left_pyramid, right_padded)
         previous, self._previous = self._previous, new_frame
@@ -252,7 +256,7 @@ class VisualOdometry:
             return _result(VoStatus.TOO_FEW_FEATURES, f"{reason}, need {p.min_features}",
                            n_features=n_new, features=seen)  # fmt: skip
         # Sec. 2 "Feature Tracking", from the wheel-odometry prediction, then (module
-        # docstring) again from each pass's own estimate while that keeps more inliers.
+        # docstring) again from each pass's own estimate while that gains inliers.
         tracked = self._track(previous, new_frame, right_padded, pair, R_pred, t_pred)
         fit = self._fit(pair, tracked, None)
         for _ in range(p.track_passes - 1):
@@ -268,7 +272,10 @@ class VisualOdometry:
             refit = self._fit(pair, near, (fit.ml.R, fit.ml.T))
             if refit.ml is None or refit.ransac is None or refit.ransac.score <= fit.ransac.score:
                 break
-            tracked, fit = near, refit
+            gain = refit.ransac.score / fit.ransac.score - 1.0
+            fit = refit
+            if gain < p.track_pass_min_gain:
+                break
         return self._judge(fit, seen, previous, n_new, R_pred, t_pred, R_s)
 
     def _fit(
@@ -283,7 +290,7 @@ class VisualOdometry:
         n_tracked = len(tracked.index)
         if n_tracked < p.ransac_sample_size:
             return _Fit(tracked, None, None)
-        ransac = self._ransac(pair, tracked, hypothesis)
+        ransac = self._ransac(pair, tracked, hypothesis)  # fewer samples beside a hypothesis
         if ransac.score < p.ransac_sample_size:
             return _Fit(tracked, ransac, None)
         inl = ransac.inliers
@@ -331,6 +338,14 @@ class VisualOdometry:
         update = update_of(motion.R_b0_b1, motion.p_b1_b0, R_pred, t_pred, R_s)
         problem = violation(update, p.sanity)
         status = VoStatus.CONVERGED if problem is None else VoStatus.INSANE_UPDATE
+        sigma_m, sigma_rad = motion_sigmas(motion.covariance)
+        if problem is None and (sigma_m > p.max_sigma_m or sigma_rad > p.max_sigma_rad):
+            status = VoStatus.TOO_UNCERTAIN
+            problem = (
+                f"update too uncertain: σ {100.0 * sigma_m:.2f} cm and "
+                f"{math.degrees(sigma_rad):.2f}° on its worst axes, limits "
+                f"{100.0 * p.max_sigma_m:.2f} cm and {math.degrees(p.max_sigma_rad):.2f}°"
+            )
         return VoResult(
             status, problem or f"{n_inliers} inliers of {n_tracked} tracked features",
             motion if problem is None else None, update, n_features=n_new,
@@ -375,7 +390,8 @@ class VisualOdometry:
         p = self.params
         return ransac_motion(
             tracked.p_b0, tracked.p_b1, motion_weights(tracked.cov_b0, tracked.cov_b1),
-            _reprojection_gaps(pair, tracked), iterations=p.ransac_iterations,
+            _reprojection_gaps(pair, tracked),
+            iterations=p.ransac_iterations if hypothesis is None else p.ransac_guided_iterations,
             sample_size=p.ransac_sample_size, threshold_px=p.ransac_threshold_px, rng=self.rng,
             hypothesis=hypothesis,
         )  # fmt: skip
@@ -435,6 +451,17 @@ def _reprojection_gaps(pair: PointedPair, tracked: Tracked) -> GapFunction:
         return out
 
     return gap_px
+
+
+def motion_sigmas(covariance: ArrayLike) -> tuple[float, float]:
+    """The standard deviations along the worst axes of a motion's position (m) and rotation
+    (rad) errors, from its (6, 6) ``(θ, δp)`` covariance (``VoMotion``)."""
+    cov = np.asarray(covariance, dtype=np.float64)
+    if cov.shape != (6, 6) or not np.all(np.isfinite(cov)):
+        raise ValueError(f"covariance: must be a finite (6, 6) matrix, got shape {cov.shape}")
+    rotation = float(np.max(np.linalg.eigvalsh(0.5 * (cov[:3, :3] + cov[:3, :3].T))))
+    position = float(np.max(np.linalg.eigvalsh(0.5 * (cov[3:, 3:] + cov[3:, 3:].T))))
+    return math.sqrt(max(position, 0.0)), math.sqrt(max(rotation, 0.0))
 
 
 def body_motion(R_b1_b0: ArrayLike, T_b1: ArrayLike, covariance_phi_T: ArrayLike) -> VoMotion:

@@ -76,9 +76,11 @@ class VoParams:
     track_passes: int = 3
     track_near_radius_px: float = 12.0
     track_guide_min_inliers: int = 6
+    track_pass_min_gain: float = 0.1
     track_max_error_m: float = 0.6
     track_max_rotation_error_rad: float = math.radians(6.0)
     ransac_iterations: int = 200
+    ransac_guided_iterations: int = 50
     ransac_sample_size: int = 6
     # 0.75 px at MER's 256 px (the paper's example is 0.5): on our rendered pairs 0.5 px
     # refused good steps (45 % of Gusev's 0.75 m steps fell under 12 inliers) and 1 px let
@@ -89,6 +91,12 @@ class VoParams:
     ml_max_iterations: int = 20
     ml_tol_rad: float = 1e-7
     ml_tol_m: float = 1e-6
+    # An update is kept only if its ML covariance puts its 3σ inside the 5 cm of a false
+    # update (docs/BENCHMARKS.md) and its 2σ inside the 1 deg: the false updates that the
+    # tracking passes still let through (a wrong first pass, few features) had σ of
+    # 2.3-2.9 cm where good steps had at most 1.8 cm (bench vo, 2026-12-05)
+    max_sigma_m: float = 0.05 / 3.0
+    max_sigma_rad: float = math.radians(0.5)
     sanity: SanityLimits = field(default_factory=SanityLimits)
 
     def __post_init__(self) -> None:
