@@ -85,7 +85,7 @@ def level_window_px(window_px: int, level: int) -> int:
     >>> [level_window_px(29, level) for level in range(3)], level_window_px(7, 2)
     ([29, 15, 7], 7)
     """
-    size = 2 * round(0.5 * (window_px / 2**level - 1)) + 1
+    size = 2 * round(0.5 * (window_px / (1 << level) - 1)) + 1
     return max(min(7, window_px), size)
 
 
