@@ -10,6 +10,23 @@ consistency check fails, too few feature points are tracked, or the estimation f
 converge, then no motion estimate update will be produced and the initial estimate
 (nominally based on wheel odometry and the IMU) will be maintained" (sec. 1).
 
+Beyond MER: tracking again from VO's own estimate. The paper's tracking searches around
+the wheel-odometry prediction, which slip makes tens of pixels wrong, so it searches coarse
+to fine on pyramids whose coarse levels match ambiguously (at 256 px a step kept about 46 of
+~120 features, docs/BENCHMARKS.md). Here that pass only has to give a first estimate
+(RANSAC and ML on as few as ``track_guide_min_inliers`` inliers). If that estimate passes
+the sanity constraints, the previous features are predicted again with it, now a few
+pixels wrong at most, and searched ``± track_near_radius_px`` at full resolution only
+(``tracking.track_near``); RANSAC rescores the first estimate among its samples on this new
+set, and ML refits the winner. Passes repeat (``track_passes``) while they gain at least
+``track_pass_min_gain`` more inliers; the step is judged on its last fit by MER's rules
+(``min_features``, ``min_inliers``, ML convergence, the sanity constraints), so a first
+estimate that the constraints refuse is never improved into an accepted one. A search near
+a wrong estimate finds few consistent matches, so a wrong first estimate ends as "too few
+inliers". Last, an update is refused if its own ML covariance is too wide for the bench's
+false-update line (``max_sigma_m``, ``max_sigma_rad``): sec. 4.3's false updates came from
+poorly conditioned feature sets, which is what a wide covariance says.
+
 Whatever the outcome, the new pair becomes the reference for the next step (after a
 failure VO re-initialises on the pair it has, as MER did after too large a motion).
 

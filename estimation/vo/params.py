@@ -26,7 +26,12 @@ class VoParams:
 
     Features (sec. 2 "Feature Detection"): ``n_features`` kept per pair, strongest first, at
     least ``min_separation_px`` apart, from a grid of ``grid_cell_px`` cells (smaller than
-    the separation); Harris ``harris_block_px``, ``harris_aperture_px``, ``harris_k``.
+    the separation); Harris ``harris_block_px``, ``harris_aperture_px``, ``harris_k``. They
+    are detected on pyramid level ``feature_level`` (0: full resolution) and these four are
+    in that level's pixels: at 1024 px the fine pebbles of the near field outscore the
+    smoother far field, and full-resolution detection put every feature in the lower half of
+    the image, where a 0.75 m step takes it out of view; detected at about 256 px wide, as
+    MER's, they span the image (sec. 4.3 tells why that matters: sols 137/141).
 
     Correlation: ``window_px`` odd template size; ``min_score`` the least pseudo-normalised
     correlation accepted in stereo, ``track_min_score`` between pairs (the viewpoint moved:
@@ -39,7 +44,13 @@ class VoParams:
 
     Tracking: search ``± track_search_radius_px`` around the wheel-odometry prediction, on
     pyramids deep enough to bring that to ``track_coarse_radius_px`` (at most
-    ``track_max_levels`` halvings), refining ``± track_refine_radius_px`` per level; features
+    ``track_max_levels`` halvings), refining ``± track_refine_radius_px`` per level, with
+    templates of ``track_window_px`` at full resolution (the same patch of ground at every
+    level). Up to ``track_passes`` passes (``estimation.vo.odometry``): a pass whose RANSAC
+    kept at least ``track_guide_min_inliers`` guides the next, which searches only
+    ``± track_near_radius_px`` at full resolution around the prediction by that estimate,
+    with ``ransac_guided_iterations`` samples beside the guide; passes stop when one gains
+    under ``track_pass_min_gain`` (a fraction) more inliers. Features
     whose new 3D point is farther from the prediction than ``track_max_error_m +
     track_max_rotation_error_rad * distance`` are dropped (must exceed the worst slip error
     of a step, in position and in heading).
@@ -48,7 +59,9 @@ class VoParams:
     inliers within ``ransac_threshold_px`` (reprojection, both eyes); at least
     ``min_features`` tracked and ``min_inliers`` inliers, else "no update"; Gauss-Newton ML
     refinement for at most ``ml_max_iterations`` steps, converged when a step is under
-    ``ml_tol_rad`` and ``ml_tol_m``. ``sanity``: the Feb 2005 constraints.
+    ``ml_tol_rad`` and ``ml_tol_m``; an update whose ML covariance has a standard deviation
+    over ``max_sigma_m`` (position) or ``max_sigma_rad`` (rotation) on its worst axis is no
+    update. ``sanity``: the Feb 2005 constraints.
     """
 
     n_features: int = 200
@@ -73,6 +86,10 @@ class VoParams:
     track_coarse_radius_px: float = 32.0
     track_max_levels: int = 3
     track_refine_radius_px: int = 2
+    # Three passes, the later ones ± 3 px at 256: Gusev convergence 90.75 -> 98.0 % and
+    # Meridiani 38 -> 98 % (bench vo; one pass is MER's tracking; a third pass added
+    # 0.25 % on Gusev); a guide needs only a 6-point sample's worth of inliers, since the
+    # near pass and MER's counts judge the result (8: Meridiani 90.6 % on the bench's pairs)
     track_passes: int = 3
     track_near_radius_px: float = 12.0
     track_guide_min_inliers: int = 6

@@ -24,6 +24,14 @@ How, here:
 4. Reject features whose new point is farther from the predicted one than the tolerance
    ``max_error_m + max_rotation_error_rad * distance`` (distance from the left eye).
 
+A second pass (``near_radius_px`` > 0, driven by ``estimation.vo.odometry``) replaces step 2
+with :func:`track_near`: the prediction now comes from the first pass's estimated motion,
+so each window is searched only ``± near_radius_px`` around it at full resolution, where a
+window is distinctive; a true match more than that radius away shows as a peak on the
+search's edge, which is no match. Tracking templates (``track_window_px``) cover the same
+patch of ground at every pyramid level (:func:`level_window_px`): at 1024 px a 13 px
+window holds one of the many alike pebbles and matches any of them.
+
 The tolerance must exceed the largest wheel-odometry error expected, since the whole of that
 error shows in every feature: the slip's translation error everywhere, and its heading
 error in proportion to the distance (a 3 deg yaw slip moves a point 10 m away by 0.5 m).
