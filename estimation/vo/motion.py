@@ -115,11 +115,14 @@ def ransac_motion(
     sample_size: int,
     threshold_px: float,
     rng: np.random.Generator,
+    hypothesis: tuple[ArrayLike, ArrayLike] | None = None,
 ) -> RansacMotion:
     """The paper's RANSAC over the closed-form fit (module docstring).
 
     ``p_prev``, ``p_cur`` (N, 3), ``weights`` (N,) from :func:`motion_weights`; ``gap_px``
     gives the reprojection gaps of a batch of hypotheses (the caller knows the cameras).
+    ``hypothesis`` ``(R (3, 3), T (3,))``: a motion scored with the samples' (the first
+    tracking pass's estimate, rescored on the second pass's features); it wins ties.
     """
     p = np.asarray(p_prev, dtype=np.float64)
     c = np.asarray(p_cur, dtype=np.float64)
@@ -136,6 +139,10 @@ def ransac_motion(
     # Step 1: `iterations` random samples without replacement, all at once.
     samples = np.argsort(rng.random((iterations, n)), axis=1)[:, :sample_size]
     R, T = fit_rigid(p[samples], c[samples], w[samples])
+    if hypothesis is not None:
+        R_h = np.asarray(hypothesis[0], dtype=np.float64).reshape(1, 3, 3)
+        T_h = np.asarray(hypothesis[1], dtype=np.float64).reshape(1, 3)
+        R, T = np.concatenate([R_h, R]), np.concatenate([T_h, T])
     # Step 2: reproject every feature under every hypothesis and count the small gaps.
     inliers_all = gap_px(R, T) < threshold_px
     scores = inliers_all.sum(axis=1)

@@ -10,6 +10,23 @@ consistency check fails, too few feature points are tracked, or the estimation f
 converge, then no motion estimate update will be produced and the initial estimate
 (nominally based on wheel odometry and the IMU) will be maintained" (sec. 1).
 
+Beyond MER: tracking again from VO's own estimate. The paper's tracking searches around
+the wheel-odometry prediction, which slip makes tens of pixels wrong, so it searches coarse
+to fine on pyramids whose coarse levels match ambiguously (at 256 px a step kept about 46 of
+~120 features, docs/BENCHMARKS.md). Here that pass only has to give a first estimate
+(RANSAC and ML on as few as ``track_guide_min_inliers`` inliers). If that estimate passes
+the sanity constraints, the previous features are predicted again with it, now a few
+pixels wrong at most, and searched ``± track_near_radius_px`` at full resolution only
+(``tracking.track_near``); RANSAC rescores the first estimate among its samples on this new
+set, and ML refits the winner. Passes repeat (``track_passes``) while they gain at least
+``track_pass_min_gain`` more inliers; the step is judged on its last fit by MER's rules
+(``min_features``, ``min_inliers``, ML convergence, the sanity constraints), so a first
+estimate that the constraints refuse is never improved into an accepted one. A search near
+a wrong estimate finds few consistent matches, so a wrong first estimate ends as "too few
+inliers". Last, an update is refused if its own ML covariance is too wide for the bench's
+false-update line (``max_sigma_m``, ``max_sigma_rad``): sec. 4.3's false updates came from
+poorly conditioned feature sets, which is what a wide covariance says.
+
 Whatever the outcome, the new pair becomes the reference for the next step (after a
 failure VO re-initialises on the pair it has, as MER did after too large a motion).
 
@@ -22,13 +39,13 @@ Site frame at the previous pair (for the sanity constraints only). Mast angles a
 
 from __future__ import annotations
 
-import dataclasses
 import enum
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
@@ -36,7 +53,7 @@ from scipy.spatial.transform import Rotation
 from estimation.camera_model import check_rotation_matrix
 from estimation.vo.features import detect_features
 from estimation.vo.geometry import PointedPair
-from estimation.vo.ml_motion import refine_ml, skew
+from estimation.vo.ml_motion import MlMotion, refine_ml, skew
 from estimation.vo.motion import GapFunction, RansacMotion, motion_weights, ransac_motion
 from estimation.vo.params import VoParams
 from estimation.vo.sanity import Update, update_of, violation
@@ -57,6 +74,7 @@ class VoStatus(enum.Enum):
     TOO_FEW_INLIERS = "too few inliers"
     NO_CONVERGENCE = "no convergence"
     INSANE_UPDATE = "update violates a sanity constraint"
+    TOO_UNCERTAIN = "update too uncertain"
 
 
 @dataclass(frozen=True)
@@ -131,6 +149,18 @@ class _Frame:
     cov_b: FloatArray
 
 
+@dataclass(frozen=True)
+class _Fit:
+    """One tracking pass's estimate: its ``tracked`` features, the RANSAC winner (``None``
+    with fewer tracked than a sample), its ML refinement (``None`` with fewer inliers than a
+    sample or when it did not converge, after ``ml_iterations``)."""
+
+    tracked: Tracked
+    ransac: RansacMotion | None
+    ml: MlMotion | None
+    ml_iterations: int = 0
+
+
 class VisualOdometry:
     """MER visual odometry for one stereo rig (module docstring).
 
@@ -153,11 +183,14 @@ class VisualOdometry:
         self.levels = pyramid_levels(
             p.track_search_radius_px, p.track_coarse_radius_px, p.track_max_levels
         )
-        # Pad enough for any window the searches gather near an edge.
-        self.pad_px = int(
-            p.window_px + 2 + max(p.max_disparity_px, p.track_coarse_radius_px, p.row_slack_px)
-            + p.track_search_radius_px / 2**self.levels + p.track_refine_radius_px
+        # Pad enough for any window the searches gather near an edge: the left images for
+        # the tracking searches, the right one for the stereo search along the rows.
+        window = max(p.window_px, p.track_window_px) + 2
+        self.left_pad_px = window + math.ceil(
+            p.track_search_radius_px / 2**self.levels + p.track_refine_radius_px
+            + p.track_near_radius_px
         )  # fmt: skip
+        self.pad_px = window + math.ceil(max(p.max_disparity_px, p.row_slack_px))
         self._previous: _Frame | None = None
 
     def reset(self) -> None:
@@ -190,7 +223,9 @@ class VisualOdometry:
         self._previous = None
         if previous is not None:
             self._previous = _Frame(
-                build_pyramid(np.array(previous["left_px"], np.float32), self.levels, self.pad_px),
+                build_pyramid(
+                    np.array(previous["left_px"], np.float32), self.levels, self.left_pad_px
+                ),
                 np.array(previous["uv_px"], dtype=np.float64),
                 np.array(previous["p_b"], dtype=np.float64),
                 np.array(previous["cov_b"], dtype=np.float64),
@@ -225,7 +260,7 @@ class VisualOdometry:
                 raise ValueError(f"{name}: must be a finite angle in radians, got {angle!r}")
         pair = PointedPair.from_rig(self.rig, mast_az_rad, mast_el_rad)
 
-        left_pyramid = build_pyramid(left_img, self.levels, self.pad_px)
+        left_pyramid = build_pyramid(left_img, self.levels, self.left_pad_px)
         right_padded = PaddedImage(right_img, self.pad_px)
         new_frame = self._stereo_features(pair, left_pyramid, right_padded)
         previous, self._previous = self._previous, new_frame
@@ -237,41 +272,97 @@ class VisualOdometry:
             reason = f"{len(previous.uv_px)} stereo features in the previous pair"
             return _result(VoStatus.TOO_FEW_FEATURES, f"{reason}, need {p.min_features}",
                            n_features=n_new, features=seen)  # fmt: skip
+        # Sec. 2 "Feature Tracking", from the wheel-odometry prediction, then (module
+        # docstring) again from each pass's own estimate while that gains inliers.
         tracked = self._track(previous, new_frame, right_padded, pair, R_pred, t_pred)
-        n_tracked = len(tracked.index)
-        seen = VoFeatures(
-            seen.features_uv_px, previous.uv_px[tracked.index], tracked.uv_left_px.copy(),
-            np.zeros(n_tracked, dtype=bool),
-        )  # fmt: skip
-        if n_tracked < p.min_features:
-            reason = f"{n_tracked} features tracked, need {p.min_features}"
-            return _result(VoStatus.TOO_FEW_FEATURES, reason, n_features=n_new,
-                           n_tracked=n_tracked, features=seen)  # fmt: skip
-        ransac = self._ransac(pair, tracked)
-        n_inliers = ransac.score
-        seen = dataclasses.replace(seen, inlier=np.asarray(ransac.inliers, dtype=bool).copy())
-        if n_inliers < p.min_inliers:
-            reason = f"{n_inliers} RANSAC inliers of {n_tracked}, need {p.min_inliers}"
-            return _result(VoStatus.TOO_FEW_INLIERS, reason, n_features=n_new,
-                           n_tracked=n_tracked, n_inliers=n_inliers,
-                           features=seen)  # fmt: skip
+        fit = self._fit(pair, tracked, None)
+        for _ in range(p.track_passes - 1):
+            if fit.ml is None or fit.ransac is None or fit.ransac.score < p.track_guide_min_inliers:
+                break
+            guide = body_motion(fit.ml.R, fit.ml.T, fit.ml.covariance)
+            if violation(update_of(guide.R_b0_b1, guide.p_b1_b0, R_pred, t_pred, R_s), p.sanity):
+                break  # an insane estimate guides nothing: the step is judged on it
+            near = self._track(
+                previous, new_frame, right_padded, pair, guide.R_b0_b1, guide.p_b1_b0,
+                near_radius_px=math.ceil(p.track_near_radius_px),
+            )  # fmt: skip
+            refit = self._fit(pair, near, (fit.ml.R, fit.ml.T))
+            if refit.ml is None or refit.ransac is None or refit.ransac.score <= fit.ransac.score:
+                break
+            gain = refit.ransac.score / fit.ransac.score - 1.0
+            fit = refit
+            if gain < p.track_pass_min_gain:
+                break
+        return self._judge(fit, seen, previous, n_new, R_pred, t_pred, R_s)
 
+    def _fit(
+        self,
+        pair: PointedPair,
+        tracked: Tracked,
+        hypothesis: tuple[FloatArray, FloatArray] | None,
+    ) -> _Fit:
+        """RANSAC (with ``hypothesis`` rescored among its samples) and the ML refinement of
+        its winner, as far as the tracked features allow."""
+        p = self.params
+        n_tracked = len(tracked.index)
+        if n_tracked < p.ransac_sample_size:
+            return _Fit(tracked, None, None)
+        ransac = self._ransac(pair, tracked, hypothesis)  # fewer samples beside a hypothesis
+        if ransac.score < p.ransac_sample_size:
+            return _Fit(tracked, ransac, None)
         inl = ransac.inliers
         ml = refine_ml(
             tracked.p_b0[inl], tracked.p_b1[inl], tracked.cov_b0[inl], tracked.cov_b1[inl],
             ransac.R, ransac.T, max_iterations=p.ml_max_iterations, tol_rad=p.ml_tol_rad,
             tol_m=p.ml_tol_m,
         )  # fmt: skip
-        if not ml.converged:
-            reason = f"maximum-likelihood refinement did not converge in {ml.iterations} steps"
-            return _result(VoStatus.NO_CONVERGENCE, reason, n_features=n_new,
-                           n_tracked=n_tracked, n_inliers=n_inliers,
-                           ml_iterations=ml.iterations, features=seen)  # fmt: skip
+        return _Fit(tracked, ransac, ml if ml.converged else None, ml.iterations)
 
+    def _judge(
+        self,
+        fit: _Fit,
+        seen: VoFeatures,
+        previous: _Frame,
+        n_new: int,
+        R_pred: FloatArray,
+        t_pred: FloatArray,
+        R_s: FloatArray,
+    ) -> VoResult:
+        """The step's outcome from its last fit: MER's minimum counts, convergence and the
+        sanity constraints (sec. 2, "Robust Motion Estimation"; the February 2005 checks)."""
+        p = self.params
+        tracked, ransac, ml = fit.tracked, fit.ransac, fit.ml
+        n_tracked = len(tracked.index)
+        n_inliers = 0 if ransac is None else ransac.score
+        inlier = np.zeros(n_tracked, dtype=bool) if ransac is None else ransac.inliers.copy()
+        seen = VoFeatures(
+            seen.features_uv_px, previous.uv_px[tracked.index], tracked.uv_left_px.copy(),
+            np.asarray(inlier, dtype=bool),
+        )  # fmt: skip
+        counts: dict[str, Any] = {"n_features": n_new, "n_tracked": n_tracked,
+                                  "n_inliers": n_inliers, "features": seen}  # fmt: skip
+        if n_tracked < p.min_features:
+            reason = f"{n_tracked} features tracked, need {p.min_features}"
+            return _result(VoStatus.TOO_FEW_FEATURES, reason, **counts)
+        if n_inliers < p.min_inliers:
+            reason = f"{n_inliers} RANSAC inliers of {n_tracked}, need {p.min_inliers}"
+            return _result(VoStatus.TOO_FEW_INLIERS, reason, **counts)
+        if ml is None:
+            reason = f"maximum-likelihood refinement did not converge in {fit.ml_iterations} steps"
+            return _result(VoStatus.NO_CONVERGENCE, reason, ml_iterations=fit.ml_iterations,
+                           **counts)  # fmt: skip
         motion = body_motion(ml.R, ml.T, ml.covariance)
         update = update_of(motion.R_b0_b1, motion.p_b1_b0, R_pred, t_pred, R_s)
         problem = violation(update, p.sanity)
         status = VoStatus.CONVERGED if problem is None else VoStatus.INSANE_UPDATE
+        sigma_m, sigma_rad = motion_sigmas(motion.covariance)
+        if problem is None and (sigma_m > p.max_sigma_m or sigma_rad > p.max_sigma_rad):
+            status = VoStatus.TOO_UNCERTAIN
+            problem = (
+                f"update too uncertain: σ {100.0 * sigma_m:.2f} cm and "
+                f"{math.degrees(sigma_rad):.2f}° on its worst axes, limits "
+                f"{100.0 * p.max_sigma_m:.2f} cm and {math.degrees(p.max_sigma_rad):.2f}°"
+            )
         return VoResult(
             status, problem or f"{n_inliers} inliers of {n_tracked} tracked features",
             motion if problem is None else None, update, n_features=n_new,
@@ -287,8 +378,10 @@ class VisualOdometry:
         pair: PointedPair,
         R_b0_b1_predicted: FloatArray,
         p_b1_b0_predicted: FloatArray,
+        near_radius_px: int = 0,
     ) -> Tracked:
-        """The previous pair's features tracked into the new pair (``tracking``)."""
+        """The previous pair's features tracked into the new pair (``tracking``); a second
+        pass searches ``± near_radius_px`` at full resolution."""
         p = self.params
         return track_features(
             previous_left=previous.left_pyramid, new_left=new.left_pyramid, new_right=right,
@@ -300,16 +393,24 @@ class VisualOdometry:
             min_score=p.min_score, track_min_score=p.track_min_score,
             cov_scale=p.peak_cov_scale, min_sigma_px=p.min_sigma_px,
             max_gap_m=p.max_gap_m, max_range_m=p.max_range_m, max_error_m=p.track_max_error_m,
-            max_rotation_error_rad=p.track_max_rotation_error_rad,
+            max_rotation_error_rad=p.track_max_rotation_error_rad, near_radius_px=near_radius_px,
+            track_window_px=p.track_window_px,
         )  # fmt: skip
 
-    def _ransac(self, pair: PointedPair, tracked: Tracked) -> RansacMotion:
+    def _ransac(
+        self,
+        pair: PointedPair,
+        tracked: Tracked,
+        hypothesis: tuple[FloatArray, FloatArray] | None = None,
+    ) -> RansacMotion:
         """RANSAC over the closed-form fit (``motion``, eqs. 12-14)."""
         p = self.params
         return ransac_motion(
             tracked.p_b0, tracked.p_b1, motion_weights(tracked.cov_b0, tracked.cov_b1),
-            _reprojection_gaps(pair, tracked), iterations=p.ransac_iterations,
+            _reprojection_gaps(pair, tracked),
+            iterations=p.ransac_iterations if hypothesis is None else p.ransac_guided_iterations,
             sample_size=p.ransac_sample_size, threshold_px=p.ransac_threshold_px, rng=self.rng,
+            hypothesis=hypothesis,
         )  # fmt: skip
 
     def _image(self, image: ArrayLike, name: str) -> NDArray[np.float32]:
@@ -332,12 +433,17 @@ class VisualOdometry:
         """Detect, match and triangulate the new pair's features (kept for the next step)."""
         p = self.params
         left = left_pyramid[0]
-        uv, _ = detect_features(
-            left.image, n_features=p.n_features, cell_px=p.grid_cell_px,
-            min_separation_px=p.min_separation_px,
-            border_px=p.window_px // 2 + p.track_refine_radius_px + 1,
+        # Features are detected at pyramid level ``feature_level`` (params), in its pixels.
+        image, scale = left.image, 2**p.feature_level
+        for _ in range(p.feature_level):
+            image = np.asarray(cv2.pyrDown(image), dtype=np.float32)
+        border_px = max(p.window_px, p.track_window_px) // 2 + p.track_refine_radius_px + 1
+        uv_level, _ = detect_features(
+            image, n_features=p.n_features, cell_px=p.grid_cell_px,
+            min_separation_px=p.min_separation_px, border_px=math.ceil(border_px / scale),
             block_px=p.harris_block_px, aperture_px=p.harris_aperture_px, harris_k=p.harris_k,
         )  # fmt: skip
+        uv = uv_level * scale
         stereo = stereo_points(
             pair, left, right, uv.astype(np.float64), p.min_disparity_px, p.max_disparity_px,
             window_px=p.window_px, row_slack_px=p.row_slack_px, min_score=p.min_score,
@@ -362,6 +468,17 @@ def _reprojection_gaps(pair: PointedPair, tracked: Tracked) -> GapFunction:
         return out
 
     return gap_px
+
+
+def motion_sigmas(covariance: ArrayLike) -> tuple[float, float]:
+    """The standard deviations along the worst axes of a motion's position (m) and rotation
+    (rad) errors, from its (6, 6) ``(θ, δp)`` covariance (``VoMotion``)."""
+    cov = np.asarray(covariance, dtype=np.float64)
+    if cov.shape != (6, 6) or not np.all(np.isfinite(cov)):
+        raise ValueError(f"covariance: must be a finite (6, 6) matrix, got shape {cov.shape}")
+    rotation = float(np.max(np.linalg.eigvalsh(0.5 * (cov[:3, :3] + cov[:3, :3].T))))
+    position = float(np.max(np.linalg.eigvalsh(0.5 * (cov[3:, 3:] + cov[3:, 3:].T))))
+    return math.sqrt(max(position, 0.0)), math.sqrt(max(rotation, 0.0))
 
 
 def body_motion(R_b1_b0: ArrayLike, T_b1: ArrayLike, covariance_phi_T: ArrayLike) -> VoMotion:

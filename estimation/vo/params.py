@@ -26,7 +26,12 @@ class VoParams:
 
     Features (sec. 2 "Feature Detection"): ``n_features`` kept per pair, strongest first, at
     least ``min_separation_px`` apart, from a grid of ``grid_cell_px`` cells (smaller than
-    the separation); Harris ``harris_block_px``, ``harris_aperture_px``, ``harris_k``.
+    the separation); Harris ``harris_block_px``, ``harris_aperture_px``, ``harris_k``. They
+    are detected on pyramid level ``feature_level`` (0: full resolution) and these four are
+    in that level's pixels: at 1024 px the fine pebbles of the near field outscore the
+    smoother far field, and full-resolution detection put every feature in the lower half of
+    the image, where a 0.75 m step takes it out of view; detected at about 256 px wide, as
+    MER's, they span the image (sec. 4.3 tells why that matters: sols 137/141).
 
     Correlation: ``window_px`` odd template size; ``min_score`` the least pseudo-normalised
     correlation accepted in stereo, ``track_min_score`` between pairs (the viewpoint moved:
@@ -39,7 +44,13 @@ class VoParams:
 
     Tracking: search ``± track_search_radius_px`` around the wheel-odometry prediction, on
     pyramids deep enough to bring that to ``track_coarse_radius_px`` (at most
-    ``track_max_levels`` halvings), refining ``± track_refine_radius_px`` per level; features
+    ``track_max_levels`` halvings), refining ``± track_refine_radius_px`` per level, with
+    templates of ``track_window_px`` at full resolution (the same patch of ground at every
+    level). Up to ``track_passes`` passes (``estimation.vo.odometry``): a pass whose RANSAC
+    kept at least ``track_guide_min_inliers`` guides the next, which searches only
+    ``± track_near_radius_px`` at full resolution around the prediction by that estimate,
+    with ``ransac_guided_iterations`` samples beside the guide; passes stop when one gains
+    under ``track_pass_min_gain`` (a fraction) more inliers. Features
     whose new 3D point is farther from the prediction than ``track_max_error_m +
     track_max_rotation_error_rad * distance`` are dropped (must exceed the worst slip error
     of a step, in position and in heading).
@@ -48,16 +59,20 @@ class VoParams:
     inliers within ``ransac_threshold_px`` (reprojection, both eyes); at least
     ``min_features`` tracked and ``min_inliers`` inliers, else "no update"; Gauss-Newton ML
     refinement for at most ``ml_max_iterations`` steps, converged when a step is under
-    ``ml_tol_rad`` and ``ml_tol_m``. ``sanity``: the Feb 2005 constraints.
+    ``ml_tol_rad`` and ``ml_tol_m``; an update whose ML covariance has a standard deviation
+    over ``max_sigma_m`` (position) or ``max_sigma_rad`` (rotation) on its worst axis is no
+    update. ``sanity``: the Feb 2005 constraints.
     """
 
     n_features: int = 200
-    grid_cell_px: int = 16
-    min_separation_px: float = 40.0
-    harris_block_px: int = 5
+    feature_level: int = 2
+    grid_cell_px: int = 4
+    min_separation_px: float = 10.0
+    harris_block_px: int = 2
     harris_aperture_px: int = 3
     harris_k: float = 0.04
     window_px: int = 13
+    track_window_px: int = 29
     min_score: float = 0.7
     track_min_score: float = 0.5
     peak_cov_scale: float = 0.003
@@ -71,9 +86,18 @@ class VoParams:
     track_coarse_radius_px: float = 32.0
     track_max_levels: int = 3
     track_refine_radius_px: int = 2
+    # Three passes, the later ones ± 3 px at 256: Gusev convergence 90.75 -> 98.0 % and
+    # Meridiani 38 -> 98 % (bench vo; one pass is MER's tracking; a third pass added
+    # 0.25 % on Gusev); a guide needs only a 6-point sample's worth of inliers, since the
+    # near pass and MER's counts judge the result (8: Meridiani 90.6 % on the bench's pairs)
+    track_passes: int = 3
+    track_near_radius_px: float = 12.0
+    track_guide_min_inliers: int = 6
+    track_pass_min_gain: float = 0.1
     track_max_error_m: float = 0.6
     track_max_rotation_error_rad: float = math.radians(6.0)
     ransac_iterations: int = 200
+    ransac_guided_iterations: int = 50
     ransac_sample_size: int = 6
     # 0.75 px at MER's 256 px (the paper's example is 0.5): on our rendered pairs 0.5 px
     # refused good steps (45 % of Gusev's 0.75 m steps fell under 12 inliers) and 1 px let
@@ -84,6 +108,12 @@ class VoParams:
     ml_max_iterations: int = 20
     ml_tol_rad: float = 1e-7
     ml_tol_m: float = 1e-6
+    # An update is kept only if its ML covariance puts its 3σ inside the 5 cm of a false
+    # update (docs/BENCHMARKS.md) and its 2σ inside the 1 deg: the false updates that the
+    # tracking passes still let through (a wrong first pass, few features) had σ of
+    # 2.3-2.9 cm where good steps had at most 1.8 cm (bench vo, 2026-12-05)
+    max_sigma_m: float = 0.05 / 3.0
+    max_sigma_rad: float = math.radians(0.5)
     sanity: SanityLimits = field(default_factory=SanityLimits)
 
     def __post_init__(self) -> None:
@@ -97,6 +127,8 @@ class VoParams:
                 raise ValueError(f"{f.name}: must be a number, got {value!r}")
             if f.type == "int" and not isinstance(value, int):
                 raise ValueError(f"{f.name}: must be an integer, got {value!r}")
+            if f.name == "feature_level" and value == 0:
+                continue  # detection at full resolution
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{f.name}: must be positive and finite, got {value!r}")
         self._check_relations()
@@ -126,6 +158,10 @@ class VoParams:
             )
         if self.min_inliers < self.ransac_sample_size:
             raise ValueError("min_inliers: must be at least ransac_sample_size")
+        if not self.ransac_sample_size <= self.track_guide_min_inliers <= self.min_inliers:
+            raise ValueError(
+                "track_guide_min_inliers: must be in [ransac_sample_size, min_inliers]"
+            )
         if self.min_features < self.min_inliers:
             raise ValueError("min_features: must be at least min_inliers")
 
@@ -140,13 +176,19 @@ class VoParams:
             raise ValueError(f"width_px: must be at least 64, got {width_px}")
         s = width_px / _REFERENCE_WIDTH_PX
         window = max(7, 2 * round(0.5 * (self.window_px * math.sqrt(s) - 1)) + 1)
-        cell = max(2, round(self.grid_cell_px * s))
+        track_window = max(7, 2 * round(0.5 * (self.track_window_px * s - 1)) + 1)
+        # detection keeps an image about as wide as the reference's detection level
+        level = max(0, self.feature_level + round(math.log2(s)))
+        s_level = (width_px / 2**level) / (_REFERENCE_WIDTH_PX / 2**self.feature_level)
+        cell = max(2, round(self.grid_cell_px * s_level))
         return dataclasses.replace(
             self,
+            feature_level=level,
             grid_cell_px=cell,
-            min_separation_px=max(self.min_separation_px * s, cell + 1.0),
-            harris_block_px=max(2, round(self.harris_block_px * math.sqrt(s))),
+            min_separation_px=max(self.min_separation_px * s_level, cell + 1.0),
+            harris_block_px=max(2, round(self.harris_block_px * math.sqrt(s_level))),
             window_px=window,
+            track_window_px=track_window,
             # The score's noise variance falls as the window's pixel count grows.
             peak_cov_scale=self.peak_cov_scale * (self.window_px / window) ** 2,
             min_sigma_px=self.min_sigma_px * s,
@@ -154,5 +196,6 @@ class VoParams:
             max_disparity_px=self.max_disparity_px * s,
             track_search_radius_px=self.track_search_radius_px * s,
             track_coarse_radius_px=max(4.0, self.track_coarse_radius_px * math.sqrt(s)),
+            track_near_radius_px=max(2.0, self.track_near_radius_px * s),
             ransac_threshold_px=self.ransac_threshold_px * s,
         )

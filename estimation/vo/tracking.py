@@ -24,6 +24,14 @@ How, here:
 4. Reject features whose new point is farther from the predicted one than the tolerance
    ``max_error_m + max_rotation_error_rad * distance`` (distance from the left eye).
 
+A second pass (``near_radius_px`` > 0, driven by ``estimation.vo.odometry``) replaces step 2
+with :func:`track_near`: the prediction now comes from the first pass's estimated motion,
+so each window is searched only ``± near_radius_px`` around it at full resolution, where a
+window is distinctive; a true match more than that radius away shows as a peak on the
+search's edge, which is no match. Tracking templates (``track_window_px``) cover the same
+patch of ground at every pyramid level (:func:`level_window_px`): at 1024 px a 13 px
+window holds one of the many alike pebbles and matches any of them.
+
 The tolerance must exceed the largest wheel-odometry error expected, since the whole of that
 error shows in every feature: the slip's translation error everywhere, and its heading
 error in proportion to the distance (a 3 deg yaw slip moves a point 10 m away by 0.5 m).
@@ -78,6 +86,17 @@ def build_pyramid(image: ArrayLike, levels: int, pad_px: int) -> list[PaddedImag
     return out
 
 
+def level_window_px(window_px: int, level: int) -> int:
+    """The template size at pyramid ``level`` for ``window_px`` at full resolution: the same
+    patch of the scene, halved per level, odd, never under 7 px (or ``window_px``).
+
+    >>> [level_window_px(29, level) for level in range(3)], level_window_px(7, 2)
+    ([29, 15, 7], 7)
+    """
+    size = 2 * round(0.5 * (window_px / (1 << level) - 1)) + 1
+    return max(min(7, window_px), size)
+
+
 def track_left(
     previous: list[PaddedImage],
     new: list[PaddedImage],
@@ -99,6 +118,8 @@ def track_left(
     template would cover the margin) with a search of ``± ceil(search_radius_px / 2^L)``;
     each finer level searches ``± refine_radius_px`` around the doubled estimate. Returns
     the full-resolution match (subpixel, with covariance); ``uv_px`` is NaN where not ok.
+    ``window_px`` is the full-resolution template; coarser levels use
+    :func:`level_window_px`, the same patch of the scene.
     """
     if len(previous) != len(new) or not previous:
         raise ValueError("previous/new: need two non-empty pyramids of equal depth")
@@ -115,7 +136,7 @@ def track_left(
     for level in range(len(previous) - 1, -1, -1):
         scale = 2.0**level
         centre = np.rint(uv0 / scale)  # template centre at this level (integer)
-        templates, inside = previous[level].templates_at(centre, window_px)
+        templates, inside = previous[level].templates_at(centre, level_window_px(window_px, level))
         entering = alive & ~started & inside
         alive &= inside | ~started  # a started feature must stay trackable at each level
         groups = (
@@ -138,6 +159,37 @@ def track_left(
     ok = alive & started
     uv = np.where(ok[:, None], uv0 + shift, np.nan)
     return SearchResult(uv, score, cov, ok)
+
+
+def track_near(
+    previous: PaddedImage,
+    new: PaddedImage,
+    uv_previous_px: ArrayLike,
+    uv_predicted_px: ArrayLike,
+    *,
+    window_px: int,
+    radius_px: int,
+    cov_scale: float,
+    min_sigma_px: float,
+) -> SearchResult:
+    """The previous full-resolution windows searched ``± radius_px`` around their predicted
+    pixels in the new full-resolution image, no pyramid (the second tracking pass, whose
+    prediction comes from the first pass's estimated motion: module docstring). A peak on
+    the search's edge is no match (``search`` keeps interior maxima only)."""
+    if radius_px < 1:
+        raise ValueError(f"radius_px: must be at least 1, got {radius_px}")
+    uv0 = np.asarray(uv_previous_px, dtype=np.float64).reshape(-1, 2)
+    predicted = np.asarray(uv_predicted_px, dtype=np.float64).reshape(-1, 2)
+    finite = np.all(np.isfinite(predicted), axis=1)
+    templates, inside = previous.templates_at(np.rint(uv0), window_px)
+    start = np.rint(np.where(finite[:, None], predicted, uv0)).astype(np.intp) - radius_px
+    found = search(
+        templates, new, start[:, 1], start[:, 0], 2 * radius_px + 1, 2 * radius_px + 1,
+        cov_scale=cov_scale, min_sigma_px=min_sigma_px,
+    )  # fmt: skip
+    ok = found.ok & finite & inside
+    uv = np.where(ok[:, None], found.uv_px, np.nan)
+    return SearchResult(uv, found.score, found.cov_px2, ok)
 
 
 @dataclass(frozen=True)
@@ -193,6 +245,8 @@ def track_features(
     max_range_m: float,
     max_error_m: float,
     max_rotation_error_rad: float,
+    near_radius_px: int = 0,
+    track_window_px: int | None = None,
 ) -> Tracked:
     """Steps 1-4 of the module docstring for the previous features (N,).
 
@@ -200,6 +254,10 @@ def track_features(
     ``cov_b0`` (N, 3, 3) their points; ``R_b0_b1``, ``p_b1_b0`` the predicted motion.
     ``track_min_score`` is the least correlation accepted between the pairs (lower than the
     stereo ``min_score``: the viewpoint changed, so the windows foreshorten and rescale).
+    ``near_radius_px`` > 0: the second pass, searching ``± near_radius_px`` at full
+    resolution only (:func:`track_near`) instead of the pyramid's ``± search_radius_px``.
+    ``track_window_px``: the tracking template at full resolution (default ``window_px``,
+    the stereo template).
     Returns the survivors only.
     """
     if not max_error_m > 0.0:
@@ -213,11 +271,18 @@ def track_features(
         raise ValueError("uv_previous_px/p_b0/cov_b0: need the same number of features")
     predicted_b1 = predict_points_b1(points_b0, R_b0_b1, p_b1_b0)  # step 1
     uv_predicted, _ = new_pair.project(predicted_b1)
-    found = track_left(  # step 2
-        previous_left, new_left, uv0, uv_predicted,
-        window_px=window_px, search_radius_px=search_radius_px,
-        refine_radius_px=refine_radius_px, cov_scale=cov_scale, min_sigma_px=min_sigma_px,
-    )  # fmt: skip
+    track_window = window_px if track_window_px is None else track_window_px
+    if near_radius_px > 0:  # step 2, second pass
+        found = track_near(
+            previous_left[0], new_left[0], uv0, uv_predicted, window_px=track_window,
+            radius_px=near_radius_px, cov_scale=cov_scale, min_sigma_px=min_sigma_px,
+        )  # fmt: skip
+    else:  # step 2, first pass
+        found = track_left(
+            previous_left, new_left, uv0, uv_predicted,
+            window_px=track_window, search_radius_px=search_radius_px,
+            refine_radius_px=refine_radius_px, cov_scale=cov_scale, min_sigma_px=min_sigma_px,
+        )  # fmt: skip
     keep = np.flatnonzero(found.ok & (found.score >= track_min_score))
     predicted = predicted_b1[keep]
     # Step 3: the disparities a point within the tolerance of its prediction can have.

@@ -116,7 +116,7 @@ def test_a_vo_pair_opens_from_its_mark_with_its_features_drawn(page: Page, serve
     page.get_by_test_id("view3d").screenshot(path=str(ARTIFACTS / "ground_map_view3d.png"))
     # the view in a tab of its own ("open in a tab"), its panel open: the terrain's note
     tab = page.context.new_page()
-    tab.set_viewport_size(VIEWER)
+    tab.set_viewport_size({"width": VIEWER["width"], "height": VIEWER["height"]})
     tab.goto(f"{server}/viser/spirit/")
     tab.wait_for_function(SCENE_LOADED, timeout=TIMEOUT_MS)
     note = tab.get_by_text(re.compile("Terrain: the ground.s map"))
