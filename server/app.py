@@ -47,6 +47,7 @@ from server.api.routing import AuthFirstRoute, allow_every_method, document_publ
 from server.comm import api as comm
 from server.faults import api as faults
 from server.state import Server, ServerConfig
+from server.terrain import advice_api
 from server.storage import data_dir_url
 
 __all__ = ["Server", "ServerConfig", "create_app", "data_dir_url"]
@@ -88,6 +89,6 @@ def create_app(config: ServerConfig) -> FastAPI:
 
     app.mount("/static", StaticFiles(directory=WEB_DIR), name="static")
     for api in (rovers, sequences, queue, telemetry, events, channels, alarms, viewer, users,
-                audit, faults, comm):  # fmt: skip
+                audit, faults, comm, advice_api):  # fmt: skip
         app.include_router(api.routes)
     return app
