@@ -47,8 +47,8 @@ from server.api.routing import AuthFirstRoute, allow_every_method, document_publ
 from server.comm import api as comm
 from server.faults import api as faults
 from server.state import Server, ServerConfig
-from server.terrain import advice_api
 from server.storage import data_dir_url
+from server.terrain import advice_api
 
 __all__ = ["Server", "ServerConfig", "create_app", "data_dir_url"]
 
