@@ -7,10 +7,20 @@ import math
 from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
 from server.app import Server, ServerConfig, create_app, data_dir_url
+from server.terrain.ground_map import GroundMap
+from sim.scenarios.scene_builder import (
+    FEATURELESS,
+    AlbedoPatch,
+    RockSpec,
+    build_scene,
+    install_scene,
+)
+from sim.world.soil_patches import Circle
 
 BOOTSTRAP = "bootstrap-token-for-tests"
 
@@ -92,3 +102,33 @@ def test_bad_requests_are_refused_with_the_reason(
         ).status_code
         == 404
     )
+
+
+def test_the_advice_reads_the_ground_not_the_simulator(
+    api: tuple[TestClient, dict[str, str], dict[str, str]],
+) -> None:
+    """The simulator's hidden terrain and the true pose change, the ground's map and the
+    reported pose do not: the advice is the same, number for number. The ground's map
+    changes: the advice follows it."""
+    client, auth, _ = api
+    url, body = "/api/rovers/spirit/vo-advice", {"command": "DRIVE_STRAIGHT distance_m=2 vo=on"}
+    before = client.post(url, json=body, headers=auth).json()
+    server: Server = client.app.state.server  # type: ignore[attr-defined]
+    runtime = server.rovers["spirit"]
+    sim = runtime.session.sim
+    scene = build_scene(
+        "meridiani", 7, [RockSpec(2.0, 1.0, 0.4), RockSpec(2.5, -1.5, 0.3)],
+        [AlbedoPatch(Circle(2.0, 2.0, 1.5), FEATURELESS)],
+    )  # fmt: skip
+    with runtime.lock:
+        install_scene(sim, scene)  # new terrain under the rover: its true pose moves too
+    assert sim.terrain is scene
+    assert client.post(url, json=body, headers=auth).json() == before
+    n = 81
+    flat, ones = np.zeros((n, n)), np.ones((n, n))
+    sand = GroundMap(-20.0, -20.0, 0.5, flat, 0.1 * ones, 0.13 * ones, flat, ones > 0.0)
+    runtime.ground_map = sand  # type: ignore[attr-defined]
+    after = client.post(url, json=body, headers=auth).json()
+    assert after["map"] == "the rover's ground map"
+    assert all(c["features_min"] == 0.0 for c in after["candidates"])
+    assert after["candidates"] != before["candidates"]
