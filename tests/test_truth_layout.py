@@ -29,6 +29,8 @@ GROUND_KNOWLEDGE = frozenset({
     "sim.world.mars_frames",  # the IAU's Mars frames
     "sim.world.sites",  # the landing sites' published coordinates and terrain maps
     "sim.world.terrain",  # a terrain map (the ground's orbital and stereo maps)
+    # the orbital DEM and image the mapping team delivers: noisy, smoothed, posts 1 m
+    "sim.world.orbital_map",
     "sim.rover.geometry",  # the rover's design drawings (for drawing it)
 })  # fmt: skip
 TRUTH = "sim.scoring.truth"
