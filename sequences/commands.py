@@ -49,8 +49,11 @@ from sequences.command_base import shown as shown
 # The shared limits, re-exported: the dictionary's users read them as ``cmd.MAX_DRIVE_M``.
 from sequences.limits import MAX_DRIVE_M as MAX_DRIVE_M
 from sequences.limits import VO_PROCESSING_S as VO_PROCESSING_S
+from sequences.limits import VO_RIGS_PX as VO_RIGS_PX
 from sequences.limits import VO_STEP_MAX_DEG as VO_STEP_MAX_DEG
 from sequences.limits import VO_STEP_MAX_M as VO_STEP_MAX_M
+from sequences.vo_settings import VO_POINTING_SPECS as VO_POINTING_SPECS
+from sequences.vo_settings import check_vo_pointing, check_vo_setting
 
 MAX_WAIT_S = 2 * 88775.244  # two sols
 MAX_HGA_PASS_MIN = 120.0
@@ -156,6 +159,7 @@ def _check_vo(command: Command) -> None:
     if (drag := getattr(command, "drag_wheel", None)) not in (None, *WHEEL_KEYS):
         raise ValueError(f"drag_wheel: must be one of {', '.join(WHEEL_KEYS)}, got {shown(drag)}")
     _check_protection(command)
+    check_vo_pointing(command)
 
 
 @dataclass(frozen=True)
@@ -167,6 +171,7 @@ class DriveStraight(Command):
         "distance_m": ArgSpec("number", "m", 0.0, MAX_DRIVE_M, lo_open=True),
         **VO_SPECS,
         **PROTECTION_SPECS,
+        **VO_POINTING_SPECS,
     }
     distance_m: float
     vo: bool | None = None  # None: off
@@ -176,6 +181,8 @@ class DriveStraight(Command):
     vo_fail: str | None = None
     timeout_s: float | None = None
     lmst_limit_h: float | None = None
+    vo_az_deg: float | None = None  # None: VO_MAST_AZ_DEG (VO_POINTING_SPECS)
+    vo_el_deg: float | None = None
 
     def _check_rules(self) -> None:
         _check_vo(self)
@@ -206,6 +213,7 @@ class DriveArc(Command):
         ),
         **VO_SPECS,
         **PROTECTION_SPECS,
+        **VO_POINTING_SPECS,
     }
     radius_m: float
     angle_deg: float
@@ -216,6 +224,8 @@ class DriveArc(Command):
     vo_fail: str | None = None
     timeout_s: float | None = None
     lmst_limit_h: float | None = None
+    vo_az_deg: float | None = None  # None: VO_MAST_AZ_DEG (VO_POINTING_SPECS)
+    vo_el_deg: float | None = None
 
     def _check_rules(self) -> None:
         _check_vo(self)
@@ -240,6 +250,7 @@ class TurnInPlace(Command):
         ),
         **VO_SPECS,
         **PROTECTION_SPECS,
+        **VO_POINTING_SPECS,
     }
     angle_deg: float
     vo: bool | None = None  # None: off
@@ -249,6 +260,8 @@ class TurnInPlace(Command):
     vo_fail: str | None = None
     timeout_s: float | None = None
     lmst_limit_h: float | None = None
+    vo_az_deg: float | None = None  # None: VO_MAST_AZ_DEG (VO_POINTING_SPECS)
+    vo_el_deg: float | None = None
 
     def _check_rules(self) -> None:
         _check_vo(self)
@@ -269,6 +282,7 @@ class DriveTo(Command):
         "y_m": ArgSpec("number", "m", -1000.0, 1000.0, note=f"East in the Site; {_DRIVE_TO_NOTE}"),
         **VO_SPECS,
         **PROTECTION_SPECS,
+        **VO_POINTING_SPECS,
     }
     x_m: float
     y_m: float
@@ -279,6 +293,8 @@ class DriveTo(Command):
     vo_fail: str | None = None
     timeout_s: float | None = None
     lmst_limit_h: float | None = None
+    vo_az_deg: float | None = None  # None: VO_MAST_AZ_DEG (VO_POINTING_SPECS)
+    vo_el_deg: float | None = None
 
     def _check_rules(self) -> None:
         _check_vo(self)
@@ -455,7 +471,8 @@ class SetParam(Command):
         "param": ArgSpec(
             "string",
             note="a NATE parameter by dotted name, e.g. sungaze.timer_s, or a mobility "
-            "limit, e.g. mobility.slip_limit",
+            "limit, e.g. mobility.slip_limit, or vo.rig (the width of the VO pairs: "
+            f"{' or '.join(str(w) for w in VO_RIGS_PX)} px)",
         ),
         "value": ArgSpec("number_or_boolean", note="in the parameter's SI unit, or true/false"),
     }
@@ -470,6 +487,8 @@ class SetParam(Command):
                 check_limit(self.param.removeprefix("mobility."), self.value)
             except ValueError as exc:
                 raise ValueError(f"value: {exc}") from None
+        elif self.param.startswith("vo."):  # the ground knows the VO settings too
+            check_vo_setting(self.param, self.value)
 
 
 _ZONE_NAME = "letters, digits and _ (1-64); KEEPOUT_CLEAR zone=all clears every zone"

@@ -19,3 +19,11 @@ MER drive primitive ran. The simulator refuses a longer primitive with the same 
 VO_STEP_MAX_M = 0.75  # Cheng, Maimone and Matthies 2005 sec. 4: at most 75 cm per step
 VO_STEP_MAX_DEG = 18.0  # and at most 18 deg of turn, for 60 % overlap between pairs
 VO_PROCESSING_S = 150.0  # onboard time per VO step, the rover standing (MER: 2-3 min)
+
+# Visual odometry's Navcam pairs (``sequences.commands``' ``vo_az_deg``, ``vo_el_deg`` and
+# ``SET_PARAM param=vo.rig``; the simulator's ``sim.loop.vo_drive``).
+VO_MAST_AZ_DEG = 0.0  # omitted: straight ahead ...
+VO_MAST_EL_DEG = -35.0  # ... and 35 deg down: the ground ahead, where MER's VO looked
+VO_MAST_AZ_RANGE_DEG = (-180.0, 180.0)  # the mast turns the Navcams all the way round
+VO_MAST_EL_RANGE_DEG = (-90.0, 90.0)  # from straight down to straight up
+VO_RIGS_PX = (256, 1024)  # a VO pair's width and height: MER's downsampled 256 or the full 1024

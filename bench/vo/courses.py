@@ -61,7 +61,7 @@ from bench.vo.baseline import OrbPnpBaseline
 from estimation.protection.limits import SPECS
 from estimation.sapp.aqf import AttitudeQuality
 from estimation.vo.odometry import VisualOdometry, VoResult, VoStatus
-from estimation.vo.stereo_rig import NAVCAM
+from estimation.vo.stereo_rig import NAVCAM, StereoRig
 from sequences import commands as cmd
 from sim.errors import InputError
 from sim.loop.rover_sim import RoverSim
@@ -96,13 +96,15 @@ KINDS = ("rock", "slope", "convergence", "shadow")
 
 @dataclass(frozen=True)
 class DriveSpec:
-    """One benchmark drive: ``kind`` (``KINDS``), where, and the terrain/run seeds."""
+    """One benchmark drive: ``kind`` (``KINDS``), where, the terrain/run seeds, and the
+    VO rig's width (``RoverSession``'s ``vo_rig``)."""
 
     kind: str
     site_name: str
     seed: int
     index: int
     length_m: float
+    vo_rig: int = 256
 
 
 @dataclass(frozen=True)
@@ -124,13 +126,13 @@ class PairRecord:
 
 
 class RecordingVO(VisualOdometry):
-    """The flight VO on ``VO_RIG``, recording each pair with the truth from ``sim`` and
+    """The flight VO on ``rig``, recording each pair with the truth from ``sim`` and
     running the OpenCV baseline on the same images (a benchmark wrapper)."""
 
-    def __init__(self, sim: RoverSim) -> None:
-        super().__init__(VO_RIG)
+    def __init__(self, sim: RoverSim, rig: StereoRig = VO_RIG) -> None:
+        super().__init__(rig)
         self.sim = sim
-        self.baseline = OrbPnpBaseline(VO_RIG)
+        self.baseline = OrbPnpBaseline(rig)
         self.pairs: list[PairRecord] = []
 
     def reset(self) -> None:
@@ -215,7 +217,7 @@ def _session(spec: DriveSpec, rng: np.random.Generator) -> tuple[RoverSession, d
         step_max_m=ROCK_STEP_M if spec.kind == "rock" else cmd.VO_STEP_MAX_M, rover_shadow=shadow
     )
     session = RoverSession(spec.site_name, spec.seed, utc, x_m=x, y_m=y, yaw_rad=yaw,
-                           frame_every_s=3600.0, vo_options=options,
+                           frame_every_s=3600.0, vo_options=options, vo_rig=spec.vo_rig,
                            visual_odometry=RecordingVO)  # fmt: skip
     slip_range = {"rock": ROCK_SLIP, "slope": SLOPE_SLIP}.get(spec.kind)
     if slip_range is not None:
@@ -308,6 +310,7 @@ def drive_run(spec: DriveSpec) -> dict[str, Any]:
         if whole else math.nan,
         steps=len(steps), vo_converged=len(vo_errors), baseline_converged=len(base_errors),
         vo_step_errors=vo_errors, baseline_step_errors=base_errors,
+        vo_converged_walls_s=[c.vo_s for _, c in steps if c.vo_motion],
         failures=dict(Counter(c.status.value for _, c in steps if not c.vo_motion)),
         step_slip_max=max((1.0 - float(np.linalg.norm(c.p_s_true - p.p_s_true))
                            / float(np.linalg.norm(c.p_pred_b0)) for p, c in steps), default=0.0),

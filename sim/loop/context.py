@@ -15,6 +15,7 @@ sample's ``dt``).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -26,6 +27,7 @@ from estimation.protection.monitor import MobilityProtection
 from estimation.sapp.nate import EncoderSeries, ImuSample, ImuSeries, Nate, NateSeries
 from estimation.sapp.wheel_odometry import steer_six
 from estimation.vo.odometry import VisualOdometry
+from estimation.vo.stereo_rig import StereoRig
 from sim.loop.frames import FrameRecorder
 from sim.loop.rover_sim import RoverSim, Segment
 from sim.loop.side.estimators import SideEstimators
@@ -45,7 +47,8 @@ class CommandRefusedError(Exception):
 @dataclass
 class LoopContext:
     """The rover and its flight software in the loop; ``results`` collects the results of
-    the modes the command running completed (``CommandReport.results``)."""
+    the modes the command running completed (``CommandReport.results``); ``make_vo`` makes
+    the VO of another rig (``SET_PARAM param=vo.rig``: ``sim.loop.drives.set_vo_rig``)."""
 
     sim: RoverSim
     nate: Nate
@@ -55,6 +58,7 @@ class LoopContext:
     vo_options: VoDriveOptions
     protection: MobilityProtection
     results: list[Any] = field(default_factory=list)
+    make_vo: Callable[[StereoRig], VisualOdometry] = VisualOdometry
 
     def event(self, text: str, kind: str, severity: Severity = "info") -> None:
         """An event for the next frame."""

@@ -26,14 +26,13 @@ from sim.loop import guard
 from sim.loop.context import CommandRefusedError, LoopContext
 from sim.loop.rover_sim import Segment
 from sim.loop.vo_drive import (
-    VO_MAST_AZ_RAD,
-    VO_MAST_EL_RAD,
-    VO_RIG,
     EstimatedPose,
     corrected_pose,
     predicted_motion,
     split_drive,
     update_text,
+    vo_pointing,
+    vo_rig,
 )
 
 VoDrive = cmd.DriveStraight | cmd.DriveArc | cmd.TurnInPlace | cmd.DriveTo
@@ -113,8 +112,17 @@ def move(
     if monitor is None:
         monitor = guard.begin_drive(ctx, c)
     if c.vo:
-        return drive_vo(ctx, command, kind, args, bool(c.vo_attitude), monitor)
+        return drive_vo(ctx, command, kind, args, bool(c.vo_attitude), monitor, vo_pointing(c))
     return drive(ctx, command, kind, *args, monitor=monitor)
+
+
+def set_vo_rig(ctx: LoopContext, width_px: object) -> None:
+    """``SET_PARAM param=vo.rig``: VO images through the rig ``width_px`` wide from now on
+    (``sim.loop.vo_drive.vo_rig``), its VO made anew with the parameters for that width;
+    the same rig: nothing changes. ``InputError`` naming ``vo_rig`` for another width."""
+    rig = vo_rig(width_px)
+    if ctx.vo.rig != rig:
+        ctx.vo = ctx.make_vo(rig)
 
 
 def drive_vo(
@@ -124,8 +132,11 @@ def drive_vo(
     args: tuple[float, ...],
     attitude: bool,
     monitor: DriveMonitor,
+    pointing: tuple[float, float],
 ) -> dict[str, Any]:
-    """A drive in VO steps (module docstring), with the slip check after each."""
+    """A drive in VO steps (module docstring), with the slip check after each; the mast
+    at ``pointing`` (``(az_rad, el_rad)``, ``sim.loop.vo_drive.vo_pointing``) for every
+    pair."""
     nate = ctx.nate
     if nate.mode is not NateMode.IDLE:  # checked before the rover moves
         raise CommandRefusedError(f"mobility: refused in mode {nate.mode.value}")
@@ -133,7 +144,7 @@ def drive_vo(
     vo = ctx.vo
     vo.reset()
     before = ctx.estimate()
-    _vo_step(ctx, vo, before, before, 0, len(steps), attitude)  # the first pair
+    _vo_step(ctx, vo, before, before, (0, len(steps)), attitude, pointing)  # the first pair
     distance = 0.0
     updates = 0
     halted: dict[str, Any] | None = None
@@ -145,7 +156,7 @@ def drive_vo(
             halted = out["halt"]
             break
         after = ctx.estimate()
-        motion = _vo_step(ctx, vo, before, after, i, len(steps), attitude)
+        motion = _vo_step(ctx, vo, before, after, (i, len(steps)), attitude, pointing)
         vo_s = None
         if motion is not None:
             updates += 1
@@ -189,15 +200,18 @@ def _vo_step(
     vo: VisualOdometry,
     before: EstimatedPose,
     after: EstimatedPose,
-    step: int,
-    steps: int,
+    step_of: tuple[int, int],
     attitude: bool,
+    pointing: tuple[float, float],
 ) -> VoMotion | None:
-    """Take a pair and run VO on it; adopt a converged update, and return its motion."""
+    """Take a pair (step ``step_of[0]`` of ``step_of[1]``) through VO's rig with the mast at
+    ``pointing`` and run VO on it; adopt a converged update, and return its motion."""
+    step, steps = step_of
+    az_rad, el_rad = pointing  # commanded: the mast's bias is the simulator's, unknown to VO
     R_pred, p_pred = predicted_motion(before, after)
     try:
         pair = ctx.sim.navcam_pair(
-            VO_MAST_AZ_RAD, VO_MAST_EL_RAD, rig=VO_RIG, rover_shadow=ctx.vo_options.rover_shadow
+            az_rad, el_rad, rig=vo.rig, rover_shadow=ctx.vo_options.rover_shadow
         )
         result = vo.step(
             pair.left,
@@ -205,8 +219,8 @@ def _vo_step(
             R_b0_b1_predicted=R_pred,
             p_b1_b0_predicted=p_pred,
             R_s_b0=before.R_s_b,
-            mast_az_rad=VO_MAST_AZ_RAD,
-            mast_el_rad=VO_MAST_EL_RAD,
+            mast_az_rad=az_rad,
+            mast_el_rad=el_rad,
         )
     except (InputError, ValueError) as exc:  # e.g. the mast looking at nothing
         vo.reset()

@@ -75,10 +75,12 @@ def plant_site(ctx: LoopContext, c: cmd.PlantSite) -> Details:
 
 
 def set_param(ctx: LoopContext, c: cmd.SetParam) -> Details:
+    if c.param.startswith(("mobility.", "vo.")) and ctx.nate.busy:
+        raise CommandRefusedError(f"SET_PARAM: refused while {ctx.nate.mode.value} runs")
     if c.param.startswith("mobility."):  # mobility fault protection's limits
-        if ctx.nate.busy:
-            raise CommandRefusedError(f"SET_PARAM: refused while {ctx.nate.mode.value} runs")
         ctx.protection.set_limit(c.param.removeprefix("mobility."), c.value)
+    elif c.param == "vo.rig":  # the VO pairs' size (sim.loop.vo_drive.VO_RIGS)
+        drives.set_vo_rig(ctx, c.value)
     else:
         ctx.nate.set_param(c.param, c.value)
     ctx.event(parameter_text(c.param, c.value), "parameter")

@@ -35,20 +35,24 @@ from estimation.events import Event
 from estimation.protection.monitor import MobilityProtection
 from estimation.sapp.nate import Nate, NateParams
 from estimation.vo.odometry import VisualOdometry
+from estimation.vo.params import VoParams
+from estimation.vo.stereo_rig import StereoRig
 from sequences import commands as cmd
 from sim.errors import InputError
 from sim.faults.plan import FaultPlan
+from sim.loop import vo_drive
 from sim.loop.context import CommandRefusedError, LoopContext
 from sim.loop.downlink import Downlink, DownlinkDict
+from sim.loop.drives import set_vo_rig
 from sim.loop.frames import FrameRecorder
 from sim.loop.handlers import HANDLERS
 from sim.loop.rover_sim import Placement, RoverSim
 from sim.loop.side.estimators import SideEstimators
-from sim.loop.vo_drive import VO_RIG, VoDriveOptions
+from sim.loop.vo_drive import VoDriveOptions
 from sim.scoring.truth import Truth, TruthDict
 
 FloatArray = NDArray[np.float64]
-VoFactory = Callable[[RoverSim], VisualOdometry]
+VoFactory = Callable[[RoverSim, StereoRig], VisualOdometry]
 
 
 @dataclass
@@ -70,9 +74,10 @@ class CommandReport:
     results: list[Any] = field(default_factory=list)
 
 
-def flight_vo(sim: RoverSim) -> VisualOdometry:
-    """The flight software's VO on ``VO_RIG`` (the default of ``visual_odometry``)."""
-    return VisualOdometry(VO_RIG)
+def flight_vo(sim: RoverSim, rig: StereoRig) -> VisualOdometry:
+    """The flight software's VO on ``rig``, with the parameters for its width (the default
+    of ``visual_odometry``)."""
+    return VisualOdometry(rig, VoParams().for_width(rig.camera.width_px))
 
 
 class RoverSession:
@@ -81,10 +86,13 @@ class RoverSession:
     parameters, and ``frame_every_s``: keep one telemetry frame per that many seconds of
     8 Hz data (0: every cycle; frames with events or a mode change are always kept);
     ``vo_options``: the step limits and imaging of ``vo=on`` drives
-    (``sim.loop.vo_drive.VoDriveOptions``; MER's by default); ``visual_odometry``: makes
-    the VO of those drives from the simulator (a benchmark's wrapper that records each
-    step; it must image through ``VO_RIG``); ``estimators``: the estimators that run, SAPP
-    and those beside it (``sim.loop.side``)."""
+    (``sim.loop.vo_drive.VoDriveOptions``; MER's by default); ``vo_rig``: the width of
+    their Navcam pairs, 256 (MER's, ``VO_RIG``) or 1024 px (``sim.loop.vo_drive.VO_RIGS``;
+    ``SET_PARAM param=vo.rig`` changes it, and a checkpoint keeps it); ``visual_odometry``:
+    makes the VO of those drives from the simulator and the rig (a benchmark's wrapper
+    that records each step; it must image through the rig it is given; made again when
+    the rig changes); ``estimators``: the estimators that run, SAPP and those beside it
+    (``sim.loop.side``)."""
 
     def __init__(
         self,
@@ -95,6 +103,7 @@ class RoverSession:
         nate_params: NateParams | None = None,
         frame_every_s: float = 0.0,
         vo_options: VoDriveOptions | None = None,
+        vo_rig: int = 256,
         visual_odometry: VoFactory = flight_vo,
         estimators: Sequence[str] = ("sapp",),
         **placement: Unpack[Placement],
@@ -103,10 +112,16 @@ class RoverSession:
             raise InputError("frame_every_s", "must be finite and non-negative")
         if vo_options is not None and not isinstance(vo_options, VoDriveOptions):
             raise InputError("vo_options", f"must be a VoDriveOptions, got {vo_options!r}")
+        rig = vo_drive.vo_rig(vo_rig)  # InputError naming vo_rig unless 256 or 1024
         sim = RoverSim(site_name, seed, start_utc, **placement)
-        vo = visual_odometry(sim)
-        if not isinstance(vo, VisualOdometry) or vo.rig != VO_RIG:
-            raise InputError("visual_odometry", "must make a VisualOdometry on VO_RIG")
+
+        def make_vo(rig: StereoRig) -> VisualOdometry:
+            vo = visual_odometry(sim, rig)
+            if not isinstance(vo, VisualOdometry) or vo.rig != rig:
+                raise InputError("visual_odometry", "must make a VisualOdometry on the rig given")
+            return vo
+
+        vo = make_vo(rig)
         nate = Nate(sim.lat_rad, sim.lon_east_rad, sim.t_s, nate_params)
         side = SideEstimators(sim, seed, *sim.start_xy_m, estimators)
         self.loop = LoopContext(
@@ -117,6 +132,7 @@ class RoverSession:
             vo=vo,
             vo_options=vo_options if vo_options is not None else VoDriveOptions(),
             protection=MobilityProtection(sim.lon_east_rad),
+            make_vo=make_vo,
         )
         self.loop.recorder.protection = self.loop.protection
         self.reports: list[CommandReport] = []
@@ -215,8 +231,8 @@ class RoverSession:
 
     def state(self) -> dict[str, Any]:
         """The session's state between commands, as plain data: the simulator, NATE, the
-        frame recorder, the side estimators and the VO (the frames and reports already
-        made are not part of it)."""
+        frame recorder, the side estimators, the VO and its rig's width (the frames and
+        reports already made are not part of it)."""
         loop = self.loop
         return {
             "sim": loop.sim.state(),
@@ -224,6 +240,7 @@ class RoverSession:
             "recorder": loop.recorder.state(),
             "side": loop.side.state(),
             "vo": loop.vo.state(),
+            "vo_rig": loop.vo.rig.camera.width_px,
             "protection": loop.protection.state(),
             "faults": self.faults.state(),
         }
@@ -235,6 +252,7 @@ class RoverSession:
         loop.nate.load_state(state["nate"])
         loop.recorder.load_state(state["recorder"])
         loop.side.load_state(state["side"])
+        set_vo_rig(loop, state.get("vo_rig", 256))  # 256 before the rig could change
         loop.vo.load_state(state["vo"])
         if "protection" in state:  # a checkpoint from before fault protection: its defaults
             loop.protection.load_state(state["protection"])

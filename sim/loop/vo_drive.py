@@ -11,7 +11,9 @@ moved by the motion VO measured. A failed step keeps the wheel-odometry estimate
 
 Frames: ``b0``/``b1`` the body at the previous and the new pair; ``s`` the current Site
 (LL's orientation: NATE's ``q_b_ll`` is ``q_b_s`` here). VO images are MER's: Navcam pairs
-at 256 x 256 (``VO_RIG``), the mast looking ahead and 35 deg down.
+at 256 x 256 (``VO_RIG``), the mast looking ahead and 35 deg down, unless the session's VO
+rig is 1024 px (``vo_rig``, ``SET_PARAM param=vo.rig``) or the drive points the mast
+(``vo_az_deg``, ``vo_el_deg``: ``vo_pointing``).
 """
 
 from __future__ import annotations
@@ -24,15 +26,50 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from estimation.vo.odometry import VoMotion
-from estimation.vo.stereo_rig import NAVCAM
+from estimation.vo.stereo_rig import NAVCAM, StereoRig
 from sequences import commands as cmd
+from sequences.limits import VO_MAST_AZ_DEG, VO_MAST_EL_DEG
 from sim.errors import InputError
 
 FloatArray = NDArray[np.float64]
 
 VO_RIG = NAVCAM.at_resolution(256)  # MER downsampled its Navcam pairs for VO (sec. 4)
-VO_MAST_AZ_RAD = 0.0  # straight ahead
-VO_MAST_EL_RAD = math.radians(-35.0)  # the ground ahead (sim.sensors.navcam.camera.DEFAULT_EL_RAD)
+VO_MAST_AZ_RAD = math.radians(VO_MAST_AZ_DEG)  # straight ahead
+# the ground ahead (sim.sensors.navcam.camera.DEFAULT_EL_RAD)
+VO_MAST_EL_RAD = math.radians(VO_MAST_EL_DEG)
+# The rigs a session's VO may image through, by width (sequences.limits.VO_RIGS_PX): MER's
+# downsampled pairs and the full Navcam frame.
+VO_RIGS: dict[int, StereoRig] = {256: VO_RIG, 1024: NAVCAM.at_resolution(1024)}
+
+
+def vo_rig(width_px: object) -> StereoRig:
+    """The VO rig ``width_px`` wide (256 or 1024); ``InputError`` naming ``vo_rig`` else.
+
+    >>> vo_rig(1024).camera.width_px
+    1024
+    """
+    for width, rig in VO_RIGS.items():
+        if width_px == width and not isinstance(width_px, bool):
+            return rig
+    rigs = " or ".join(str(w) for w in VO_RIGS)
+    raise InputError("vo_rig", f"must be {rigs} (px), got {width_px!r}")
+
+
+def vo_pointing(command: cmd.Command) -> tuple[float, float]:
+    """The mast ``(az_rad, el_rad)`` of a drive's VO pairs: its ``vo_az_deg``,
+    ``vo_el_deg``, each omitted one MER's (``VO_MAST_AZ_RAD``, ``VO_MAST_EL_RAD``).
+
+    >>> vo_pointing(cmd.DriveStraight(distance_m=1.0, vo=True)) == (VO_MAST_AZ_RAD, VO_MAST_EL_RAD)
+    True
+    >>> [round(math.degrees(a), 9) for a in vo_pointing(
+    ...     cmd.DriveStraight(distance_m=1.0, vo=True, vo_az_deg=-40.0))]
+    [-40.0, -35.0]
+    """
+    az_deg = getattr(command, "vo_az_deg", None)
+    el_deg = getattr(command, "vo_el_deg", None)
+    az = VO_MAST_AZ_RAD if az_deg is None else math.radians(float(az_deg))
+    el = VO_MAST_EL_RAD if el_deg is None else math.radians(float(el_deg))
+    return az, el
 
 
 @dataclass(frozen=True)

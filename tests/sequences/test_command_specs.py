@@ -29,11 +29,12 @@ from server.app import ServerConfig, create_app, data_dir_url
 # Valid values for the required arguments that are not under test, chosen so that no rule
 # across arguments fires at either bound of the one under test: DRIVE_ARC's 1 m radius keeps
 # a 360 deg arc at 6.3 m, its 1 deg angle keeps a 1000 m radius arc at 17.5 m (limit 100 m).
+# The drives' VO pointing (vo_az_deg, vo_el_deg) needs vo=on.
 COMPANIONS: dict[str, dict[str, Any]] = {
-    "DRIVE_ARC": {"radius_m": 1.0, "angle_deg": 1.0},
-    "DRIVE_TO": {"x_m": 3.0, "y_m": 4.0},
-    "DRIVE_STRAIGHT": {"distance_m": 1.0},
-    "TURN_IN_PLACE": {"angle_deg": 10.0},
+    "DRIVE_ARC": {"radius_m": 1.0, "angle_deg": 1.0, "vo": True},
+    "DRIVE_TO": {"x_m": 3.0, "y_m": 4.0, "vo": True},
+    "DRIVE_STRAIGHT": {"distance_m": 1.0, "vo": True},
+    "TURN_IN_PLACE": {"angle_deg": 10.0, "vo": True},
     # a circle needs its three numbers together
     "KEEPOUT_ADD": {"zone": "rock", "x_m": 1.0, "y_m": 2.0, "radius_m": 0.5},
 }
@@ -111,7 +112,7 @@ def test_every_published_range_is_the_one_validation_enforces(
     numeric = [
         (c["command"], a["name"]) for c in dictionary for a in c["args"] if a["type"] == "number"
     ]
-    assert len(numeric) == 28  # every numeric argument of the dictionary is covered
+    assert len(numeric) == 36  # every numeric argument of the dictionary is covered
     assert range_problems(dictionary) == []
 
 

@@ -62,13 +62,12 @@ MER's 4 x 4 averaging would lower it).
 The Sun below the horizon (``sun_s`` pointing down) is an error, not a black frame: the
 Navcam is not commanded at night, and a caller who asks has a bug.
 
-Speed: the caster (``sim.sensors.navcam.trace``) and the texture
-(``sim.sensors.navcam.texture``) are numba kernels, parallel over pixels; the first call in a
-fresh checkout compiles them
-(~10 s, then cached on disk in ``__pycache__``). On the 2-core development machine a
-1024 x 1024 pair of Gusev with shadows and noise takes ~0.9 s (1.5 s of CPU: longer when
-the other core is busy), a 256 x 256 pair ~0.06 s; the rover's shadow adds ~5 %.
-"""
+Speed: the caster (``sim.sensors.navcam.trace``, both eyes' rows in one parallel loop) and
+the texture (``sim.sensors.navcam.texture``, both eyes' points in one call) are numba kernels;
+the first call in a fresh checkout compiles them (~10 s, then cached in ``__pycache__``). On
+the 2-core development machine a 1024 x 1024 pair of Gusev with shadows and noise takes ~0.9 s
+(1.5 s of CPU: longer when the other core is busy), a 256 x 256 pair ~0.06 s; the rover's
+shadow adds ~5 %."""
 
 from __future__ import annotations
 
@@ -88,7 +87,7 @@ from sim.sensors.navcam.rover_shadow import (
     RoverShadow,
 )
 from sim.sensors.navcam.texture import band_limited_albedo
-from sim.sensors.navcam.trace import HeightGrid, render_eye
+from sim.sensors.navcam.trace import HeightGrid, render_eyes
 from sim.world.albedo import AlbedoTexture
 from sim.world.heightmap import HeightmapTerrain
 from sim.world.terrain import Terrain
@@ -274,8 +273,8 @@ def render_navcam_pair(
     grid = _sample_grid(terrain, eyes_s, R_s_cam, rig, sun, max_range_m)
     view = _View(grid, rig, R_s_cam, 0.5 * (eyes_s[0] + eyes_s[1]), sun, max_range_m)
     rover = RoverShadow(p, R_s_b) if rover_shadow else None
-    left, right = (_cast_eye(view, eye, shadows, rover) for eye in eyes_s)
-    iof_left, iof_right = (_radiance_factor(terrain, rig, light, eye) for eye in (left, right))
+    left, right = _cast_eyes(view, eyes_s, shadows, rover)
+    iof_left, iof_right = _radiance_factors(terrain, light, [left, right])
     if e_per_iof is None:
         e_per_iof = _autoexposure(iof_left, detector)
     return NavcamPair(
@@ -472,8 +471,11 @@ class _View:
     max_range_m: float
 
 
-def _cast_eye(view: _View, eye_s: FloatArray, shadows: bool, rover: RoverShadow | None) -> _Eye:
-    """Cast one eye's rays over the grid (``sim.sensors.navcam.trace.render_eye``)."""
+def _cast_eyes(
+    view: _View, eyes_s: list[FloatArray], shadows: bool, rover: RoverShadow | None
+) -> list[_Eye]:
+    """Cast the eyes' rays over the grid, all in one parallel loop
+    (``sim.sensors.navcam.trace.render_eyes``)."""
     grid = view.grid
     corner = np.array([grid.x0_m, grid.y0_m, 0.0])
 
@@ -488,14 +490,15 @@ def _cast_eye(view: _View, eye_s: FloatArray, shadows: bool, rover: RoverShadow 
         boxes, cylinders = ROVER_BOXES_B, ROVER_CYLINDERS_B
         rover_l, R_b_l = local(rover.p_s), rover.R_s_b.T @ _UP_FROM_SITE
     cam = view.rig.camera
-    shape = (cam.height_px, cam.width_px)
+    shape = (len(eyes_s), cam.height_px, cam.width_px)
     outs = [np.empty(shape) for _ in range(7)]
-    render_eye(
+    render_eyes(
         cam.f_px,
         cam.c_u_px,
         cam.c_v_px,
         np.ascontiguousarray(_UP_FROM_SITE @ view.R_s_cam),
-        local(eye_s),
+        np.array([local(eye) for eye in eyes_s]),
+        _row_stride(cam.height_px),
         local(view.head_s),
         view.max_range_m,
         grid.heights,
@@ -516,7 +519,20 @@ def _cast_eye(view: _View, eye_s: FloatArray, shadows: bool, rover: RoverShadow 
         *outs,
     )
     range_m, depth_m, x_l, y_l, direct, sky_view, footprint_m = outs
-    return _Eye(range_m, depth_m, x_l + grid.x0_m, y_l + grid.y0_m, direct, sky_view, footprint_m)
+    return [
+        _Eye(range_m[e], depth_m[e], x_l[e] + grid.x0_m, y_l[e] + grid.y0_m, direct[e],
+             sky_view[e], footprint_m[e])
+        for e in range(len(eyes_s))
+    ]  # fmt: skip
+
+
+def _row_stride(height: int) -> int:
+    """A stride prime to ``height`` near its golden section: consecutive rows of the cast's
+    loop land far apart, every row once (``render_eyes``)."""
+    stride = max(1, round(0.618 * height))
+    while math.gcd(stride, height) != 1:
+        stride += 1
+    return stride
 
 
 def _albedo_at(
@@ -536,16 +552,30 @@ def _albedo_at(
     return out
 
 
-def _radiance_factor(terrain: Terrain, rig: StereoRig, light: MarsLight, eye: _Eye) -> FloatArray:
-    """I/F image of one eye (module docstring)."""
-    hit = np.flatnonzero(np.isfinite(eye.range_m.ravel()))
-    footprint_m = TEXTURE_BLUR * eye.footprint_m.ravel()[hit]
-    albedo = _albedo_at(terrain, eye.x_s.ravel()[hit], eye.y_s.ravel()[hit], footprint_m)
-    iof = np.full(eye.range_m.size, light.sky_iof)
-    iof[hit] = albedo * (
-        eye.direct.ravel()[hit] + light.skylight_fraction * eye.sky_view.ravel()[hit]
-    )
-    return iof.reshape(eye.range_m.shape)
+def _radiance_factors(terrain: Terrain, light: MarsLight, eyes: list[_Eye]) -> list[FloatArray]:
+    """I/F image of each eye (module docstring); the albedo of all their ground points in
+    one call."""
+    hits = [np.flatnonzero(np.isfinite(eye.range_m.ravel())) for eye in eyes]
+
+    def gathered(name: str) -> FloatArray:
+        out: FloatArray = np.concatenate(
+            [getattr(eye, name).ravel()[hit] for eye, hit in zip(eyes, hits, strict=True)]
+        )
+        return out
+
+    footprint_m = TEXTURE_BLUR * gathered("footprint_m")
+    albedo_all = _albedo_at(terrain, gathered("x_s"), gathered("y_s"), footprint_m)
+    images = []
+    start = 0
+    for eye, hit in zip(eyes, hits, strict=True):
+        albedo = albedo_all[start : start + hit.size]
+        start += hit.size
+        iof = np.full(eye.range_m.size, light.sky_iof)
+        iof[hit] = albedo * (
+            eye.direct.ravel()[hit] + light.skylight_fraction * eye.sky_view.ravel()[hit]
+        )
+        images.append(iof.reshape(eye.range_m.shape))
+    return images
 
 
 # ---- the detector ---------------------------------------------------------------------

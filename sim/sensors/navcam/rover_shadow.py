@@ -1,6 +1,6 @@
 """The rover as a shadow caster for the Navcam: its boxes and cylinders as arrays.
 
-``sim.sensors.navcam.trace.render_eye`` tests a ray towards the Sun against the rover's
+``sim.sensors.navcam.trace.render_eyes`` tests a ray towards the Sun against the rover's
 parts, body frame (x forward, y right, z down): the boxes and cylinders of the one shape
 table (``sim.rover.geometry.ROVER_BOXES``, ``ROVER_CYLINDERS``) and the six wheels at zero
 suspension angles, inside a bounding sphere that most rays miss.

@@ -356,12 +356,13 @@ def rover_blocks(
 
 
 @parallel_kernel
-def render_eye(
+def render_eyes(
     f_px: float,
     c_u_px: float,
     c_v_px: float,
     R_l_cam: FloatArray,
-    eye_l: FloatArray,
+    eyes_l: FloatArray,
+    row_stride: int,
     head_l: FloatArray,
     t_max: float,
     H: FloatArray,
@@ -387,10 +388,15 @@ def render_eye(
     out_sky_view: FloatArray,
     out_footprint: FloatArray,
 ) -> None:
-    """Cast every pixel's ray of one eye and shade its ground point (local frame, z up).
+    """Cast every pixel's ray of the eyes and shade its ground point (local frame, z up).
 
-    Pixel ``(row, col)`` looks along ``R_l_cam @ ((col - c_u)/f, (row - c_v)/f, 1)`` from
-    ``eye_l``. Outputs (height, width): ``out_range`` distance to the hit (m) and
+    Pixel ``(row, col)`` of eye ``e`` looks along ``R_l_cam @ ((col - c_u)/f, (row - c_v)/f,
+    1)`` from ``eyes_l[e]`` (the eyes share the orientation). The rows of all eyes are cast
+    in one parallel loop, in the order ``row = (j * row_stride) % height`` (``row_stride``
+    prime to the height: every row once), so that each thread's share of the loop spreads
+    over the image, near ground and far alike, and the threads finish together; a pixel's
+    values do not depend on the order. Outputs (eyes, height, width): ``out_range``
+    distance to the hit (m) and
     ``out_depth`` its camera ``z`` (NaN where the ray meets nothing); ``out_x, out_y`` the
     hit in the grid's local frame; ``out_direct`` the direct-sun factor ``max(n.sun, 0)``
     times the visibility of the Sun (0 in shadow); ``out_sky_view`` ``(1 + n_up) / 2``, the
@@ -402,9 +408,12 @@ def render_eye(
     the body frame:
     ``p_b = R_b_l @ (p_l - rover_l)``.
     """
-    height, width = out_range.shape
+    n_eyes, height, width = out_range.shape
     ni, nj = H.shape
-    for row in numba.prange(height):
+    for n in numba.prange(n_eyes * height):
+        e = n % n_eyes
+        row = (n // n_eyes) * row_stride % height
+        eye_l = eyes_l[e]
         d = np.empty(3)
         p = np.empty(3)
         p_b = np.empty(3)
@@ -417,13 +426,13 @@ def render_eye(
                 d[a] = (R_l_cam[a, 0] * xc + R_l_cam[a, 1] * yc + R_l_cam[a, 2]) * inv_norm
             t = cast_ray(eye_l, d, 0.0, t_max, H, s, pyramid, level_offset, level_ni, level_nj)
             if t < 0.0:
-                out_range[row, col] = np.nan
-                out_depth[row, col] = np.nan
-                out_x[row, col] = np.nan
-                out_y[row, col] = np.nan
-                out_direct[row, col] = 0.0
-                out_sky_view[row, col] = 0.0
-                out_footprint[row, col] = 0.0
+                out_range[e, row, col] = np.nan
+                out_depth[e, row, col] = np.nan
+                out_x[e, row, col] = np.nan
+                out_y[e, row, col] = np.nan
+                out_direct[e, row, col] = 0.0
+                out_sky_view[e, row, col] = 0.0
+                out_footprint[e, row, col] = 0.0
                 continue
             for a in range(3):
                 p[a] = eye_l[a] + t * d[a]
@@ -454,15 +463,15 @@ def render_eye(
                             sun_b[a] += R_b_l[a, k] * sun_l[k]
                     if rover_blocks(p_b, sun_b, boxes_b, cylinders_b, bound_b):
                         direct = 0.0
-            out_range[row, col] = t
-            out_depth[row, col] = t * inv_norm
-            out_x[row, col] = eye_l[0] + t * d[0]
-            out_y[row, col] = eye_l[1] + t * d[1]
-            out_direct[row, col] = direct
-            out_sky_view[row, col] = 0.5 * (1.0 + inv_n)
+            out_range[e, row, col] = t
+            out_depth[e, row, col] = t * inv_norm
+            out_x[e, row, col] = eye_l[0] + t * d[0]
+            out_y[e, row, col] = eye_l[1] + t * d[1]
+            out_direct[e, row, col] = direct
+            out_sky_view[e, row, col] = 0.5 * (1.0 + inv_n)
             to_head_x = head_l[0] - p[0]
             to_head_y = head_l[1] - p[1]
             to_head_z = head_l[2] - p[2]
             dist = math.sqrt(to_head_x**2 + to_head_y**2 + to_head_z**2)
             cos_head = (to_head_z - gx * to_head_x - gy * to_head_y) * inv_n / dist
-            out_footprint[row, col] = dist / (f_px * math.sqrt(max(cos_head, 0.1)))
+            out_footprint[e, row, col] = dist / (f_px * math.sqrt(max(cos_head, 0.1)))
