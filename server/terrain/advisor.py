@@ -27,13 +27,16 @@ steps:
 - ``featureless``: the fraction on cells whose measured density is below
   ``featureless_per_m2`` (featureless sand);
 - ``features``: the trackable features, the sum of density × ground area over the ground
-  both images see, outside the shadow and the featureless sand, seen at a grazing angle of
-  at least ``min_grazing_deg`` (correlation windows on ground seen edge-on deform too
-  much between viewpoints) and with a range changing by at most ``max_scale_change``
-  between the two images (correlation does not follow a change of scale: looking along
-  the motion, the ground ahead grows in the image from one step to the next). Where the
-  map has no measured density, the median of the measured cells stands in (the site's
-  prior, ``prior_texture_per_m2``, if none is measured).
+  both images see (each block of the image holding at most its share of the detector's
+  ``features_per_image``: the detector spreads its features over the image, so far
+  ground seen at a glance gives no more than its part of the image), outside the shadow
+  and the featureless sand, seen at a grazing angle of at least ``min_grazing_deg``
+  (correlation windows on ground seen edge-on deform too much between viewpoints), and
+  with a range changing by at most ``max_scale_change`` between the two images
+  (correlation does not follow a change of scale: looking along the motion, the ground
+  ahead grows in the image from one step to the next). Where the map has no measured
+  density, the median of the measured cells stands in (the site's prior,
+  ``prior_texture_per_m2``, if none is measured).
 
 The rule (``RULE``): among the candidates whose least overlap over the steps is at least
 ``min_overlap`` (MER's 60 %) and whose largest shadow fraction is at most
@@ -56,6 +59,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from estimation.geometry import FLIGHT_GEOMETRY
+from estimation.vo.params import VoParams
 from estimation.vo.shadow_mask import in_rover_shadow, rays_meet_rover
 from estimation.vo.stereo_rig import NAVCAM, StereoRig
 from sequences import commands as cmd
@@ -82,16 +86,17 @@ class AdviceParams:
     """The candidate grid and the rule's numbers (module docstring)."""
 
     az_deg: tuple[float, ...] = (-120.0, -90.0, -60.0, -30.0, 0.0, 30.0, 60.0, 90.0, 120.0)
-    el_deg: tuple[float, ...] = (-25.0, -35.0, -45.0, -55.0)
+    el_deg: tuple[float, ...] = (-35.0, -45.0, -55.0)
     rays_per_side: int = 16
     min_overlap: float = 0.6  # MER's drivers (sec. 4.2)
     max_shadow_fraction: float = 0.05
-    featureless_per_m2: float = 20.0
-    prior_texture_per_m2: float = 100.0
+    featureless_per_m2: float = 2.0  # a 256 px pair finds ~10 per m² on textured ground
+    prior_texture_per_m2: float = 10.0
     min_grazing_deg: float = 30.0
     max_scale_change: float = 0.15
     max_range_m: float = 15.0
     march_m: float = 0.1
+    features_per_image: float = float(VoParams().n_features)
 
     def __post_init__(self) -> None:
         for name in ("az_deg", "el_deg"):
@@ -324,6 +329,51 @@ def _view(
     return _View(hit, g, rng, area, graze, _density(gmap, g, prior), shadow)
 
 
+def ground_of_pixels(
+    gmap: GroundMap,
+    p_m: ArrayLike,
+    R_m_b: ArrayLike,
+    az_rad: float,
+    el_rad: float,
+    uv_px: ArrayLike,
+    rig: StereoRig = VO_ADVICE_RIG,
+    params: AdviceParams | None = None,
+) -> tuple[BoolArray, FloatArray]:
+    """Where on the map the pixels ``uv_px`` (N, 2) of a left image taken from body pose
+    ``p_m``, ``R_m_b`` with the mast at ``(az_rad, el_rad)`` see the ground: (N,) whether
+    each meets the map within range, and those points (k, 3), ``m``. The ground places the
+    features it detects in the rover's images with it (the texture of ``GroundMap``)."""
+    p = params if params is not None else AdviceParams()
+    uv = np.asarray(uv_px, dtype=np.float64).reshape(-1, 2)
+    p_m_ = np.asarray(p_m, dtype=np.float64).reshape(3)
+    R = np.asarray(R_m_b, dtype=np.float64).reshape(3, 3)
+    R_m_cam = R @ rig.R_b_cam(az_rad, el_rad)
+    left_b, right_b = rig.eye_centres_b(az_rad, el_rad)
+    eye_m = p_m_ + R @ (0.5 * (left_b + right_b))
+    rays_m = rig.camera.unproject(uv[:, 0], uv[:, 1]) @ R_m_cam.T
+    hit, g, _, _, _ = _cast(gmap, eye_m, rays_m, np.ones(len(uv)), p)
+    return hit, g
+
+
+def footprint_area_m2(
+    gmap: GroundMap,
+    p_m: ArrayLike,
+    R_m_b: ArrayLike,
+    az_rad: float,
+    el_rad: float,
+    rig: StereoRig = VO_ADVICE_RIG,
+    params: AdviceParams | None = None,
+) -> float:
+    """The ground area (m²) a left image from body pose ``p_m``, ``R_m_b`` with the mast at
+    ``(az_rad, el_rad)`` covers within range, the rover's own parts excepted."""
+    p = params if params is not None else AdviceParams()
+    sun_overhead = np.array([0.0, 0.0, -1.0])
+    view = _view(gmap, np.asarray(p_m, dtype=np.float64).reshape(3),
+                 np.asarray(R_m_b, dtype=np.float64).reshape(3, 3), az_rad, el_rad,
+                 sun_overhead, rig, p, p.prior_texture_per_m2)  # fmt: skip
+    return float(np.sum(view.area_m2))
+
+
 def _seen_from(
     g_m: FloatArray, p_m: FloatArray, R_m_b: FloatArray, az_rad: float, el_rad: float,
     sun_m: FloatArray, rig: StereoRig, params: AdviceParams,
@@ -361,6 +411,7 @@ def _candidate(
              for p, R in zip(positions, rotations, strict=True)]  # fmt: skip
     features, overlap, shadow, featureless = [], [], [], []
     min_graze = math.radians(params.min_grazing_deg)
+    rays = params.rays_per_side**2
     for k in range(len(views) - 1):
         a = views[k]
         n = len(a.range_m)
@@ -375,9 +426,10 @@ def _candidate(
         sandy = a.density < params.featureless_per_m2
         scale_ok = np.abs(a.range_m / np.maximum(rng_b, 1e-9) - 1.0) <= params.max_scale_change
         trackable = seen & ~a.shadow & ~shadow_b & ~sandy & scale_ok & (a.grazing_rad >= min_graze)
-        features.append(float(np.sum(a.density[trackable] * a.area_m2[trackable])))
+        # a block of the image holds at most its share of the detector's features
+        per_block = np.minimum(a.density * a.area_m2, params.features_per_image / rays)
+        features.append(float(np.sum(per_block[trackable])))
         overlap.append(float(np.mean(seen)))
-        rays = params.rays_per_side**2  # the shadow's share of the whole image
         shadow.append(max(float(np.sum(a.shadow)), float(np.sum(views[k + 1].shadow))) / rays)
         featureless.append(float(np.mean(sandy)))
     ok = min(overlap) >= params.min_overlap and max(shadow) <= params.max_shadow_fraction

@@ -61,7 +61,7 @@ def test_advice_for_a_sequence_line(api: tuple[TestClient, dict[str, str], dict[
     assert r.status_code == 200, r.text
     body = r.json()
     assert body["line"] == 3 and body["pairs"] == 5  # 3 m in 0.75 m steps: 5 pairs
-    assert len(body["candidates"]) == 36
+    assert len(body["candidates"]) == 27  # 9 azimuths x 3 elevations
     best = body["recommended"]
     assert best is not None and best["ok"]
     assert best["overlap_min"] >= 0.6 and best["shadow_max"] <= 0.05

@@ -15,7 +15,7 @@ from tests.test_layout import ROOT, import_graph
 
 CELL_M = 0.25
 HALF_M = 12.0
-DENSE, PLAIN = 400.0, 60.0  # features per m²: a textured patch, the ground around it
+DENSE, PLAIN = 30.0, 3.0  # features per m²: a textured patch, the sparser ground around it
 NORTH = np.array([0.0, 0.0, 0.0, 1.0])  # q_b_m: heading North, level
 P0_M = np.array([0.0, 0.0, -0.30])
 DRIVE = PlannedDrive("straight", distance_m=3.0)
