@@ -96,10 +96,30 @@ ROVER_BOXES_B: tuple[tuple[str, tuple[float, float, float], tuple[float, float, 
     ("body", (0.05, 0.0, -0.175), (1.3, 0.9, 0.35)),  # warm electronics box
     ("deck", (0.0, 0.0, -0.37), (1.6, 1.9, 0.03)),  # solar-array deck
     ("pancam", (0.45, -0.30, -1.30), (0.12, 0.3, 0.1)),  # camera bar on the mast head
+    ("navcam_left", (0.5, -0.42, -1.24), (0.08, 0.06, 0.06)),  # the Navcams below it
+    ("navcam_right", (0.5, -0.18, -1.24), (0.08, 0.06, 0.06)),
+    ("minites", (0.35, -0.30, -1.36), (0.16, 0.12, 0.10)),  # the mast head's back
+    ("lga_tip", (-0.5, 0.6, -0.9), (0.08, 0.08, 0.08)),  # low-gain antenna's tip
+    ("uhf_tip", (-0.6, -0.5, -0.75), (0.06, 0.06, 0.06)),  # UHF antenna's tip
+    ("sundial", (0.2, 0.5, -0.5), (0.1, 0.1, 0.2)),  # the Pancam calibration target
+    *(
+        part
+        for side, y in (("left", -0.6), ("right", 0.6))
+        for part in (  # the suspension's links at zero joint angles, axis-aligned bars
+            (f"rocker_front_{side}", (0.40, y, 0.06), (0.60, 0.05, 0.05)),
+            (f"rocker_rear_{side}", (-0.12, y, -0.015), (0.46, 0.05, 0.05)),
+            (f"bogie_{side}", (-0.35, y, 0.10), (0.70, 0.05, 0.05)),
+            (f"strut_front_{side}", (0.70, y, 0.05), (0.04, 0.04, 0.20)),
+            (f"strut_middle_{side}", (0.0, y, 0.10), (0.04, 0.04, 0.12)),
+            (f"strut_rear_{side}", (-0.70, y, 0.10), (0.04, 0.04, 0.12)),
+        )
+    ),
 )
 ROVER_CYLINDERS_B: tuple[tuple[str, tuple[float, float, float], float, float], ...] = (
     ("mast", (0.45, -0.30, -0.82), 0.04, 0.9),  # stands along -z from the deck
     ("hga", (-0.35, 0.45, -0.50), 0.14, 0.03),  # the high-gain antenna's dish
+    ("lga", (-0.5, 0.6, -0.62), 0.012, 0.52),  # low-gain antenna's mast
+    ("uhf", (-0.6, -0.5, -0.55), 0.012, 0.36),  # UHF antenna's mast
 )
 
 

@@ -69,11 +69,14 @@ MAP_CELL_M = 1.0  # the orbital DEM's posts; texture counted per cell
 FIRST_PAIR_SEED = 7025  # the first pair's noise: its own stream, the drive's images unchanged
 
 
-def ground_map(session: RoverSession, seed: int) -> GroundMap:
-    """The ground's map of a drive's start (module docstring), mission frame."""
+def ground_map(session: RoverSession, seed: int, site_name: str = SITE) -> GroundMap:
+    """The ground's map of a drive's start (module docstring), mission frame: the orbital
+    product of ``site_name`` (terrain ``seed``) and the texture of a first pair."""
     sim: RoverSim = session.sim
     start_s = session.mission_origin_world  # where the ground tied the DEM: the start
-    product = orbital_product(SITE, seed, float(start_s[0]), float(start_s[1]), MAP_HALF_M + 3.0)
+    product = orbital_product(
+        site_name, seed, float(start_s[0]), float(start_s[1]), MAP_HALF_M + 3.0
+    )
     n = int(2 * MAP_HALF_M / MAP_CELL_M) + 1
     p_m = session.nate.p_s.copy()
     north = p_m[0] - MAP_HALF_M + MAP_CELL_M * np.arange(n)
