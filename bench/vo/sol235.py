@@ -54,10 +54,10 @@ from sim.loop.session import RoverSession
 from sim.loop.vo_drive import VO_RIG, VoDriveOptions
 from sim.scenarios.scene_builder import TEXTURED, AlbedoPatch, RockSpec, build_scene, install_scene
 from sim.world.albedo import AlbedoStyle
-from sim.world.soil_patches import Circle
 from sim.world.mars_frames import elevation_rad, sun_ll_truth
 from sim.world.marsclock import utc_to_t_s
 from sim.world.sites import site
+from sim.world.soil_patches import Circle
 
 FloatArray = NDArray[np.float64]
 
@@ -179,8 +179,8 @@ def _advised_pointing(session: RoverSession, seed: int) -> dict[str, float]:
     sim = session.sim
     sun = sun_ll(sim.t_s, sim.lat_rad, sim.lon_east_rad)
     gmap = ground_map(session, seed, SITE)
-    advice = advise(gmap, session.nate.p_s, session.nate.q_b_ll,
-                    PlannedDrive("straight", distance_m=DRIVE_M), sun / np.linalg.norm(sun))  # fmt: skip
+    drive = PlannedDrive("straight", distance_m=DRIVE_M)
+    advice = advise(gmap, session.nate.p_s, session.nate.q_b_ll, drive, sun / np.linalg.norm(sun))
     best = advice.recommended
     return {} if best is None else {"vo_az_deg": best.az_deg, "vo_el_deg": best.el_deg}
 
