@@ -144,7 +144,10 @@ def sol235_run(spec: Sol235Spec) -> dict[str, Any]:
                            vo_options=options, visual_odometry=ShadowVO)  # fmt: skip
     fwd = np.array([math.cos(yaw), math.sin(yaw)])
     right = np.array([-fwd[1], fwd[0]])
-    rocks = [RockSpec(*(ahead * fwd + side * right), d) for ahead, side, d in ROCKS]
+    rocks = []
+    for ahead, side, d in ROCKS:
+        north, east = ahead * fwd + side * right
+        rocks.append(RockSpec(float(north), float(east), d))
     sand = AlbedoPatch(Circle(0.0, 0.0, SCENE_RADIUS_M), TEXTURED, style=FAINT_SAND, seed=spec.seed)
     install_scene(session.sim, build_scene("flat", spec.seed, rocks, [sand]))
     vo = session.vo
@@ -157,7 +160,8 @@ def sol235_run(spec: Sol235Spec) -> dict[str, Any]:
     if spec.mode == "advised":
         pointing = _advised_pointing(session, spec.seed)
     session.execute(cmd.DriveStraight(distance_m=DRIVE_M, vo=True, vo_fail="continue",
-                                      **pointing))  # fmt: skip
+                                      vo_az_deg=pointing.get("vo_az_deg"),
+                                      vo_el_deg=pointing.get("vo_el_deg")))  # fmt: skip
     steps = [(a, b) for a, b in pairwise(vo.records) if b[2].status is not VoStatus.INITIALISED]
     errors = []
     for (p0, R0, _), (p1, R1, result) in steps:
