@@ -34,7 +34,10 @@ _EPS = 1e-12
 
 def rover_boxes_b() -> FloatArray:
     """The rover's boxes (n, 6): centre (x, y, z) and half sizes, body frame, m."""
-    return np.array([[*c, *(0.5 * s for s in size)] for _, c, size in ROVER_BOXES_B])
+    return _BOXES_B.copy()
+
+
+_BOXES_B = np.array([[*c, *(0.5 * s for s in size)] for _, c, size in ROVER_BOXES_B])
 
 
 def rover_cylinders_b(geometry: FlightGeometry = FLIGHT_GEOMETRY) -> FloatArray:
@@ -64,54 +67,51 @@ def _check(points_b: ArrayLike, sun_b: ArrayLike, margin_m: float) -> tuple[Floa
 def _hits_boxes(p: FloatArray, s: FloatArray, t_max: FloatArray, boxes: FloatArray,
                 margin_m: float) -> BoolArray:  # fmt: skip
     """Whether each ray ``p + t s`` (0 < t <= t_max; ``s`` (N, 3)) enters a box grown by
-    ``margin_m`` (the slab test)."""
-    hit = np.zeros(len(p), dtype=bool)
-    safe = np.where(np.abs(s) < _EPS, _EPS, s)
-    for box in boxes:
-        lo = box[:3] - box[3:] - margin_m
-        hi = box[:3] + box[3:] + margin_m
-        t1 = (lo[None, :] - p) / safe
-        t2 = (hi[None, :] - p) / safe
-        t_near = np.maximum(np.minimum(t1, t2).max(axis=1), 0.0)
-        t_far = np.minimum(np.maximum(t1, t2).min(axis=1), t_max)
-        hit |= (t_far >= t_near) & (t_far > 0.0)
-    return hit
+    ``margin_m`` (the slab test, every box at once)."""
+    safe = np.where(np.abs(s) < _EPS, _EPS, s)[:, None, :]  # (N, 1, 3)
+    lo = (boxes[:, :3] - boxes[:, 3:] - margin_m)[None]  # (1, n, 3)
+    hi = (boxes[:, :3] + boxes[:, 3:] + margin_m)[None]
+    t1 = (lo - p[:, None, :]) / safe
+    t2 = (hi - p[:, None, :]) / safe
+    t_near = np.maximum(np.minimum(t1, t2).max(axis=2), 0.0)  # (N, n)
+    t_far = np.minimum(np.maximum(t1, t2).min(axis=2), t_max[:, None])
+    out: BoolArray = np.any((t_far >= t_near) & (t_far > 0.0), axis=1)
+    return out
 
 
 def _hits_cylinders(p: FloatArray, s: FloatArray, t_max: FloatArray, cyls: FloatArray,
                     margin_m: float) -> BoolArray:  # fmt: skip
     """Whether each ray ``p + t s`` (0 < t <= t_max) meets a finite cylinder grown by
     ``margin_m``: the ray's interval inside the infinite cylinder (a quadratic in ``t``)
-    intersected with its interval between the end planes."""
-    hit = np.zeros(len(p), dtype=bool)
-    for c in cyls:
-        centre, axis, radius, half = c[:3], c[3:6], c[6] + margin_m, c[7] + margin_m
-        d = p - centre
-        d_ax = d @ axis
-        s_ax = s @ axis
-        d_perp = d - d_ax[:, None] * axis
-        s_perp = s - s_ax[:, None] * axis
-        a = np.einsum("ij,ij->i", s_perp, s_perp)
-        b = 2.0 * np.einsum("ij,ij->i", d_perp, s_perp)
-        cc = np.einsum("ij,ij->i", d_perp, d_perp) - radius * radius
-        along = a < _EPS  # a ray along the axis: inside the radius or not
-        a_safe = np.where(along, 1.0, a)
-        disc = b * b - 4.0 * a_safe * cc
-        root = np.sqrt(np.maximum(disc, 0.0))
-        t_in = np.where(disc >= 0.0, (-b - root) / (2.0 * a_safe), np.inf)
-        t_out = np.where(disc >= 0.0, (-b + root) / (2.0 * a_safe), -np.inf)
-        t_in = np.where(along, np.where(cc <= 0.0, -np.inf, np.inf), t_in)
-        t_out = np.where(along, np.where(cc <= 0.0, np.inf, -np.inf), t_out)
-        flat = np.abs(s_ax) < _EPS  # a ray across the axis: between the end planes or not
-        s_safe = np.where(flat, 1.0, s_ax)
-        ta, tb = (-half - d_ax) / s_safe, (half - d_ax) / s_safe
-        inside = np.abs(d_ax) <= half
-        s_in = np.where(flat, np.where(inside, -np.inf, np.inf), np.minimum(ta, tb))
-        s_out = np.where(flat, np.where(inside, np.inf, -np.inf), np.maximum(ta, tb))
-        lo = np.maximum(np.maximum(t_in, s_in), 0.0)
-        hi = np.minimum(np.minimum(t_out, s_out), t_max)
-        hit |= (hi >= lo) & (hi > 0.0)
-    return hit
+    intersected with its interval between the end planes (every cylinder at once)."""
+    centre, axis = cyls[:, :3], cyls[:, 3:6]  # (n, 3)
+    radius, half = cyls[:, 6] + margin_m, cyls[:, 7] + margin_m  # (n,)
+    d = p[:, None, :] - centre[None]  # (N, n, 3)
+    d_ax = np.einsum("knj,nj->kn", d, axis)
+    s_ax = s @ axis.T  # (N, n)
+    d_perp = d - d_ax[..., None] * axis[None]
+    s_perp = s[:, None, :] - s_ax[..., None] * axis[None]
+    a = np.einsum("knj,knj->kn", s_perp, s_perp)
+    b = 2.0 * np.einsum("knj,knj->kn", d_perp, s_perp)
+    cc = np.einsum("knj,knj->kn", d_perp, d_perp) - radius**2
+    along = a < _EPS  # a ray along the axis: inside the radius or not
+    a_safe = np.where(along, 1.0, a)
+    disc = b * b - 4.0 * a_safe * cc
+    root = np.sqrt(np.maximum(disc, 0.0))
+    t_in = np.where(disc >= 0.0, (-b - root) / (2.0 * a_safe), np.inf)
+    t_out = np.where(disc >= 0.0, (-b + root) / (2.0 * a_safe), -np.inf)
+    t_in = np.where(along, np.where(cc <= 0.0, -np.inf, np.inf), t_in)
+    t_out = np.where(along, np.where(cc <= 0.0, np.inf, -np.inf), t_out)
+    flat = np.abs(s_ax) < _EPS  # a ray across the axis: between the end planes or not
+    s_safe = np.where(flat, 1.0, s_ax)
+    ta, tb = (-half - d_ax) / s_safe, (half - d_ax) / s_safe
+    inside = np.abs(d_ax) <= half
+    s_in = np.where(flat, np.where(inside, -np.inf, np.inf), np.minimum(ta, tb))
+    s_out = np.where(flat, np.where(inside, np.inf, -np.inf), np.maximum(ta, tb))
+    lo = np.maximum(np.maximum(t_in, s_in), 0.0)
+    hi = np.minimum(np.minimum(t_out, s_out), t_max[:, None])
+    out: BoolArray = np.any((hi >= lo) & (hi > 0.0), axis=1)
+    return out
 
 
 def rays_meet_rover(
@@ -133,7 +133,7 @@ def rays_meet_rover(
         np.asarray(t_max, dtype=np.float64), (len(p),))  # fmt: skip
     if len(p) == 0:
         return np.zeros(0, dtype=bool)
-    return _hits_boxes(p, s, t, rover_boxes_b(), margin_m) | _hits_cylinders(
+    return _hits_boxes(p, s, t, _BOXES_B, margin_m) | _hits_cylinders(
         p, s, t, rover_cylinders_b(geometry), margin_m
     )
 

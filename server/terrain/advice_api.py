@@ -18,7 +18,6 @@ import math
 from typing import Any
 
 import numpy as np
-from fastapi import HTTPException
 from pydantic import BaseModel, ConfigDict, Field
 from scipy.spatial.transform import Rotation
 
@@ -26,7 +25,16 @@ from estimation.ivp import sun_ll
 from sequences import commands as cmd
 from sequences.language import parse_any
 from server.access.auth import Operator
-from server.api.deps import AUTH_ERRORS, BAD_REQUEST, NOT_FOUND, RoverName, ServerDep, router
+from server.api.deps import (
+    AUTH_ERRORS,
+    BAD_REQUEST,
+    NOT_FOUND,
+    TOO_LARGE,
+    RoverName,
+    ServerDep,
+    router,
+)
+from server.errors import InvalidError
 from server.terrain.advisor import Advice, PlannedDrive, advise
 from server.terrain.ground_map import GroundMap
 from server.validation.context import rover_site
@@ -34,6 +42,11 @@ from server.validation.context import rover_site
 LEVEL_MAP_HALF_M = 20.0  # the level map's reach around the rover
 LEVEL_MAP_CELL_M = 0.5
 MAX_TEXT_CHARS = 100_000
+
+
+class AdviceRefusedError(InvalidError):
+    """A request the advisor cannot answer (422, with the reason): not a drive, a line
+    with no command, no reported pose yet, the Sun down."""
 
 
 class AdviceBody(BaseModel):
@@ -90,23 +103,23 @@ def planned(command: cmd.Command) -> PlannedDrive | None:
 def _drive_of(body: AdviceBody) -> tuple[cmd.Command, list[cmd.Command], int | None]:
     """The drive's command, the commands before it, and its line; 400 with the reason."""
     if (body.command is None) == (body.text is None):
-        raise HTTPException(400, "give either command (one line) or text and line")
+        raise AdviceRefusedError("give either command (one line) or text and line")
     source = body.command if body.command is not None else body.text
     assert source is not None
     parsed = parse_any(source)
     if parsed.diagnostics:
         d = parsed.diagnostics[0]
-        raise HTTPException(400, f"line {d.line}: {d.message}")
+        raise AdviceRefusedError(f"line {d.line}: {d.message}")
     steps = list(parsed.sequence.steps)
     if body.command is not None:
         if len(steps) != 1:
-            raise HTTPException(400, "command: must be one command line")
+            raise AdviceRefusedError("command: must be one command line")
         return steps[0].command, [], None
     if body.line is None:
-        raise HTTPException(400, "line: which line of text is the drive")
+        raise AdviceRefusedError("line: which line of text is the drive")
     mine = [k for k, s in enumerate(steps) if s.line == body.line]
     if not mine:
-        raise HTTPException(400, f"line {body.line}: no command on that line")
+        raise AdviceRefusedError(f"line {body.line}: no command on that line")
     k = mine[0]
     return steps[k].command, [s.command for s in steps[:k]], body.line
 
@@ -127,7 +140,7 @@ def _moved(p_m: np.ndarray, yaw: float, before: list[cmd.Command]) -> tuple[np.n
     p = p_m.copy()
     for c in before:
         if isinstance(c, cmd.DriveTo):
-            raise HTTPException(400, "a DRIVE_TO before the line: its path cannot be planned")
+            raise AdviceRefusedError("a DRIVE_TO before the line: its path cannot be planned")
         drive = planned(c)
         if drive is None:
             continue
@@ -143,7 +156,7 @@ routes = router()
 @routes.post(
     "/api/rovers/{rover}/vo-advice",
     response_model=AdviceAnswer,
-    responses={**AUTH_ERRORS, **NOT_FOUND, **BAD_REQUEST},
+    responses={**AUTH_ERRORS, **NOT_FOUND, **BAD_REQUEST, **TOO_LARGE},
 )
 def vo_advice(server: ServerDep, rover: RoverName, body: AdviceBody, _: Operator) -> dict[str, Any]:
     """Where the Navcams should look during a planned VO drive (module docstring)."""
@@ -151,14 +164,14 @@ def vo_advice(server: ServerDep, rover: RoverName, body: AdviceBody, _: Operator
     command, before, line = _drive_of(body)
     drive = planned(command)
     if drive is None:
-        raise HTTPException(400, f"{command.name}: not a drive (DRIVE_STRAIGHT, DRIVE_ARC, "
+        raise AdviceRefusedError(f"{command.name}: not a drive (DRIVE_STRAIGHT, DRIVE_ARC, "
                                  "TURN_IN_PLACE)")  # fmt: skip
     where = rover_site(runtime)
     with runtime.lock:
         last = runtime.last_frame
         gmap = getattr(runtime, "ground_map", None)
     if last is None:
-        raise HTTPException(400, "no telemetry yet: the rover's pose is not known on the ground")
+        raise AdviceRefusedError("no telemetry yet: the rover's pose is not known on the ground")
     p0 = np.asarray(last["p_mission_est"], dtype=np.float64)
     q0 = np.asarray(last["q_b_ll_est"], dtype=np.float64)
     x_m = Rotation.from_quat(q0).inv().apply([1.0, 0.0, 0.0])
@@ -166,7 +179,7 @@ def vo_advice(server: ServerDep, rover: RoverName, body: AdviceBody, _: Operator
     q_start = Rotation.from_euler("z", yaw).inv().as_quat()
     sun = sun_ll(where.start_t_s, where.lat_rad, where.lon_east_rad)
     if float(sun[2]) >= 0.0:
-        raise HTTPException(400, "the Sun is below the horizon now: no VO drive")
+        raise AdviceRefusedError("the Sun is below the horizon now: no VO drive")
     map_text = "the rover's ground map"
     if not isinstance(gmap, GroundMap):
         gmap, map_text = level_map(p_start), "level ground at the rover's height, no texture known"

@@ -38,6 +38,9 @@ steps:
   density, the median of the measured cells stands in (the site's prior,
   ``prior_texture_per_m2``, if none is measured).
 
+A drive of more than ``max_pairs`` pairs of steps is judged on that many, spread evenly
+along it (the advice's time stays bounded for a long drive).
+
 The rule (``RULE``): among the candidates whose least overlap over the steps is at least
 ``min_overlap`` (MER's 60 %) and whose largest shadow fraction is at most
 ``max_shadow_fraction``, recommend the one with the most trackable features at its worst
@@ -95,7 +98,8 @@ class AdviceParams:
     min_grazing_deg: float = 30.0
     max_scale_change: float = 0.15
     max_range_m: float = 15.0
-    march_m: float = 0.1
+    march_m: float = 0.25
+    max_pairs: int = 8
     features_per_image: float = float(VoParams().n_features)
 
     def __post_init__(self) -> None:
@@ -107,6 +111,8 @@ class AdviceParams:
                 raise ValueError(f"{name}: must be a non-empty tuple of finite degrees")
         if not all(-90.0 < v < 0.0 for v in self.el_deg):
             raise ValueError("el_deg: VO looks at the ground: each in (-90, 0) deg")
+        if isinstance(self.max_pairs, bool) or not 1 <= self.max_pairs <= 64:
+            raise ValueError(f"max_pairs: must be in [1, 64], got {self.max_pairs}")
         if not 4 <= self.rays_per_side <= 64:
             raise ValueError(f"rays_per_side: must be in [4, 64], got {self.rays_per_side}")
         for name in ("min_overlap", "max_shadow_fraction", "max_scale_change"):
@@ -170,8 +176,9 @@ class PlannedDrive:
 @dataclass(frozen=True)
 class Candidate:
     """One pointing's prediction: mast ``az_deg``, ``el_deg``; per pair of consecutive
-    steps the trackable ``features``, the ``overlap``, ``shadow`` and ``featureless``
-    fractions; the worst of each over the drive; ``ok``: it meets the rule's limits."""
+    steps judged (all of them, or ``max_pairs`` spread along a long drive) the trackable
+    ``features``, the ``overlap``, ``shadow`` and ``featureless`` fractions; the worst of
+    each over the drive; ``ok``: it meets the rule's limits."""
 
     az_deg: float
     el_deg: float
@@ -402,17 +409,17 @@ def _seen_from(
 
 
 def _candidate(
-    gmap: GroundMap, poses: tuple[FloatArray, FloatArray], az_deg: float, el_deg: float,
-    sun_m: FloatArray, rig: StereoRig, params: AdviceParams, prior: float,
+    gmap: GroundMap, poses: tuple[FloatArray, FloatArray], pairs: list[int], az_deg: float,
+    el_deg: float, sun_m: FloatArray, rig: StereoRig, params: AdviceParams, prior: float,
 ) -> Candidate:  # fmt: skip
     az, el = math.radians(az_deg), math.radians(el_deg)
     positions, rotations = poses
-    views = [_view(gmap, p, R, az, el, sun_m, rig, params, prior)
-             for p, R in zip(positions, rotations, strict=True)]  # fmt: skip
+    views = {k: _view(gmap, positions[k], rotations[k], az, el, sun_m, rig, params, prior)
+             for k in sorted({i + d for i in pairs for d in (0, 1)})}  # fmt: skip
     features, overlap, shadow, featureless = [], [], [], []
     min_graze = math.radians(params.min_grazing_deg)
     rays = params.rays_per_side**2
-    for k in range(len(views) - 1):
+    for k in pairs:
         a = views[k]
         n = len(a.range_m)
         if n == 0:
@@ -479,8 +486,14 @@ def advise(
     measured = np.asarray(gmap.texture, dtype=np.float64)
     measured = measured[np.isfinite(measured)]
     prior = float(np.median(measured)) if measured.size else p.prior_texture_per_m2
+    n_pairs = len(poses[0]) - 1  # a long drive: its pairs sampled evenly along it
+    pairs = sorted(
+        {round(float(k)) for k in np.linspace(0, n_pairs - 1, min(n_pairs, p.max_pairs))}
+    )
     candidates = tuple(
-        _candidate(gmap, poses, az, el, sun, rig, p, prior) for el in p.el_deg for az in p.az_deg
+        _candidate(gmap, poses, pairs, az, el, sun, rig, p, prior)
+        for el in p.el_deg
+        for az in p.az_deg
     )
     ok = [c for c in candidates if c.ok]
     if not ok:

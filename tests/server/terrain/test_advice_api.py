@@ -76,11 +76,11 @@ def test_bad_requests_are_refused_with_the_reason(
     client, auth, viewer = api
     url = "/api/rovers/spirit/vo-advice"
     cases = [
-        ({"command": "WAIT duration_s=5"}, 400, "not a drive"),
-        ({"command": "DRIVE_STRAIGHT distance_m=oops"}, 400, "line 1"),
-        ({"text": "DRIVE_STRAIGHT distance_m=1", "line": 7}, 400, "no command on that line"),
-        ({"text": "DRIVE_STRAIGHT distance_m=1"}, 400, "line"),
-        ({}, 400, "either command"),
+        ({"command": "WAIT duration_s=5"}, 422, "not a drive"),
+        ({"command": "DRIVE_STRAIGHT distance_m=oops"}, 422, "line 1"),
+        ({"text": "DRIVE_STRAIGHT distance_m=1", "line": 7}, 422, "no command on that line"),
+        ({"text": "DRIVE_STRAIGHT distance_m=1"}, 422, "line"),
+        ({}, 422, "either command"),
         ({"command": "DRIVE_STRAIGHT distance_m=1", "extra": 1}, 422, "extra"),
         ({"command": 5}, 422, "string"),
     ]
