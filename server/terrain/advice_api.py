@@ -35,7 +35,7 @@ from server.api.deps import (
     router,
 )
 from server.errors import InvalidError
-from server.terrain.advisor import Advice, PlannedDrive, advise
+from server.terrain.advisor import BODY_HEIGHT_M, Advice, PlannedDrive, advise
 from server.terrain.ground_map import GroundMap
 from server.validation.context import rover_site
 
@@ -127,7 +127,7 @@ def _drive_of(body: AdviceBody) -> tuple[cmd.Command, list[cmd.Command], int | N
 def level_map(p_m: np.ndarray) -> GroundMap:
     """A level map at the rover's reported height around it, no texture measured."""
     n = int(2 * LEVEL_MAP_HALF_M / LEVEL_MAP_CELL_M) + 1
-    ground = -float(p_m[2]) - 0.30  # the body origin ~0.30 m above the ground
+    ground = -float(p_m[2]) - BODY_HEIGHT_M  # the body origin is that far above the ground
     return GroundMap(
         float(p_m[0]) - LEVEL_MAP_HALF_M, float(p_m[1]) - LEVEL_MAP_HALF_M, LEVEL_MAP_CELL_M,
         np.full((n, n), ground), np.full((n, n), 1.0), np.full((n, n), np.nan),
