@@ -14,6 +14,12 @@ The rates the mobility software drives at are the flight software's too (Ali et 
 sec. 2.5: about 3.75 cm/s; sec. 2.4.2: turns at about 2.1 deg/s): the simulator drives at
 them and the ground's validator predicts durations with them.
 
+The rover's shape above its wheels (``ROVER_BOXES_B``, ``ROVER_CYLINDERS_B``, the wheels'
+width) is the flight copy of ``sim.rover.geometry``'s shape table, for the rover's own shadow
+(the ground's pointing advisor, ``server.terrain.advisor``, and the flight VO's shadow mask,
+``estimation.vo.shadow_mask``); ``tests/estimation/test_geometry_shapes.py`` keeps the two
+equal.
+
 Frames (docs/CONVENTIONS.md): body ``b`` x forward, y right, z down. Wheel order LF, LM, LR,
 RF, RM, RR; steered wheels LF, LR, RF, RR. Commands name a wheel in lower case, ``WHEEL_KEYS``
 (``drag_wheel=rf``: a wheel not driven and dragged, as Spirit's right front from sol 125,
@@ -49,6 +55,7 @@ class FlightGeometry:
     """
 
     wheel_radius_m: float = 0.13  # MER wheel diameter 26 cm (docs/REFERENCES.md)
+    wheel_width_m: float = 0.16  # approximate, as sim.rover.geometry
     track_m: float = 1.2  # approximate, as sim.rover.geometry
     x_front_m: float = 0.70  # approximate, as sim.rover.geometry
     x_middle_m: float = 0.0  # as sim.rover.geometry: middle wheels under the origin
@@ -63,7 +70,7 @@ class FlightGeometry:
         for name, value in self.__dict__.items():
             if not (isinstance(value, int | float) and math.isfinite(value)):
                 raise ValueError(f"{name}: must be finite")
-        for name in ("wheel_radius_m", "track_m"):
+        for name in ("wheel_radius_m", "wheel_width_m", "track_m"):
             if getattr(self, name) <= 0.0:
                 raise ValueError(f"{name}: must be positive")
         if not self.x_front_m > self.x_middle_m > self.x_rear_m:
@@ -81,6 +88,39 @@ class FlightGeometry:
 
 
 FLIGHT_GEOMETRY = FlightGeometry()
+
+# The rover's shape above its wheels, body frame (m), as sim.rover.geometry's ROVER_BOXES and
+# ROVER_CYLINDERS (approximate MER proportions): boxes as (name, centre, full size along x, y,
+# z); cylinders, their axes along body z, as (name, centre, radius, length).
+ROVER_BOXES_B: tuple[tuple[str, tuple[float, float, float], tuple[float, float, float]], ...] = (
+    ("body", (0.05, 0.0, -0.175), (1.3, 0.9, 0.35)),  # warm electronics box
+    ("deck", (0.0, 0.0, -0.37), (1.6, 1.9, 0.03)),  # solar-array deck
+    ("pancam", (0.45, -0.30, -1.30), (0.12, 0.3, 0.1)),  # camera bar on the mast head
+    ("navcam_left", (0.5, -0.42, -1.24), (0.08, 0.06, 0.06)),  # the Navcams below it
+    ("navcam_right", (0.5, -0.18, -1.24), (0.08, 0.06, 0.06)),
+    ("minites", (0.35, -0.30, -1.36), (0.16, 0.12, 0.10)),  # the mast head's back
+    ("lga_tip", (-0.5, 0.6, -0.9), (0.08, 0.08, 0.08)),  # low-gain antenna's tip
+    ("uhf_tip", (-0.6, -0.5, -0.75), (0.06, 0.06, 0.06)),  # UHF antenna's tip
+    ("sundial", (0.2, 0.5, -0.5), (0.1, 0.1, 0.2)),  # the Pancam calibration target
+    *(
+        part
+        for side, y in (("left", -0.6), ("right", 0.6))
+        for part in (  # the suspension's links at zero joint angles, axis-aligned bars
+            (f"rocker_front_{side}", (0.40, y, 0.06), (0.60, 0.05, 0.05)),
+            (f"rocker_rear_{side}", (-0.12, y, -0.015), (0.46, 0.05, 0.05)),
+            (f"bogie_{side}", (-0.35, y, 0.10), (0.70, 0.05, 0.05)),
+            (f"strut_front_{side}", (0.70, y, 0.05), (0.04, 0.04, 0.20)),
+            (f"strut_middle_{side}", (0.0, y, 0.10), (0.04, 0.04, 0.12)),
+            (f"strut_rear_{side}", (-0.70, y, 0.10), (0.04, 0.04, 0.12)),
+        )
+    ),
+)
+ROVER_CYLINDERS_B: tuple[tuple[str, tuple[float, float, float], float, float], ...] = (
+    ("mast", (0.45, -0.30, -0.82), 0.04, 0.9),  # stands along -z from the deck
+    ("hga", (-0.35, 0.45, -0.50), 0.14, 0.03),  # the high-gain antenna's dish
+    ("lga", (-0.5, 0.6, -0.62), 0.012, 0.52),  # low-gain antenna's mast
+    ("uhf", (-0.6, -0.5, -0.55), 0.012, 0.36),  # UHF antenna's mast
+)
 
 
 def wheel_index(key: str, name: str = "drag_wheel") -> int:

@@ -49,6 +49,7 @@ from server.faults import api as faults
 from server.images import api as images
 from server.state import Server, ServerConfig
 from server.storage import data_dir_url
+from server.terrain import advice_api
 
 __all__ = ["Server", "ServerConfig", "create_app", "data_dir_url"]
 
@@ -89,6 +90,6 @@ def create_app(config: ServerConfig) -> FastAPI:
 
     app.mount("/static", StaticFiles(directory=WEB_DIR), name="static")
     for api in (rovers, sequences, queue, telemetry, events, channels, alarms, viewer, users,
-                audit, faults, comm, images):  # fmt: skip
+                audit, faults, comm, images, advice_api):  # fmt: skip
         app.include_router(api.routes)
     return app

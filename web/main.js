@@ -6,6 +6,7 @@ import { signInAtLoad } from "./signin.js";
 import "./readouts.js";
 import "./commanding.js";
 import "./sequences.js";
+import "./vo_advice.js";
 import "./truth.js";
 import "./faults.js";
 import "./view3d.js";

@@ -170,12 +170,13 @@ class RecordingVO(VisualOdometry):
         R_s_b0: ArrayLike,
         mast_az_rad: float,
         mast_el_rad: float,
+        sun_b: ArrayLike | None = None,
     ) -> VoResult:
         start = time.perf_counter()
         result = super().step(
             left, right, R_b0_b1_predicted=R_b0_b1_predicted,
             p_b1_b0_predicted=p_b1_b0_predicted, R_s_b0=R_s_b0, mast_az_rad=mast_az_rad,
-            mast_el_rad=mast_el_rad,
+            mast_el_rad=mast_el_rad, sun_b=sun_b,
         )  # fmt: skip
         vo_s = time.perf_counter() - start
         start = time.perf_counter()

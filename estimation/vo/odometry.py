@@ -58,6 +58,7 @@ from estimation.vo.motion import GapFunction, RansacMotion, motion_weights, rans
 from estimation.vo.params import VoParams
 from estimation.vo.sanity import Update, update_of, violation
 from estimation.vo.search import PaddedImage
+from estimation.vo.shadow_mask import SHADOW_MARGIN_M, in_rover_shadow
 from estimation.vo.stereo import stereo_points
 from estimation.vo.stereo_rig import StereoRig
 from estimation.vo.tracking import Tracked, build_pyramid, pyramid_levels, track_features
@@ -241,11 +242,15 @@ class VisualOdometry:
         R_s_b0: ArrayLike,
         mast_az_rad: float,
         mast_el_rad: float,
+        sun_b: ArrayLike | None = None,
     ) -> VoResult:
         """Process a new stereo pair (rectified ``left``, ``right``, (H, W) images of the
         rig's size) taken after the body moved by the predicted (wheel-odometry) motion
         ``R_b0_b1_predicted``, ``p_b1_b0_predicted`` since the previous pair; ``R_s_b0`` the
         estimated attitude at the previous pair; the mast pointing of the new pair.
+        ``sun_b``: the Sun's unit vector in the body frame now; given, the new pair's
+        features in or at the edge of the rover's own shadow are dropped
+        (``estimation.vo.shadow_mask``); None (the default): no mask.
         """
         p = self.params
         left_img = self._image(left, "left")
@@ -263,6 +268,8 @@ class VisualOdometry:
         left_pyramid = build_pyramid(left_img, self.levels, self.left_pad_px)
         right_padded = PaddedImage(right_img, self.pad_px)
         new_frame = self._stereo_features(pair, left_pyramid, right_padded)
+        if sun_b is not None:
+            new_frame = _shadow_masked(new_frame, sun_b)
         previous, self._previous = self._previous, new_frame
         n_new = len(new_frame.uv_px)
         seen = VoFeatures(features_uv_px=new_frame.uv_px.copy())
@@ -452,6 +459,12 @@ class VisualOdometry:
         )  # fmt: skip
         ok = stereo.ok
         return _Frame(left_pyramid, uv[ok].astype(np.float64), stereo.p_b[ok], stereo.cov_b[ok])
+
+
+def _shadow_masked(frame: _Frame, sun_b: ArrayLike) -> _Frame:
+    """``frame`` without the features in the rover's shadow or at its edge."""
+    keep = ~in_rover_shadow(frame.p_b, sun_b, SHADOW_MARGIN_M)
+    return _Frame(frame.left_pyramid, frame.uv_px[keep], frame.p_b[keep], frame.cov_b[keep])
 
 
 def _reprojection_gaps(pair: PointedPair, tracked: Tracked) -> GapFunction:

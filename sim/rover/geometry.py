@@ -298,14 +298,39 @@ class CylinderPart:
 # cylinders: approximate MER proportions, not flight drawings. The one table from which the
 # 3D view draws the rover (server.scene3d.model) and the Navcam casts the rover's own shadow
 # (sim.sensors.navcam.rover_shadow); the wheels come from ``RoverGeometry``.
+#
+# Below the deck the suspension's links (at zero joint angles, as the wheels), above it the
+# mast head's cameras and the two small antennas: the details of the rover's own shadow
+# (Cheng, Maimone and Matthies 2005 sec. 4.3: on sol 235 the shadow was the most textured
+# thing in the Navcams' view). Axis-aligned bars for the slanted links.
 ROVER_BOXES: tuple[BoxPart, ...] = (
     BoxPart("body", (0.05, 0.0, -0.175), (1.3, 0.9, 0.35)),  # warm electronics box
     BoxPart("deck", (0.0, 0.0, -0.37), (1.6, 1.9, 0.03)),  # solar-array deck
     BoxPart("pancam", (0.45, -0.30, -1.30), (0.12, 0.3, 0.1)),  # camera bar on the mast head
+    BoxPart("navcam_left", (0.5, -0.42, -1.24), (0.08, 0.06, 0.06)),  # the Navcams below it
+    BoxPart("navcam_right", (0.5, -0.18, -1.24), (0.08, 0.06, 0.06)),
+    BoxPart("minites", (0.35, -0.30, -1.36), (0.16, 0.12, 0.10)),  # the mast head's back
+    BoxPart("lga_tip", (-0.5, 0.6, -0.9), (0.08, 0.08, 0.08)),  # low-gain antenna's tip
+    BoxPart("uhf_tip", (-0.6, -0.5, -0.75), (0.06, 0.06, 0.06)),  # UHF antenna's tip
+    BoxPart("sundial", (0.2, 0.5, -0.5), (0.1, 0.1, 0.2)),  # the Pancam calibration target
+    *(
+        part
+        for side, y in (("left", -0.6), ("right", 0.6))
+        for part in (
+            BoxPart(f"rocker_front_{side}", (0.40, y, 0.06), (0.60, 0.05, 0.05)),
+            BoxPart(f"rocker_rear_{side}", (-0.12, y, -0.015), (0.46, 0.05, 0.05)),
+            BoxPart(f"bogie_{side}", (-0.35, y, 0.10), (0.70, 0.05, 0.05)),
+            BoxPart(f"strut_front_{side}", (0.70, y, 0.05), (0.04, 0.04, 0.20)),
+            BoxPart(f"strut_middle_{side}", (0.0, y, 0.10), (0.04, 0.04, 0.12)),
+            BoxPart(f"strut_rear_{side}", (-0.70, y, 0.10), (0.04, 0.04, 0.12)),
+        )
+    ),
 )
 ROVER_CYLINDERS: tuple[CylinderPart, ...] = (
     CylinderPart("mast", (0.45, -0.30, -0.82), 0.04, 0.9),  # stands along -z from the deck
     CylinderPart("hga", (-0.35, 0.45, -0.50), 0.14, 0.03),  # the high-gain antenna's dish
+    CylinderPart("lga", (-0.5, 0.6, -0.62), 0.012, 0.52),  # low-gain antenna's mast
+    CylinderPart("uhf", (-0.6, -0.5, -0.55), 0.012, 0.36),  # UHF antenna's mast
 )
 MAST_HEAD_B = ROVER_BOXES[2].centre_b  # the Pancam head, about 1.5 m above the ground
 HGA_DISH_B = ROVER_CYLINDERS[1].centre_b

@@ -523,12 +523,13 @@ def _albedo_at(
     terrain: Terrain, x_s: FloatArray, y_s: FloatArray, footprint_m: FloatArray
 ) -> FloatArray:
     """Albedo at Site points: band-limited to ``footprint_m`` for a procedural texture
-    (numba, ``sim.sensors.navcam.texture``), point-sampled ``terrain.albedo`` otherwise."""
-    texture = getattr(terrain, "texture", None)
-    if isinstance(texture, AlbedoTexture):
+    (numba, ``sim.sensors.navcam.texture``) or by the terrain itself (``albedo_band_limited``:
+    a scene's, ``sim.scenarios.scene_builder``), point-sampled ``terrain.albedo`` otherwise."""
+    if callable(limited := getattr(terrain, "albedo_band_limited", None)):
+        return np.asarray(limited(x_s, y_s, footprint_m), dtype=np.float64)
+    if isinstance(texture := getattr(terrain, "texture", None), AlbedoTexture):
         return band_limited_albedo(texture, x_s, y_s, footprint_m)
-    out: FloatArray = np.asarray(terrain.albedo(x_s, y_s), dtype=np.float64)
-    return out
+    return np.asarray(terrain.albedo(x_s, y_s), dtype=np.float64)
 
 
 def _radiance_factor(terrain: Terrain, rig: StereoRig, light: MarsLight, eye: _Eye) -> FloatArray:

@@ -20,6 +20,7 @@ from server.app import ServerConfig, create_app, data_dir_url
 BOOTSTRAP = "roles-bootstrap-token"
 SEQ = "SEQUENCE roles\nNADIR_UPDATE\n"
 TILT_LIMITS = {"warning": 20, "critical": 30}
+ADVISED_DRIVE = "DRIVE_STRAIGHT distance_m=1 vo=on"
 
 # (method, path, lowest role, request keyword arguments). Paths name real things so the
 # allowed call does its work: sequence 1 exists (made by the fixture), user "victim" too.
@@ -51,6 +52,7 @@ ROUTES: list[tuple[str, str, str, dict[str, Any]]] = [
     ("GET", "/viser/spirit/index.html", "viewer", {}),
     ("POST", "/api/rovers/spirit/sequences", "operator", {"content": SEQ}),
     ("POST", "/api/rovers/spirit/commands", "operator", {"json": {"command": "NADIR_UPDATE"}}),
+    ("POST", "/api/rovers/spirit/vo-advice", "operator", {"json": {"command": ADVISED_DRIVE}}),
     ("POST", "/api/rovers/spirit/clock", "operator", {"json": {"action": "pause"}}),
     ("POST", "/api/rovers/spirit/queue/1/move", "operator", {"json": {"to": 0}}),
     ("DELETE", "/api/sequences/1", "operator", {}),
