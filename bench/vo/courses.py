@@ -517,7 +517,7 @@ def _separation_metrics(runs: list[dict[str, Any]]) -> dict[str, Any]:
     return out
 
 
-def bench_vo(
+def bench_courses(
     n_rock: int = 24,
     n_slope: int = 16,
     n_convergence: int = 100,

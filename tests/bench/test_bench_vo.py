@@ -16,13 +16,14 @@ from scipy.spatial.transform import Rotation
 from bench.registry import BENCHES
 from bench.vo import bench_vo
 from bench.vo.baseline import body_motion_from_camera
+from bench.vo.courses import bench_courses
 from sim.errors import InputError
 from sim.loop.vo_drive import VO_RIG
 
 
 @pytest.fixture(scope="module")
 def small() -> dict[str, Any]:
-    return bench_vo(
+    return bench_courses(
         n_rock=1, n_slope=1, n_convergence=1, n_shadow=1, timing_poses=1, timing_repeats=1,
         slope_course_m=3.0, seed=0, workers=1,
     )  # fmt: skip
@@ -84,9 +85,15 @@ def test_step_figures_are_counts_and_fractions(small: dict[str, Any]) -> None:
 @pytest.mark.parametrize("name", ["n_rock", "n_convergence", "timing_repeats"])
 def test_bad_counts_are_refused(name: str) -> None:
     with pytest.raises(InputError, match=name):
-        bench_vo(**{name: 0})
+        bench_courses(**{name: 0})
     with pytest.raises(InputError, match="slope_course_m"):
-        bench_vo(slope_course_m=math.nan)
+        bench_courses(slope_course_m=math.nan)
+
+
+@pytest.mark.parametrize("name", ["steps_1024", "n_advised", "n_sol235", "ground_map_drives"])
+def test_the_whole_bench_refuses_bad_counts_before_it_runs(name: str) -> None:
+    with pytest.raises(InputError, match=name):
+        bench_vo(**{name: -1})
 
 
 def test_the_baseline_turns_camera_motion_into_body_motion() -> None:
