@@ -5,7 +5,7 @@ and each role may do all that the ones before it may:
 
 - ``viewer``: read everything (telemetry, sequences, timelines, the 3D view);
 - ``operator``: also upload and cancel sequences, send immediate commands, run the clock,
-  change a rover's comm plan;
+  change a rover's comm plan, ask the VO pointing advisor;
 - ``conductor``: also the test conductor's actions (fault injection, rehearsal campaigns);
 - ``admin``: also manage users and tokens, read the audit log, change a rover's comm mode.
 
