@@ -31,10 +31,9 @@ Frames: ``P_p`` in the previous body frame ``b0``, ``P_c`` in the current one ``
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
-
-import math
 from itertools import combinations
 
 import numpy as np
