@@ -153,6 +153,23 @@ def test_ransac_rescores_a_given_hypothesis_beside_its_samples() -> None:
     np.testing.assert_allclose(guided.T, T_TRUE, atol=3e-3)
 
 
+def test_ransac_tries_every_sample_of_a_small_set() -> None:
+    """7 inliers among 12 features: 200 random 6-samples miss every all-inlier sample about
+    one time in five; C(12, 6) = 924 samples are few enough to try them all, so the inlier
+    set is found whatever the generator."""
+    rng = np.random.default_rng(21)
+    n, n_good = 12, 7
+    p = _points(rng, n)
+    c = p @ R_TRUE.T + T_TRUE + rng.normal(0.0, 0.002, (n, 3))
+    c[n_good:] += rng.uniform(0.2, 1.0, (n - n_good, 3)) * rng.choice([-1, 1], (n - n_good, 3))
+    kw = {"iterations": 200, "sample_size": 6, "threshold_px": 10.0}
+    for seed in range(20):
+        result = ransac_motion(p, c, np.ones(n), _gap_3d(p, c), **kw,  # type: ignore[arg-type]
+                               rng=np.random.default_rng(seed))  # fmt: skip
+        assert result.score == n_good and result.inliers[:n_good].all()
+        np.testing.assert_allclose(result.T, T_TRUE, atol=3e-3)
+
+
 def test_ml_refinement_beats_least_squares_with_anisotropic_covariances() -> None:
     """Monte Carlo over 40 seeds: stereo-like elongated errors; the ML estimate (eqs. 15-17)
     has a clearly smaller error than the determinant-weighted closed form (eqs. 12-14)."""
