@@ -20,7 +20,6 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal
 
-import cv2
 import numpy as np
 from numpy.typing import NDArray
 from sqlalchemy import and_, func, insert, select
@@ -54,6 +53,8 @@ def encode_png(image: NDArray[np.uint8]) -> bytes:
     array = np.ascontiguousarray(image)
     if array.ndim != 2 or array.dtype != np.uint8:
         raise ValueError(f"an image must be 2-D uint8, got {array.dtype} {array.shape}")
+    import cv2  # here: the storage is also the user commands', which need no OpenCV
+
     ok, encoded = cv2.imencode(".png", array)
     if not ok:
         raise ValueError("PNG encoding failed")
@@ -62,6 +63,8 @@ def encode_png(image: NDArray[np.uint8]) -> bytes:
 
 def decode_png(data: bytes) -> NDArray[np.uint8]:
     """PNG bytes back as the 2-D 8-bit image they encode."""
+    import cv2  # as encode_png
+
     image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
     if image is None or image.ndim != 2:
         raise ValueError("not a stored grey-level PNG")

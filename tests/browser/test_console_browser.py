@@ -195,7 +195,7 @@ def test_the_3d_view_loads_and_its_rover_node_moves(page: Page, server: str) -> 
     frame = handle.content_frame() if handle else None
     assert frame is not None
     frame.wait_for_function("() => window.__viserMutable?.nodeRefFromName?.['/rover']")
-    frame.wait_for_function("() => window.__viserMutable.nodeRefFromName['/terrain/band_0']")
+    frame.wait_for_function("() => window.__viserMutable.nodeRefFromName['/terrain/ground']")
     before = _rover_position(frame)
     assert before is not None
     answer = httpx.post(
