@@ -63,6 +63,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.ndimage import gaussian_filter
 
 from estimation.sapp.gyrocompass import NADIR_TILT_SIGMA_RAD
 from server.terrain.ground_map import GroundMap
@@ -83,6 +84,8 @@ BODY_HEIGHT_M = MER_GEOMETRY.wheel_centre_z_m + MER_GEOMETRY.wheel_radius_m  # 0
 # update (approximate).
 TILT_SIGMA_RAD = NADIR_TILT_SIGMA_RAD
 HEADING_SIGMA_RAD = math.radians(1.0) / 3.0
+TIE_FEATHER_M = 1.0  # the orbital ground meets the measured patches over about this (tied_prior)
+TIE_FEATHER_FLOOR = 0.05  # the measured share below which the local residual fades out
 
 
 @dataclass(frozen=True)
@@ -403,7 +406,8 @@ class MapFusion:
         w_prior = 1.0 / p.sigma_m**2
         w_s = np.where(imaged, 1.0 / np.where(imaged, sigma_s, 1.0) ** 2, 0.0)
         w = w_prior + w_s
-        height = (w_prior * p.height_m + w_s * np.where(imaged, h_s, 0.0)) / w
+        prior_h = tied_prior(np.asarray(p.height_m, dtype=np.float64), h_s, imaged, p.cell_m)
+        height = (w_prior * prior_h + w_s * np.where(imaged, h_s, 0.0)) / w
         seen = self._grey_n > 0
         albedo = np.where(seen, self._grey / np.where(seen, self._grey_n, 1.0), p.albedo)
         covered = self._covered > 0
@@ -419,3 +423,23 @@ class MapFusion:
             texture=texture,
             imaged=imaged.copy(),
         )
+
+
+def tied_prior(
+    prior_h: FloatArray, stereo_h: FloatArray, imaged: NDArray[np.bool_], cell_m: float
+) -> FloatArray:
+    """The orbital heights tied to the stereo the rover measured: shifted by the median of
+    (stereo - orbital) over the measured cells (the DEM's own offset where the rover is,
+    a few tens of cm), and, near the measured cells, by the local residual, feathered over
+    ``TIE_FEATHER_M`` so the measured patches do not stand as steps in the orbital ground.
+    The orbital σ is kept: the tie removes the offset, not the DEM's own relief noise."""
+    if not imaged.any():
+        return prior_h
+    residual = np.where(imaged, stereo_h - prior_h, 0.0)
+    offset = float(np.median(residual[imaged]))
+    s = TIE_FEATHER_M / cell_m
+    near = gaussian_filter(imaged.astype(np.float64), s, mode="constant")
+    local = gaussian_filter(np.where(imaged, residual - offset, 0.0), s, mode="constant")
+    weight = near / (near + TIE_FEATHER_FLOOR)  # 1 amid measured cells, 0 far from them
+    out: FloatArray = prior_h + offset + weight * local / np.maximum(near, 1e-12)
+    return out

@@ -167,8 +167,8 @@ def image_record(
         "height_px": int(left.shape[0]),
         "f_px": float(f_px),
         "baseline_m": float(baseline_m),
-        "mast_az_deg": math.degrees(mast_az_rad),
-        "mast_el_deg": math.degrees(mast_el_rad),
+        "mast_az_deg": round(math.degrees(mast_az_rad), 9),  # no -119.99999999999999
+        "mast_el_deg": round(math.degrees(mast_el_rad), 9),
         "site_index": int(site_index),
         "p_s_est": _vec(p_s_est),
         "p_mission_est": _vec(p_mission_est),

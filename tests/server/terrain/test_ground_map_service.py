@@ -14,7 +14,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from estimation.vo.stereo_rig import NAVCAM
-from server.terrain.fusion import BODY_HEIGHT_M, MapFusion, PoseSigma, Prior
+from server.terrain.fusion import BODY_HEIGHT_M, MapFusion, PoseSigma, Prior, tied_prior
 from server.terrain.service import DownlinkedPair, GroundMapService
 from server.terrain.stereo import StereoPoints, dense_points
 from sim.sensors.navcam.camera import NavcamPair, render_navcam_pair
@@ -92,8 +92,31 @@ def test_fused_cells_recover_a_plane_with_honest_sigma() -> None:
     assert 0.9 < float(np.mean(z <= 2.0)) <= 1.0
     assert float(np.max(ground.sigma_m[i, j])) < 0.05  # far better than the prior's 0.5 m
     assert float(np.median(ground.sigma_m[i, j])) < 0.005
-    assert not np.any(ground.imaged[:, :2])  # cells nobody imaged keep the prior
-    np.testing.assert_allclose(ground.height_m[:, :2], 0.0, atol=1e-12)
+    assert not np.any(ground.imaged[:, :2])  # cells nobody imaged keep the prior's σ ...
+    np.testing.assert_allclose(ground.sigma_m[~ground.imaged], 0.5, rtol=1e-3)
+    # ... and its heights, tied by the median stereo - prior residual where far from them
+    offset = float(np.median(ground.height_m[ground.imaged]))
+    from scipy.ndimage import distance_transform_edt
+
+    far = distance_transform_edt(~ground.imaged) * ground.cell_m > 4.0
+    assert far.any()
+    np.testing.assert_allclose(ground.height_m[far], offset, atol=2e-3)
+
+
+def test_the_orbital_ground_meets_a_measured_patch_without_a_step() -> None:
+    """A DEM 0.3 m off where the rover is: tied, the measured patch's edge has no step."""
+    shape = (41, 41)
+    prior_h = np.full(shape, 0.3)
+    stereo_h = np.zeros(shape)
+    imaged = np.zeros(shape, dtype=bool)
+    imaged[15:26, 15:26] = True
+    tied = tied_prior(prior_h, stereo_h, imaged, 0.25)
+    assert abs(float(tied[0, 0])) < 1e-9  # the offset removed far away too
+    assert float(np.max(np.abs(np.diff(tied, axis=0)))) < 1e-6  # no step anywhere
+    rough = prior_h + 0.1 * np.random.default_rng(3).standard_normal(shape)
+    tied = tied_prior(rough, stereo_h, imaged, 0.25)
+    edge = np.abs(tied[15:26, 14] - 0.0)  # the orbital cells beside the patch
+    assert float(np.mean(edge)) < float(np.mean(np.abs(rough[15:26, 14])))
 
 
 def test_a_second_pair_is_aligned_onto_the_first() -> None:
