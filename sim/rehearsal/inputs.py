@@ -12,7 +12,9 @@ workers as it is.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -28,6 +30,14 @@ AQF_NAMES = ("Unknown", "TiltOnly", "Coarse", "Fine")
 def _finite(name: str, value: float) -> None:
     if not isinstance(value, int | float) or not math.isfinite(value):
         raise ValueError(f"{name}: must be a finite number, got {value!r}")
+
+
+def _tuple3(v: Any) -> tuple[float, float, float]:
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
+def _tuple4(v: Any) -> tuple[float, float, float, float]:
+    return (float(v[0]), float(v[1]), float(v[2]), float(v[3]))
 
 
 @dataclass(frozen=True)
@@ -73,6 +83,38 @@ class ReportedStart:
             raise ValueError(f"position_sigma_m: must be >= 0, got {self.position_sigma_m}")
         if self.vo_rig not in (256, 1024):
             raise ValueError(f"vo_rig: must be 256 or 1024, got {self.vo_rig!r}")
+
+    @classmethod
+    def from_downlink(
+        cls,
+        frame: Mapping[str, Any],
+        site: str,
+        mission: str,
+        *,
+        keepout_zones: tuple[KeepOutZone, ...] = (),
+        params: Mapping[str, float] | None = None,
+        mobility_fault: str | None = None,
+        vo_rig: int = 256,
+    ) -> ReportedStart:
+        """From a downlink record (``sim.loop.downlink.DownlinkDict``: what came down) and
+        what the rover's events reported (zones, parameters, fault)."""
+        sigma = frame.get("position_sigma_m")
+        return cls(
+            site=site,
+            mission=mission,
+            t_s=float(frame["t_s"]),
+            q_b_ll_est=_tuple4(frame["q_b_ll_est"]),
+            p_s_est=_tuple3(frame["p_s_est"]),
+            p_mission_est=_tuple3(frame["p_mission_est"]),
+            site_index=int(frame["site_index"]),
+            aqf=str(frame["aqf"]),
+            imu_integration_s=float(frame["imu_integration_s"]),
+            position_sigma_m=float(sigma) if sigma is not None and math.isfinite(sigma) else 0.0,
+            keepout_zones=tuple(keepout_zones),
+            params=dict(params or {}),
+            mobility_fault=mobility_fault or frame.get("mobility_fault") or None,
+            vo_rig=vo_rig,
+        )
 
     @property
     def site_origin_mission_m(self) -> tuple[float, float]:

@@ -19,7 +19,8 @@ STATUSES = ("completed", "refused", "failed", "halted", "not_run")
 class StepOutcome:
     """One sequence step in one run. ``line`` is the step's line in the sequence text
     (1-based); ``status`` as ``sim.loop.session.CommandReport`` (``not_run``: an earlier
-    step stopped the sequence) and ``reason`` its reason; ``end_t_s`` when it ended (TT s);
+    step stopped the sequence) and ``reason`` its reason; ``start_t_s``, ``end_t_s`` when it
+    started and ended (TT s);
     ``p_mission_true_m`` / ``p_mission_est_m`` the body origin at its end (North, East, m, in
     the mission frame), true (the sampled world's) and as the rover estimates it;
     ``heading_true_rad`` / ``heading_est_rad`` (from North towards East);
@@ -27,12 +28,15 @@ class StepOutcome:
     ``imu_integration_s`` and ``position_sigma_m`` as the rover would report them at its end;
     ``hga_margin_deg`` the margin of an HGA pass (true pointing error against the beam's
     limit, deg; NaN when the step is no pass) and ``hga_margin_predicted_deg`` the rover's own
-    prediction; ``keepouts_entered`` the zones the true footprint entered during the step."""
+    prediction; ``keepouts_entered`` the zones the true footprint entered during the step;
+    ``path_true_m`` the true traverse during the step (North, East; mission frame), thinned
+    to a few points per metre (the 3D view's cloud of predicted traverses)."""
 
     line: int
     command: str
     status: str
     reason: str | None
+    start_t_s: float
     end_t_s: float
     p_mission_true_m: tuple[float, float]
     p_mission_est_m: tuple[float, float]
@@ -45,6 +49,7 @@ class StepOutcome:
     hga_margin_deg: float = math.nan
     hga_margin_predicted_deg: float = math.nan
     keepouts_entered: tuple[str, ...] = ()
+    path_true_m: tuple[tuple[float, float], ...] = ()
 
     def __post_init__(self) -> None:
         if self.status not in STATUSES:
