@@ -85,7 +85,7 @@ def parameter_text(name: str, value: float | bool) -> str:
     return f"parameter {name} = {value}"
 
 
-_PARAMETER = re.compile(r"parameter (\w+) = (\S+)")
+_PARAMETER = re.compile(r"parameter ([\w.]+) = (\S+)")  # mobility.<name> too
 
 
 def reported_parameter(text: str) -> tuple[str, float] | None:

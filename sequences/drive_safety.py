@@ -8,8 +8,13 @@ estimate error, from the rover's reported estimate (``ValidationContext.p_s_est`
 ``heading_rad``), through the Sites it plants, with the zones the rover reports it holds and
 those the sequence adds or clears. The keep-out margin is predicted as the rover computes it
 (``estimation.protection.position_sigma``: the odometry fraction of the distance, grown from
-the reported uncertainty), so a path that passes within it may halt too. Slip and tilt are
-not predicted here: they depend on the ground, which a rehearsal samples.
+the reported uncertainty), so a path that passes within it may halt too. The limits are the
+ones the rover reports holding (``ValidationContext.mobility_limits``; the flight defaults
+otherwise) as the sequence's ``SET_PARAM param=mobility.<name>`` change them. With the
+ground's terrain map in the context (``ValidationContext.terrain``) each drive's nominal path
+is also set down on the map and its tilt checked against the tilt limit
+(``sequences.terrain_check``). Slip is not predicted here: it depends on the ground, which a
+rehearsal samples.
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ from estimation.protection.keepout import KeepOutZone, parse_polygon
 from estimation.protection.limits import LIMITS, MobilityLimits, replace_limit
 from sequences import commands as cmd
 from sequences.model import SequenceStep
+from sequences.terrain_check import TiltCheck
 
 Warn = Callable[[SequenceStep, str, str], None]
 ARC_POINTS = 24  # an arc's nominal path as a polyline of this many chords
@@ -52,6 +58,7 @@ class DriveSafety:
     site_origins: dict[int, tuple[float, float]] = field(default_factory=dict)
     may_halt: str | None = None  # "line N's drive ..." while no CLEAR_MOBILITY_FAULT came
     limits: MobilityLimits = LIMITS
+    tilt: TiltCheck | None = None  # with a terrain map in the context
 
     @classmethod
     def start(cls, warn: Warn, context: Any) -> DriveSafety:
@@ -59,6 +66,10 @@ class DriveSafety:
         p, heading = getattr(context, "p_s_est", None), getattr(context, "heading_rad", None)
         site = int(getattr(context, "site_index", 0))
         walk = cls(warn, context.lmst_h, site_index=site)
+        limits = getattr(context, "mobility_limits", None)
+        if isinstance(limits, MobilityLimits):
+            walk.limits = limits
+        walk.tilt = TiltCheck.start(warn, context)
         if p is not None and heading is not None:
             walk.pose = _Pose(float(p[0]), float(p[1]), float(heading))
         walk.site_origins[site] = (0.0, 0.0)
@@ -130,6 +141,12 @@ class DriveSafety:
                 reasons.append("its time-of-day limit")
                 self.warn(step, "lmst-limit", f"the drive runs past its time-of-day limit "
                           f"({_hm(float(c.lmst_limit_h))} LMST): it will halt")  # fmt: skip
+        origin = self.site_origins.get(self.site_index)
+        if self.tilt is not None and self.pose is not None and origin is not None:
+            pose = (self.pose.x_m, self.pose.y_m, self.pose.heading_rad)
+            tilted = self.tilt.drive(step, c, pose, origin, self.limits.tilt_limit_rad)
+            if tilted is not None:
+                reasons.append(tilted)
         path = self._path(c)
         if path is not None:
             for name, (zone, whence) in sorted(self.zones.items()):
@@ -203,13 +220,17 @@ class DriveSafety:
         shifted = [(x + dx, y + dy) for x, y in path]
         if len(shifted) == 1:
             return zone.clearance_m(shifted[0]), "where it turns"
-        best, at = math.inf, 0
+        best, at, along, along_at = math.inf, 0, 0.0, 0.0
         for i, (a, b) in enumerate(itertools.pairwise(shifted)):
             d = zone.path_clearance_m(a, b)
             if d < best:
-                best, at = d, i
+                best, at, along_at = d, i, along
+            along += math.dist(a, b)
         x, y = path[at]
-        return best, f"(from about ({x:.1f}, {y:.1f}) m in Site {self.site_index})"
+        return best, (
+            f"(from about ({x:.1f}, {y:.1f}) m in Site {self.site_index}, "
+            f"{along_at:.1f} m from the drive's start)"
+        )
 
 
 def _hm(hours: float) -> str:

@@ -49,6 +49,7 @@ from typing import Any, Literal
 
 from estimation.geometry import DRIVE_SPEED_M_S, TURN_RATE_DEG_S
 from estimation.protection.keepout import KeepOutZone
+from estimation.protection.limits import MobilityLimits
 from estimation.sapp.nadir import NadirParams
 from estimation.sapp.nate_io import FINE_TO_COARSE_S, NateParams
 from estimation.sapp.sun_modes import SungazeParams
@@ -63,6 +64,7 @@ from sequences.language import (
     TimeTag,
     parse_any,
 )
+from sequences.terrain_grid import TerrainGrid
 
 __all__ = [
     "CODES",
@@ -113,6 +115,9 @@ CODES: dict[str, str] = {
     "drive-after-halt": "warning",
     "drive-timeout": "warning",
     "lmst-limit": "warning",
+    # from sequences.terrain_check (a drive's nominal path on the ground's terrain map)
+    "tilt-limit": "warning",
+    "tilt-near-limit": "warning",
     # from sequences.comm_timing (a rover whose link crosses the light time)
     "before-onboard": "warning",
     "no-uplink": "warning",
@@ -199,10 +204,13 @@ class ValidationContext:
     ``p_s_est`` (North, East, m in Site ``site_index``) and ``heading_rad`` the rover's
     reported estimate, ``position_sigma_m`` its reported uncertainty, ``keepout_zones`` the
     zones it reports holding and ``mobility_fault`` the halt that disabled its mobility, if
-    one did: the drives' checks (``sequences.drive_safety``). ``comm``: the rover's link
-    when it crosses the light time (``None``: instant, the sequence onboard at
-    ``start_t_s``): the walk then starts when the sequence is onboard, and warns about tags
-    before that and drives whose results miss the planning time (``sequences.comm_timing``).
+    one did, ``mobility_limits`` the mobility limits it reports holding (``None``: the flight
+    defaults), ``terrain`` the ground's terrain map around it (``None``: no map, no tilt
+    check): the drives' checks (``sequences.drive_safety``, ``sequences.terrain_check``).
+    ``comm``: the rover's link when it crosses the light time (``None``: instant, the
+    sequence onboard at ``start_t_s``): the walk then starts when the sequence is onboard,
+    and warns about tags before that and drives whose results miss the planning time
+    (``sequences.comm_timing``).
     """
 
     start_t_s: float
@@ -223,6 +231,8 @@ class ValidationContext:
     keepout_zones: tuple[KeepOutZone, ...] = ()
     mobility_fault: str | None = None
     comm: CommTiming | None = None
+    mobility_limits: MobilityLimits | None = None
+    terrain: TerrainGrid | None = None
 
     def __post_init__(self) -> None:
         if self.aqf not in AQF_RANK:

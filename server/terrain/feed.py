@@ -91,3 +91,10 @@ def ground_feed(
             feed = GroundFeed(service, store, runtime.spec.name)
             _FEEDS[runtime] = feed
         return feed
+
+
+def shared_feed(runtime: RoverRuntime) -> GroundFeed | None:
+    """The rover's shared feed if one exists (its 3D views', its pointing advisor's), without
+    making one: validation reads the map the ground has, and never fuses pairs itself."""
+    with _FEEDS_LOCK:
+        return _FEEDS.get(runtime)

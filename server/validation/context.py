@@ -25,6 +25,7 @@ and counts the calls. The context also carries the ephemeris' last instant, past
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 from dataclasses import dataclass
@@ -34,7 +35,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from estimation.protection.keepout import KeepOutZone
+from estimation.protection.limits import LIMITS, MobilityLimits, replace_limit
 from estimation.sapp.nate import NateParams
+from sequences.terrain_grid import TerrainGrid
 from sequences.validate import AqfName, ValidationContext
 from server.validation.comm_context import RoverLink, rover_link
 from sim.world.ephemeris import C_KM_S, Body, astrometric_from_mars_j2000_km, coverage_t_s
@@ -188,11 +191,14 @@ class RoverSite:
     keepout_zones: tuple[KeepOutZone, ...] = ()
     mobility_fault: str | None = None
     comm: RoverLink | None = None  # the link across the light time; None: instant
+    mobility_limits: MobilityLimits | None = None  # as the rover reports them; None: defaults
+    terrain: TerrainGrid | None = None  # the ground's map around the rover; None: none yet
 
     def context(self) -> ValidationContext:
         """The ``ValidationContext`` of this site (``site_context``), with the drives'
         state (``sequences.drive_safety``) and the link's timing
-        (``server.validation.comm_context``)."""
+        (``server.validation.comm_context``), its reported mobility limits and the ground's
+        map around it."""
         base = site_context(
             self.mission,
             self.lat_rad,
@@ -212,6 +218,8 @@ class RoverSite:
             keepout_zones=self.keepout_zones,
             mobility_fault=self.mobility_fault,
             comm=self.comm.timing() if self.comm is not None else None,
+            mobility_limits=self.mobility_limits,
+            terrain=self.terrain,
         )
 
 
@@ -223,7 +231,14 @@ def rover_site(runtime: RoverRuntime) -> RoverSite:
     otherwise), its estimated pose and position uncertainty, and the keep-out zones and
     mobility fault its events report (``server.validation.reported``). Never from the live
     session, which may be a command ahead of the clock. Across the light time, its link
-    (``server.validation.comm_context.rover_link``) of the same moment."""
+    (``server.validation.comm_context.rover_link``) of the same moment. The mobility limits
+    it reports holding (its ``parameter`` events of ``mobility.<name>``), and the ground's
+    map around its reported position (``server.validation.terrain``) when the rover has a
+    ground map on this server (``server.terrain.feed.shared_feed``: its 3D views' or its
+    pointing advisor's, with the pairs they have fused; none: no map, no tilt check)."""
+    from server.terrain.feed import shared_feed  # the validation worker needs neither
+    from server.validation.terrain import rover_terrain
+
     landing = site(runtime.spec.site)
     with runtime.lock:
         last = runtime.last_frame  # a played-out record is never changed: no copy needed
@@ -233,6 +248,12 @@ def rover_site(runtime: RoverRuntime) -> RoverSite:
         fault = runtime.reported.mobility_fault
         link = rover_link(runtime)
     pose = _reported_pose(last)
+    feed = shared_feed(runtime)
+    terrain = None
+    if feed is not None and last is not None:
+        p_m, p_s = last["p_mission_est"], last["p_s_est"]
+        terrain = rover_terrain(feed.service, (float(p_m[0]), float(p_m[1])),
+                                (float(p_s[0]), float(p_s[1])))  # fmt: skip
     return RoverSite(
         runtime.spec.mission,
         math.radians(landing.lat_deg),
@@ -250,7 +271,21 @@ def rover_site(runtime: RoverRuntime) -> RoverSite:
         keepout_zones=zones,
         mobility_fault=fault,
         comm=link,
+        mobility_limits=reported_limits(params),
+        terrain=terrain,
     )
+
+
+def reported_limits(params: dict[str, float]) -> MobilityLimits | None:
+    """The mobility limits from the parameters the rover reported setting (``mobility.``
+    names; one the flight software would refuse is not in its table: skipped); ``None``
+    when it reported none."""
+    limits = LIMITS
+    for name, value in params.items():
+        if name.startswith("mobility."):
+            with contextlib.suppress(ValueError):
+                limits = replace_limit(limits, name.removeprefix("mobility."), value)
+    return None if limits == LIMITS else limits
 
 
 def _reported_pose(
@@ -274,12 +309,15 @@ def validation_context(runtime: RoverRuntime) -> ValidationContext:
     return rover_site(runtime).context()
 
 
-def stored_rover_site(store: Store, rover: str) -> RoverSite | None:
+def stored_rover_site(store: Store, rover: str, *, ground_map: bool = True) -> RoverSite | None:
     """A rover's ``RoverSite`` from its last checkpoint in ``store`` (``None`` if it has
     none): the state a server restarted on that database would resume, and validate
     against, with the last stored frame as the latest telemetry, as ``Server._resume``
-    sets it. ``roverops validate --rover NAME`` reads it when no ``--server`` is given."""
+    sets it. ``roverops validate --rover NAME`` reads it when no ``--server`` is given.
+    With ``ground_map`` its ground map is rebuilt from the pairs stored (``server.terrain.
+    feed``: the map a restarted server's 3D view would fuse), for the tilt check."""
     from server.runtime import ROVERS, RoverRuntime
+    from server.terrain.feed import ground_feed
 
     spec = ROVERS[rover]
     saved = store.load_checkpoint(rover)
@@ -288,4 +326,6 @@ def stored_rover_site(store: Store, rover: str) -> RoverSite | None:
     runtime = RoverRuntime.restore(spec, saved[1])
     runtime.last_frame = store.last_frame(rover)
     runtime.note_reported(store.events(rover, -math.inf, runtime.t_s))
+    if ground_map:
+        ground_feed(runtime, store).catch_up()  # the rover's shared feed, until it is gone
     return rover_site(runtime)

@@ -20,7 +20,8 @@ CLEARED_PREFIX = "mobility enabled"
 
 
 class ReportedState:
-    """The NATE parameters, keep-out zones and mobility fault the rover has reported."""
+    """The parameters (NATE's, ``mobility.<name>``, ``vo.<name>``), keep-out zones and mobility
+    fault the rover has reported."""
 
     def __init__(self) -> None:
         self.params: dict[str, float] = {}
