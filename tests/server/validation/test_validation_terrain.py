@@ -100,6 +100,7 @@ def test_the_context_with_its_map_pickles_small_and_the_worker_warns_with_it(
 ) -> None:
     # a steep patch stereo measured (no smoothing): 10 m North of the rover's reported pose
     grid = crop(coarse_map(_ground_map(_steep, imaged=True)), (2.0, 1.0), (0.0, 0.0), 3)
+    assert grid is not None
     site = RoverSite(
         "spirit", -0.2555, 3.0658, 1.6e8, aqf="Fine", p_s_est=(2.0, 1.0), heading_rad=0.0,
         terrain=grid,
