@@ -220,17 +220,36 @@ class DriveSafety:
         shifted = [(x + dx, y + dy) for x, y in path]
         if len(shifted) == 1:
             return zone.clearance_m(shifted[0]), "where it turns"
-        best, at, along, along_at = math.inf, 0, 0.0, 0.0
-        for i, (a, b) in enumerate(itertools.pairwise(shifted)):
-            d = zone.path_clearance_m(a, b)
-            if d < best:
-                best, at, along_at = d, i, along
+        chords = list(itertools.pairwise(shifted))
+        best = min(zone.path_clearance_m(a, b) for a, b in chords)
+        if best > 0.0:
+            return best, ""
+        along = 0.0
+        for i, (a, b) in enumerate(chords):
+            if zone.path_clearance_m(a, b) <= 0.0:
+                t = _entry(zone, a, b)
+                (x0, y0), (x1, y1) = path[i], path[i + 1]
+                x, y = x0 + t * (x1 - x0), y0 + t * (y1 - y0)
+                along += t * math.dist(a, b)
+                break
             along += math.dist(a, b)
-        x, y = path[at]
         return best, (
-            f"(from about ({x:.1f}, {y:.1f}) m in Site {self.site_index}, "
-            f"{along_at:.1f} m from the drive's start)"
+            f"(entering it {along:.2f} m from the drive's start, at ({x:.1f}, {y:.1f}) m "
+            f"in Site {self.site_index})"
         )
+
+
+def _entry(zone: KeepOutZone, a: tuple[float, float], b: tuple[float, float]) -> float:
+    """Where along the chord ``a``-``b`` (0 to 1) it first meets ``zone``, to a millimetre or
+    so: the clearance of the part ``a``-``a + t (b - a)`` only shrinks as ``t`` grows."""
+    if zone.clearance_m(a) <= 0.0:
+        return 0.0
+    lo, hi = 0.0, 1.0
+    for _ in range(20):
+        mid = 0.5 * (lo + hi)
+        end = (a[0] + mid * (b[0] - a[0]), a[1] + mid * (b[1] - a[1]))
+        lo, hi = (lo, mid) if zone.path_clearance_m(a, end) <= 0.0 else (mid, hi)
+    return hi
 
 
 def _hm(hours: float) -> str:

@@ -126,3 +126,32 @@ def test_the_mobility_commands_round_trip() -> None:
         c.describe() == "DRIVE_STRAIGHT distance_m=6.0 vo=true slip_limit_pct=40.0 vo_fail=continue"
     )
     assert math.isclose(float(cmd.KeepoutAdd(zone="w", x_m=1, y_m=2, radius_m=3).radius_m or 0), 3)
+
+
+def _entered_m(message: str) -> float:
+    found = re.search(r"entering it ([\d.]+) m from the drive's start", message)
+    assert found, message
+    return float(found[1])
+
+
+def test_a_crossing_says_where_along_the_drive_the_path_enters_the_zone() -> None:
+    zone = KeepOutZone.circle("dune", 0, 4.0, 0.3, 1.0)
+    straight = validate("DRIVE_STRAIGHT distance_m=6\n", _context(keepout_zones=(zone,)))
+    assert _entered_m(straight.warnings[0].message) == pytest.approx(
+        4.0 - math.sqrt(0.91), abs=0.01
+    )
+    # along an arc: the zone's centre on the arc's end, 2.5 m radius: the chord to the
+    # entry point is 1 m, so the path enters it 2 asin(0.2) short of its half turn
+    ctx = _context(keepout_zones=(KeepOutZone.circle("dune", 0, 0.0, 5.0, 1.0),))
+    arc = validate("DRIVE_ARC radius_m=2.5 angle_deg=180\n", ctx)
+    expected = 2.5 * (math.pi - 2.0 * math.asin(0.2))
+    assert _entered_m(arc.warnings[0].message) == pytest.approx(expected, abs=0.02)
+    # a polygon after a turn: the drive East from 1 m North enters its West edge at 3 m East
+    square = KeepOutZone.polygon("rock", 0, [(0.0, 3.0), (2.0, 3.0), (2.0, 5.0), (0.0, 5.0)])
+    turned = validate(
+        "TURN_IN_PLACE angle_deg=90\nDRIVE_STRAIGHT distance_m=6\n",
+        _context(keepout_zones=(square,), p_s_est=(1.0, 0.0)),
+    )
+    assert [(d.line, d.code) for d in turned.warnings] == [(2, "keepout-crossing")]
+    assert _entered_m(turned.warnings[0].message) == pytest.approx(3.0, abs=0.01)
+    assert "at (1.0, 3.0) m in Site 0" in turned.warnings[0].message
