@@ -90,13 +90,13 @@ def _turn(x: float, y: float, h: float, angle: float) -> PathSamples:
     return PathSamples(np.full(n, x), np.full(n, y), heading, np.zeros(n), np.ones(n, dtype=bool))
 
 
-def _straight(x: float, y: float, h: float, d: float, along0: float = 0.0) -> PathSamples:
-    s = np.linspace(0.0, d, max(2, math.ceil(d / SAMPLE_M) + 1))
+def _straight(x: float, y: float, h: float, d: float) -> PathSamples:
+    s = np.linspace(0.0, d, max(2, math.ceil(abs(d) / SAMPLE_M) + 1))
     return PathSamples(
         x + s * math.cos(h),
         y + s * math.sin(h),
         np.full(len(s), h),
-        along0 + s,
+        s,
         np.zeros(len(s), dtype=bool),
     )
 
@@ -146,24 +146,40 @@ def nominal_samples(c: Any, x: float, y: float, h: float) -> PathSamples:
     )
 
 
-def footprint_attitude(
-    grid: TerrainGrid, north_m: FloatArray, east_m: FloatArray, heading_rad: FloatArray
-) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """Roll and pitch (rad) of the rover set down on ``grid`` at mission-frame poses (module
-    docstring), NaN where a wheel is off the map; and the mean height 1σ (m) of the cells
-    under the wheels and the fraction of them stereo measured."""
+def _wheels(
+    north_m: FloatArray, east_m: FloatArray, heading_rad: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """The six wheels' centres (K, 6), North and East, of the rover at the poses."""
     c, s = np.cos(heading_rad)[:, None], np.sin(heading_rad)[:, None]
     wx, wy = _WHEEL_XY_B[:, 0][None, :], _WHEEL_XY_B[:, 1][None, :]
     wn = np.asarray(north_m)[:, None] + wx * c - wy * s  # body x (c, s), y (-s, c) in N, E
     we = np.asarray(east_m)[:, None] + wx * s + wy * c
-    heights = grid.height_at(wn, we)  # (K, 6)
+    return wn, we
+
+
+def footprint_attitude(
+    grid: TerrainGrid, north_m: FloatArray, east_m: FloatArray, heading_rad: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Roll and pitch (rad) of the rover set down on ``grid`` at mission-frame poses (module
+    docstring), NaN where a wheel is off the map."""
+    heights = grid.height_at(*_wheels(north_m, east_m, heading_rad))  # (K, 6)
     coeffs = heights @ _FIT.T  # (K, 3): a, s_x, s_y
     sx, sy = coeffs[:, 1], coeffs[:, 2]
-    pitch = np.arctan(sx)
-    roll = -np.arctan(sy / np.sqrt(1.0 + sx * sx))
-    sigma = np.mean(grid.sigma_at(wn, we), axis=1)
-    imaged = np.mean(grid.imaged_at(wn, we), axis=1)
-    return roll, pitch, sigma, imaged
+    return -np.arctan(sy / np.sqrt(1.0 + sx * sx)), np.arctan(sx)
+
+
+def footprint_map(grid: TerrainGrid, north_m: float, east_m: float, heading_rad: float) -> str:
+    """What the map knows under the rover's wheels at one pose: their cells' mean height 1σ,
+    and whether stereo measured them or the orbital DEM alone has them."""
+    wn, we = _wheels(np.array([north_m]), np.array([east_m]), np.array([heading_rad]))
+    sigma = float(np.mean(grid.sigma_at(wn, we)))
+    imaged = float(np.mean(grid.imaged_at(wn, we)))
+    words = f"the map's height 1σ there is {sigma:.2f} m"
+    if imaged <= 0.0:
+        return f"{words}, the orbital DEM only (no stereo pair has imaged it)"
+    if imaged < 1.0:
+        return f"{words}, partly from the rover's stereo, partly the orbital DEM only"
+    return f"{words}, from the rover's stereo"
 
 
 @dataclass
@@ -195,7 +211,17 @@ class TiltCheck:
         on, oe = self.grid.site_origin_m
         north = samples.north_m + on + site_offset_m[0]
         east = samples.east_m + oe + site_offset_m[1]
-        roll, pitch, sigma, imaged = footprint_attitude(self.grid, north, east, samples.heading_rad)
+        grid = self.grid
+        ny, nx = grid.shape
+        reach = 1.0  # m: the wheels around a pose
+        if (
+            north.max() + reach < grid.north0_m
+            or north.min() - reach > grid.north0_m + (ny - 1) * grid.cell_m
+            or east.max() + reach < grid.east0_m
+            or east.min() - reach > grid.east0_m + (nx - 1) * grid.cell_m
+        ):
+            return None  # off the map
+        roll, pitch = footprint_attitude(grid, north, east, samples.heading_rad)
         worst = np.maximum(np.abs(roll), np.abs(pitch))
         known = np.flatnonzero(np.isfinite(worst))
         if known.size == 0:
@@ -214,7 +240,7 @@ class TiltCheck:
                 f"on the ground's map the nominal path tilts the rover "
                 f"{_attitude(roll[k], pitch[k])} {_where(samples, k)}{most}, past its "
                 f"tilt limit of {limit_deg:.1f} deg (mobility.tilt_limit_rad): the drive "
-                f"will halt there; {_map_words(sigma[k], imaged[k])}",
+                f"will halt there; {self._map(samples, north, east, k)}",
             )
             return "its tilt limit"
         if worst[top] > limit_rad - math.radians(NEAR_LIMIT_DEG):
@@ -224,9 +250,12 @@ class TiltCheck:
                 f"on the ground's map the nominal path tilts the rover up to "
                 f"{_attitude(roll[top], pitch[top])} {_where(samples, top)}, within "
                 f"{NEAR_LIMIT_DEG:g} deg of its tilt limit of {limit_deg:.1f} deg "
-                f"(mobility.tilt_limit_rad); {_map_words(sigma[top], imaged[top])}",
+                f"(mobility.tilt_limit_rad); {self._map(samples, north, east, top)}",
             )
         return None
+
+    def _map(self, samples: PathSamples, north: FloatArray, east: FloatArray, k: int) -> str:
+        return footprint_map(self.grid, north[k], east[k], samples.heading_rad[k])
 
 
 def _attitude(roll: float, pitch: float) -> str:
@@ -242,17 +271,3 @@ def _where(samples: PathSamples, k: int) -> str:
         heading = math.degrees(float(samples.heading_rad[k])) % 360.0
         return f"as it turns, at heading {heading:.0f} deg"
     return f"{float(samples.along_m[k]):.1f} m from the drive's start"
-
-
-def _map_words(sigma_m: float, imaged: float) -> str:
-    if imaged <= 0.0:
-        return (
-            f"the map's height 1σ there is {sigma_m:.2f} m, the orbital DEM only "
-            "(no stereo pair has imaged it)"
-        )
-    if imaged < 1.0:
-        return (
-            f"the map's height 1σ there is {sigma_m:.2f} m, partly from the rover's "
-            "stereo, partly the orbital DEM only"
-        )
-    return f"the map's height 1σ there is {sigma_m:.2f} m, from the rover's stereo"

@@ -86,16 +86,16 @@ class TerrainGrid:
         i = (np.asarray(north_m, dtype=np.float64) - self.north0_m) / self.cell_m
         j = (np.asarray(east_m, dtype=np.float64) - self.east0_m) / self.cell_m
         ny, nx = self.shape
-        inside = (i >= 0.0) & (i <= ny - 1) & (j >= 0.0) & (j <= nx - 1)
-        i = np.clip(np.nan_to_num(i), 0.0, ny - 1.000001)
-        j = np.clip(np.nan_to_num(j), 0.0, nx - 1.000001)
-        i0, j0 = np.floor(i).astype(np.intp), np.floor(j).astype(np.intp)
+        inside = (i >= 0.0) & (i <= ny - 1) & (j >= 0.0) & (j <= nx - 1)  # False for NaN
+        i = np.where(inside, i, 0.0).clip(0.0, ny - 1.000001)
+        j = np.where(inside, j, 0.0).clip(0.0, nx - 1.000001)
+        i0, j0 = i.astype(np.intp), j.astype(np.intp)  # floor: i, j >= 0
         return i0, j0, i - i0, j - j0, inside
 
     def height_at(self, north_m: FloatArray, east_m: FloatArray) -> FloatArray:
         """Bilinear height (m, up) at mission-frame points; NaN off the grid."""
         i0, j0, fi, fj, inside = self._cells(north_m, east_m)
-        h = np.asarray(self.height_m, dtype=np.float64)
+        h = self.height_m  # float32 or float64: only the corners gathered are converted
         out = (1 - fi) * ((1 - fj) * h[i0, j0] + fj * h[i0, j0 + 1]) + fi * (
             (1 - fj) * h[i0 + 1, j0] + fj * h[i0 + 1, j0 + 1]
         )
@@ -104,13 +104,11 @@ class TerrainGrid:
     def sigma_at(self, north_m: FloatArray, east_m: FloatArray) -> FloatArray:
         """The height 1σ (m) of the nearest cell; NaN off the grid."""
         i0, j0, fi, fj, inside = self._cells(north_m, east_m)
-        sigma = np.asarray(self.sigma_m, dtype=np.float64)
-        out = sigma[i0 + np.rint(fi).astype(np.intp), j0 + np.rint(fj).astype(np.intp)]
-        return np.where(inside, out, np.nan)
+        out = self.sigma_m[i0 + np.rint(fi).astype(np.intp), j0 + np.rint(fj).astype(np.intp)]
+        return np.where(inside, out.astype(np.float64), np.nan)
 
     def imaged_at(self, north_m: FloatArray, east_m: FloatArray) -> NDArray[np.bool_]:
         """Whether stereo measured the nearest cell (False off the grid)."""
         i0, j0, fi, fj, inside = self._cells(north_m, east_m)
-        imaged = np.asarray(self.imaged, dtype=bool)
-        out = imaged[i0 + np.rint(fi).astype(np.intp), j0 + np.rint(fj).astype(np.intp)]
-        return out & inside
+        out = self.imaged[i0 + np.rint(fi).astype(np.intp), j0 + np.rint(fj).astype(np.intp)]
+        return np.asarray(out, dtype=bool) & inside

@@ -15,7 +15,12 @@ from estimation.geometry import FLIGHT_GEOMETRY
 from estimation.protection.attitude_limits import tilt_rad
 from estimation.protection.limits import LIMITS, replace_limit
 from sequences import commands as cmd
-from sequences.terrain_check import NEAR_LIMIT_DEG, footprint_attitude, nominal_samples
+from sequences.terrain_check import (
+    NEAR_LIMIT_DEG,
+    footprint_attitude,
+    footprint_map,
+    nominal_samples,
+)
 from sequences.terrain_grid import TerrainGrid
 from sequences.validate import CODES, ValidationContext, ValidationResult, validate
 
@@ -175,7 +180,7 @@ def test_the_footprint_on_a_plane_tilts_the_rover_by_the_plane_s_slope_at_any_he
     gn, ge = math.cos(azimuth) * math.tan(theta), math.sin(azimuth) * math.tan(theta)
     grid = _grid(lambda n, e: gn * n + ge * e)
     headings = np.radians(np.arange(35.0, 395.0, 15.0))  # from straight uphill
-    roll, pitch, sigma, imaged = footprint_attitude(
+    roll, pitch = footprint_attitude(
         grid, np.full(len(headings), 3.0), np.full(len(headings), -2.0), headings
     )
     for r, p in zip(roll, pitch, strict=True):
@@ -185,7 +190,10 @@ def test_the_footprint_on_a_plane_tilts_the_rover_by_the_plane_s_slope_at_any_he
     assert math.degrees(roll[up]) == pytest.approx(0.0, abs=1e-3)
     right = 18  # heading 305 deg: uphill on its right
     assert roll[right] < 0.0  # the right side up: roll is right side down positive
-    assert np.allclose(sigma, 0.3) and np.all(imaged == 0.0)
+    assert footprint_map(grid, 3.0, -2.0, 0.0).endswith(
+        "the orbital DEM only (no stereo pair has imaged it)"
+    )
+    assert "1σ there is 0.30 m" in footprint_map(grid, 3.0, -2.0, 0.0)
 
 
 def test_the_nominal_samples_follow_the_commands() -> None:

@@ -88,7 +88,7 @@ def test_the_orbital_dem_s_noise_is_not_read_as_tilt() -> None:
                       gmap.imaged, (0.0, 0.0))  # fmt: skip
     poses = rng.uniform(-20.0, 20.0, (400, 3))
     tilts = [
-        np.degrees(np.maximum(*np.abs(footprint_attitude(g, *poses.T)[:2])))
+        np.degrees(np.maximum(*np.abs(footprint_attitude(g, *poses.T))))
         for g in (raw, smoothed)
     ]
     assert np.median(tilts[0]) > 5.0
