@@ -24,7 +24,7 @@ from server.app import ServerConfig, create_app, data_dir_url
 from server.runtime import ROVERS, RoverRuntime
 from server.terrain.feed import ground_feed
 from server.terrain.ground_map import GroundMap
-from server.validation.context import RoverSite, rover_site
+from server.validation.context import RoverSite, rover_site, stored_rover_site
 from server.validation.pool import ValidationPool
 from server.validation.terrain import CROP_HALF_M, GRID_CELL_M, coarse_map, crop
 
@@ -88,8 +88,7 @@ def test_the_orbital_dem_s_noise_is_not_read_as_tilt() -> None:
                       gmap.imaged, (0.0, 0.0))  # fmt: skip
     poses = rng.uniform(-20.0, 20.0, (400, 3))
     tilts = [
-        np.degrees(np.maximum(*np.abs(footprint_attitude(g, *poses.T))))
-        for g in (raw, smoothed)
+        np.degrees(np.maximum(*np.abs(footprint_attitude(g, *poses.T)))) for g in (raw, smoothed)
     ]
     assert np.median(tilts[0]) > 5.0
     assert np.median(tilts[1]) < 1.5
@@ -180,3 +179,21 @@ def test_an_upload_is_checked_on_the_rover_s_ground_map(
     site = rover_site(server.rover("spirit"))
     assert site.terrain is not None and site.terrain.stereo_pairs == 0
     assert len(pickle.dumps(site)) < 400_000
+
+
+def test_the_database_s_rover_site_has_its_map_and_limits(served: tuple[TestClient, Any]) -> None:
+    """``roverops validate --rover`` without a server: the map rebuilt from the stored pairs
+    (none here: the orbital DEM), the limits from the stored events."""
+    _, server = served
+    runtime = server.rover("spirit")
+    runtime.checkpoint()
+    server.writer.flush()
+    site = stored_rover_site(server.store, "spirit")
+    assert site is not None and site.terrain is not None
+    assert site.mobility_limits is not None
+    assert site.mobility_limits.tilt_limit_rad == pytest.approx(math.radians(0.1))
+    live = rover_site(runtime)
+    assert live.terrain is not None and site.terrain.site_origin_m == live.terrain.site_origin_m
+    assert np.array_equal(site.terrain.height_m, live.terrain.height_m)  # the same map
+    without = stored_rover_site(server.store, "spirit", ground_map=False)
+    assert without is not None and without.terrain is None
