@@ -69,6 +69,9 @@ NEAR_LIMIT_DEG = 3.0  # ``tilt-near-limit``'s margin (module docstring)
 
 _WHEEL_XY_B = FLIGHT_GEOMETRY.wheel_xy_b()  # (6, 2): x forward, y right
 _FIT = np.linalg.pinv(np.column_stack([np.ones(6), _WHEEL_XY_B]))  # (3, 6): a, s_x, s_y
+_REACH_M = float(np.max(np.hypot(*_WHEEL_XY_B.T)))  # the farthest wheel from the origin
+# |s_x|, |s_y| <= _SLOPE_GAIN * the gradient's bound (TiltCheck): 1.36 for MER's wheels
+_SLOPE_GAIN = float(np.max(np.abs(_FIT[1:]) @ np.hypot(*_WHEEL_XY_B.T)))
 
 
 @dataclass(frozen=True)
@@ -157,6 +160,17 @@ def _wheels(
     return wn, we
 
 
+def _gradient_bound(grid: TerrainGrid) -> FloatArray:
+    """Per cell (ny - 1, nx - 1), a bound on the gradient of the bilinear surface inside it:
+    its North derivative lies between the cell's two North edges' differences over the
+    cell, its East one between the two East edges'."""
+    h = np.asarray(grid.height_m, dtype=np.float64)
+    dn = np.abs(np.diff(h, axis=0)) / grid.cell_m  # (ny - 1, nx)
+    de = np.abs(np.diff(h, axis=1)) / grid.cell_m  # (ny, nx - 1)
+    out: FloatArray = np.hypot(np.maximum(dn[:, :-1], dn[:, 1:]), np.maximum(de[:-1], de[1:]))
+    return out
+
+
 def footprint_attitude(
     grid: TerrainGrid, north_m: FloatArray, east_m: FloatArray, heading_rad: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
@@ -184,16 +198,25 @@ def footprint_map(grid: TerrainGrid, north_m: float, east_m: float, heading_rad:
 
 @dataclass
 class TiltCheck:
-    """The check of the module docstring, called by ``sequences.drive_safety`` per drive."""
+    """The check of the module docstring, called by ``sequences.drive_safety`` per drive.
+
+    A drive over gentle ground is passed without setting the rover down at each sample: the
+    plane's slopes are weighted sums of the wheels' heights, ``s = Σ P_i h_i`` with
+    ``Σ P_i = 0``, so ``|s| ≤ Σ |P_i| r_i · G`` where ``r_i`` is a wheel's distance from the
+    rover's origin and ``G`` bounds the map's gradient there (``_gradient_bound``); when
+    ``atan`` of that stays under the near-limit threshold, neither warning can be given."""
 
     warn: Warn
     grid: TerrainGrid
+    gradient: FloatArray  # per cell, a bound on the bilinear surface's gradient
 
     @classmethod
     def start(cls, warn: Warn, context: Any) -> TiltCheck | None:
         """From a ``ValidationContext``: ``None`` when it has no map (the check is silent)."""
         grid = getattr(context, "terrain", None)
-        return cls(warn, grid) if isinstance(grid, TerrainGrid) else None
+        if not isinstance(grid, TerrainGrid):
+            return None
+        return cls(warn, grid, _gradient_bound(grid))
 
     def drive(
         self,
@@ -213,14 +236,16 @@ class TiltCheck:
         east = samples.east_m + oe + site_offset_m[1]
         grid = self.grid
         ny, nx = grid.shape
-        reach = 1.0  # m: the wheels around a pose
-        if (
-            north.max() + reach < grid.north0_m
-            or north.min() - reach > grid.north0_m + (ny - 1) * grid.cell_m
-            or east.max() + reach < grid.east0_m
-            or east.min() - reach > grid.east0_m + (nx - 1) * grid.cell_m
-        ):
+        i_lo = math.floor((float(north.min()) - _REACH_M - grid.north0_m) / grid.cell_m)
+        i_hi = math.ceil((float(north.max()) + _REACH_M - grid.north0_m) / grid.cell_m)
+        j_lo = math.floor((float(east.min()) - _REACH_M - grid.east0_m) / grid.cell_m)
+        j_hi = math.ceil((float(east.max()) + _REACH_M - grid.east0_m) / grid.cell_m)
+        if i_hi < 0 or j_hi < 0 or i_lo > ny - 1 or j_lo > nx - 1:
             return None  # off the map
+        under = self.gradient[max(i_lo, 0) : i_hi + 1, max(j_lo, 0) : j_hi + 1]
+        near_rad = limit_rad - math.radians(NEAR_LIMIT_DEG)
+        if under.size and math.atan(_SLOPE_GAIN * float(under.max())) <= near_rad:
+            return None  # too gentle to come near the limit (class docstring)
         roll, pitch = footprint_attitude(grid, north, east, samples.heading_rad)
         worst = np.maximum(np.abs(roll), np.abs(pitch))
         known = np.flatnonzero(np.isfinite(worst))

@@ -225,3 +225,24 @@ def test_the_codes_and_the_grid_checks() -> None:
         TerrainGrid(0.0, 0.0, 1.0, flat + np.nan, flat, flat > 0, (0.0, 0.0))
     with pytest.raises(ValueError, match="site_origin_m"):
         TerrainGrid(0.0, 0.0, 1.0, flat, flat, flat > 0, (0.0, math.inf))
+
+
+def test_the_gentle_ground_shortcut_never_hides_a_tilt() -> None:
+    """The bound ``TiltCheck`` skips gentle drives with holds on rough random maps: the
+    rover's tilt at a pose never exceeds ``atan`` of the slope gain times the largest
+    gradient bound of the cells within a wheel's reach."""
+    from sequences.terrain_check import _REACH_M, _SLOPE_GAIN, _gradient_bound
+
+    rng = np.random.default_rng(3)
+    for roughness in (0.02, 0.2, 1.0):
+        grid = _grid(lambda n, e, s=roughness: rng.normal(0.0, s, n.shape))
+        bound = _gradient_bound(grid)
+        poses = rng.uniform(-30.0, 30.0, (300, 3))
+        roll, pitch = footprint_attitude(grid, *poses.T)
+        for (n, e, _), r, p in zip(poses, roll, pitch, strict=True):
+            i0 = math.floor((n - _REACH_M - grid.north0_m) / grid.cell_m)
+            j0 = math.floor((e - _REACH_M - grid.east0_m) / grid.cell_m)
+            i1 = math.ceil((n + _REACH_M - grid.north0_m) / grid.cell_m)
+            j1 = math.ceil((e + _REACH_M - grid.east0_m) / grid.cell_m)
+            limit = math.atan(_SLOPE_GAIN * float(bound[i0 : i1 + 1, j0 : j1 + 1].max()))
+            assert max(abs(r), abs(p)) <= limit + 1e-9
