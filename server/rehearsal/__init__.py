@@ -1,2 +1,3 @@
-"""Rehearsal campaigns on the server (issue 25): a sequence rehearsed many times on sampled
-worlds, from what the ground knows, on Dask."""
+"""Rehearsal campaigns: a sequence run hundreds of times on Dask over worlds sampled from
+what the ground knows (``sim.rehearsal.inputs``), and what comes back: the risk table and
+the report of predicted against executed."""
