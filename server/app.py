@@ -62,15 +62,14 @@ WEB_DIR = Path(__file__).resolve().parent.parent / "web"  # the console, served 
 def create_app(config: ServerConfig) -> FastAPI:
     """The FastAPI app over a new ``Server``."""
     server = Server.open(config)
-    rehearsals = RehearsalService(server.store, config.dask_scheduler)
 
     @asynccontextmanager
-    async def lifespan(_: FastAPI) -> AsyncIterator[None]:
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         server.start()
         try:
             yield
         finally:
-            rehearsals.close()  # its campaigns stored as stopped, its workers ended
+            app.state.rehearsals.close()  # its campaigns stored as stopped, its workers ended
             server.stop()
 
     app = FastAPI(
@@ -83,7 +82,8 @@ def create_app(config: ServerConfig) -> FastAPI:
     allow_every_method(app)
     install_error_handlers(app)  # domain errors to HTTP (server.api.deps)
     app.state.server = server  # what server.api.deps.ServerDep hands the routes
-    app.state.rehearsals = rehearsals  # server.rehearsal.api
+    # server.rehearsal.api; the cluster starts on the first campaign
+    app.state.rehearsals = RehearsalService(server.store, config.dask_scheduler)
     app.add_middleware(AuditMiddleware, server=server)
     if config.public_read:
         document_public_reads(app)

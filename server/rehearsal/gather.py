@@ -6,7 +6,7 @@ what its events reported of its onboard tables (``server.validation.reported.Rep
 NATE parameters, keep-out zones, mobility fault), its spec (site, mission) and the ground's
 terrain map (``server.terrain.ground_map.GroundMap``), cropped to ``CROP_HALF_M`` around the
 rover's reported position so that the inputs a campaign pickles to every Dask worker stay
-small. The VO rig is the one a reported ``vo_rig`` parameter names, else 256.
+small. The VO rig is the one a reported ``vo.rig`` parameter names, else 256.
 
 Two thin adapters fill those arguments:
 
@@ -45,6 +45,7 @@ if TYPE_CHECKING:
 
 CROP_HALF_M = 40.0  # the map sent to the workers: this far around the rover, m
 VO_RIGS = (256, 1024)
+VO_RIG_PARAM = "vo.rig"  # SET_PARAM's name of the VO pairs' width (docs/sequences.md)
 # Where a server places a rover's start (``sim.loop.rover_sim.RoverSim``'s default
 # placement, which ``server.runtime.RoverRuntime`` keeps): the landing the mission localised,
 # around which its ground map is made (``server.terrain.feed.ground_feed``).
@@ -56,8 +57,8 @@ class NoReportError(ValueError):
 
 
 def reported_vo_rig(params: Mapping[str, float]) -> int:
-    """The VO rig a reported ``vo_rig`` parameter names (256 or 1024), else 256."""
-    value = params.get("vo_rig")
+    """The VO rig a reported ``vo.rig`` parameter names (256 or 1024), else 256."""
+    value = params.get(VO_RIG_PARAM)
     if value is not None and math.isfinite(value) and int(value) in VO_RIGS:
         return int(value)
     return 256

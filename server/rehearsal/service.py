@@ -47,7 +47,7 @@ JOIN_S = 10.0  # how long ``close`` waits for a campaign's thread
 def campaign_risk(inputs: RehearsalInputs, outcomes: Sequence[RunOutcome]) -> dict[str, Any]:
     """The risk table of a campaign's ``outcomes`` (``server.rehearsal.risk.risk_table``)
     with the keep-out zones and the tilt limit the rover reported."""
-    limit_rad = inputs.start.params.get("tilt_limit_rad")
+    limit_rad = inputs.start.params.get("mobility.tilt_limit_rad")
     kwargs: dict[str, Any] = {}
     if limit_rad is not None and math.isfinite(limit_rad) and limit_rad > 0.0:
         kwargs["tilt_limit_deg"] = math.degrees(limit_rad)
