@@ -71,6 +71,7 @@ WINDOW_HALF_M = 80.0  # the map error is drawn over this half-size around the re
 KEYS_A = -0.5  # Keys 1981: the cubic convolution kernel's parameter (third-order accurate)
 _CACHE_MAPS = 4  # maps kept per process (one campaign uses one)
 MIN_FRICTION_DEG, MAX_FRICTION_DEG = 15.0, 50.0  # a drawn soil stays a soil
+LEVEL_INNER_M, LEVEL_OUTER_M = 1.5, 6.0  # the start's slope: whole, then fading out (StartSlope)
 
 
 def _keys_weights(t: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
@@ -249,20 +250,48 @@ class UnresolvedRelief:
         return out
 
 
+@dataclass(frozen=True)
+class StartSlope:
+    """A slope ``gradient`` (dh/dx, dh/dy) added about ``centre_m``: whole within
+    ``LEVEL_INNER_M``, fading (smoothstep in the distance) to nothing at ``LEVEL_OUTER_M``."""
+
+    centre_m: tuple[float, float]
+    gradient: tuple[float, float]
+
+    def at(self, x: FloatArray, y: FloatArray) -> FloatArray:
+        dx, dy = x - self.centre_m[0], y - self.centre_m[1]
+        r = np.clip((np.hypot(dx, dy) - LEVEL_INNER_M) / (LEVEL_OUTER_M - LEVEL_INNER_M), 0.0, 1.0)
+        fade = 1.0 - r * r * (3.0 - 2.0 * r)
+        out: FloatArray = (self.gradient[0] * dx + self.gradient[1] * dy) * fade
+        return out
+
+
 class SampledGround:
-    """The run's ground field (``GroundField``): map + drawn error + unresolved relief."""
+    """The run's ground field (``GroundField``): map + drawn error + unresolved relief, and
+    the slope that sets the reported tilt under the start (``StartSlope``, optional)."""
 
     def __init__(
-        self, surface: MapSurface, error: CubicGrid | None, relief: UnresolvedRelief
+        self,
+        surface: MapSurface,
+        error: CubicGrid | None,
+        relief: UnresolvedRelief,
+        start_slope: StartSlope | None = None,
     ) -> None:
         self.surface, self.error, self.relief = surface, error, relief
+        self.start_slope = start_slope
+
+    def with_start_slope(self, slope: StartSlope) -> SampledGround:
+        """The same ground with ``slope`` added (replacing any)."""
+        return SampledGround(self.surface, self.error, self.relief, slope)
 
     def map_part(self, x_m: ArrayLike, y_m: ArrayLike) -> FloatArray:
-        """The map and its drawn error, without the unresolved relief."""
+        """The map and its drawn error (and the start's slope), without the unresolved relief."""
         x, y = np.broadcast_arrays(np.asarray(x_m, np.float64), np.asarray(y_m, np.float64))
         out = self.surface.mean.at(x, y)
         if self.error is not None:
             out = out + self.error.at(x, y)
+        if self.start_slope is not None:
+            out = out + self.start_slope.at(x, y)
         return out
 
     def at(self, x_m: ArrayLike, y_m: ArrayLike) -> FloatArray:
@@ -315,16 +344,40 @@ def sampled_soil(site_name: str, priors: Priors, rng: np.random.Generator) -> So
     )
 
 
-def sampled_terrain(
+@dataclass(frozen=True)
+class SampledWorld:
+    """One run's drawn world: its ground, soil, rocks and texture (``terrain`` builds it)."""
+
+    site_name: str
+    ground: SampledGround
+    soil: Soil
+    rocks: UnimagedRocks
+    texture: AlbedoTexture
+
+    def terrain(self) -> HeightmapTerrain:
+        """The world as a ``HeightmapTerrain`` (tiles built on demand)."""
+        return HeightmapTerrain(
+            self.site_name, self.soil, self.ground, self.texture, stamp=self.rocks.stamp
+        )
+
+    def with_start_slope(self, slope: StartSlope) -> SampledWorld:
+        """The world with ``slope`` added under the start (the rocks sit on the new ground)."""
+        ground = self.ground.with_start_slope(slope)
+        old = self.rocks.rocks
+        rocks = RockField(old.seed, old.population, ground=ground, cell_m=old.cell_m)
+        return replace(self, ground=ground, rocks=UnimagedRocks(rocks, self.rocks.surface))
+
+
+def sampled_world(
     site_name: str,
     gmap: GroundMapData,
     priors: Priors,
     centre_m: tuple[float, float],
     seed: int,
     rng: np.random.Generator,
-) -> HeightmapTerrain:
-    """One run's terrain (module docstring): ``seed`` (an int in [0, 2**63)) seeds the
-    site's generators (relief, rocks, albedo), ``rng`` draws the map's error and the soil;
+) -> SampledWorld:
+    """One run's world (module docstring): ``seed`` (an int in [0, 2**63)) seeds the site's
+    generators (relief, rocks, albedo), ``rng`` draws the map's error and the soil;
     ``centre_m`` the reported start (North, East, mission frame)."""
     surface = map_surface(gmap)
     error = map_error(surface, centre_m, rng)
@@ -337,4 +390,4 @@ def sampled_terrain(
         population = RockPopulation(MERIDIANI_ROCK_ABUNDANCE, d_max_m=0.5)
         albedo = MERIDIANI_ALBEDO
     rocks = UnimagedRocks(RockField(seed, population, ground=ground), surface)
-    return HeightmapTerrain(site_name, soil, ground, AlbedoTexture(seed, albedo), stamp=rocks.stamp)
+    return SampledWorld(site_name, ground, soil, rocks, AlbedoTexture(seed, albedo))
