@@ -210,6 +210,7 @@ def run_campaign(inputs: Any, runs: int, seed: int, scheduler: str) -> dict[str,
         "done": now.done, "seed": seed, "warmup_s": warmup_s,
         "wall_s": time.monotonic() - started, "risk": risk,
         "cluster": scheduler or "embedded",
+        "workers": sorted({o.worker for o in outcomes}),
     }  # fmt: skip
 
 
