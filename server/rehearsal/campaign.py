@@ -154,9 +154,9 @@ class Campaign:
             if self._state in FINAL_STATES:
                 return self._progress_locked()
             futures = list(self._futures)
+        self._finish("cancelled", None)  # first: the watcher then takes no cancelled run as lost
         if futures:
             self.cluster.client.cancel(futures)
-        self._finish("cancelled", None)
         return self.progress()
 
     def on_progress(self, callback: Callable[[Progress], None]) -> None:
@@ -208,7 +208,7 @@ class Campaign:
     def _watch(self) -> None:
         futures = self._futures
         try:
-            for future in _as_completed(futures):
+            for future in _as_completed(futures, loop=self.cluster.client.loop):
                 if self.state in FINAL_STATES:
                     break
                 status = future.status
