@@ -160,6 +160,9 @@ class RehearsalCluster:
             threads_per_worker=1,
             processes=True,
             dashboard_address=None,
+            # its health routes on a free local port, not on 8787 (no dashboard either way)
+            scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+            host="127.0.0.1",
             silence_logs=logging.WARNING,
             env=dict(WORKER_ENV),
         )
