@@ -12,7 +12,7 @@ def test_cubic_grid_passes_through_samples_and_reproduces_a_plane() -> None:
     rng = np.random.default_rng(4)
     values = rng.standard_normal((12, 9))
     grid = CubicGrid.of(1.0, -2.0, 0.5, values)
-    i, j = np.meshgrid(np.arange(12), np.arange(9), indexing="ij")
+    i, j = (a.astype(np.float64) for a in np.meshgrid(np.arange(12), np.arange(9), indexing="ij"))
     assert np.allclose(grid.at(1.0 + 0.5 * i, -2.0 + 0.5 * j), values, atol=1e-12)
     plane = CubicGrid.of(0.0, 0.0, 1.0, 3.0 * i - 2.0 * j + 1.0)
     x, y = rng.uniform(1.0, 8.0, 50), rng.uniform(1.0, 6.0, 50)  # away from the edges
