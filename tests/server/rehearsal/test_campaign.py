@@ -87,10 +87,11 @@ def test_a_campaign_runs_to_the_end_with_progress(cluster: RehearsalCluster) -> 
     assert all(o.wall_s > 0.0 and o.worker in cluster.workers() for o in outcomes)
     assert [len(o.steps) for o in outcomes] == [3] * 9
     assert [o.steps[1].line for o in outcomes] == [3] * 9
-    # one notice per run and one at the end; done counts up to the total
-    assert len(seen) == 10 and [p.done for p in seen[:9]] == list(range(1, 10))
+    # a notice as the runs go, one per run and one at the end; done counts up to the total
+    assert seen[0] == Progress(0, 9, None, "running")
+    assert len(seen) == 11 and [p.done for p in seen[1:10]] == list(range(1, 10))
     assert seen[-1].state == "done"
-    running = [p for p in seen[:8] if p.state == "running"]
+    running = [p for p in seen[1:9] if p.state == "running"]
     assert running and all(p.eta_s is not None and p.eta_s > 0.0 for p in running)
     assert campaign.cancel().state == "done"  # over: cancel changes nothing
 
