@@ -13,8 +13,9 @@ import pytest
 from distributed import Event
 
 from server.rehearsal.campaign import Campaign, Progress
-from server.rehearsal.cluster import RehearsalCluster, validate_address
+from server.rehearsal.cluster import RehearsalCluster, _warm_up, validate_address
 from sim.rehearsal.inputs import GroundMapData, RehearsalInputs, ReportedStart
+from sim.rehearsal.outcome import RunOutcome
 from tests.server.rehearsal import rehearsal_tasks as tasks
 
 TASKS = "tests.server.rehearsal.rehearsal_tasks"
@@ -169,3 +170,17 @@ def test_bad_campaign_arguments_are_refused(cluster: RehearsalCluster) -> None:
         Campaign(cluster, _inputs(), runs=1, run="not a reference", start=False)
     with pytest.raises(ValueError, match="inputs"):
         Campaign(cluster, "inputs", runs=1, start=False)  # type: ignore[arg-type]
+
+
+def test_warm_up_without_a_warm_up_function_makes_one_throwaway_run() -> None:
+    calls: list[tuple[int, int]] = []
+
+    def counting_run(inputs: RehearsalInputs, run_index: int, seed: int) -> RunOutcome:
+        calls.append((run_index, seed))
+        return tasks.kinematic_run(inputs, run_index, seed)
+
+    assert _warm_up(counting_run) >= 0.0 and calls == []  # no inputs: an import only
+    assert _warm_up(counting_run, _inputs()) >= 0.0 and calls == [(0, 0)]
+    before = tasks.warmed()
+    _warm_up(f"{TASKS}:kinematic_run", _inputs())  # the module's own warm_up(), no run
+    assert tasks.warmed() == before + 1
