@@ -190,7 +190,7 @@ def run_campaign(inputs: Any, runs: int, seed: int, scheduler: str) -> dict[str,
         raise InputError("--dask-scheduler", f"cannot reach {scheduler}: {error}") from None
     progress = Progress(runs)
     try:
-        warmup_s = cluster.warm_up()
+        warmup_s = cluster.warm_up(inputs=inputs)
         campaign = Campaign(cluster, inputs, runs, seed)
         try:
             while not campaign.wait(0.25):

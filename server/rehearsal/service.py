@@ -243,7 +243,7 @@ class RehearsalService:
             if job.cancelled is not None:
                 return
             cluster = self.cluster()
-            warmup_s = cluster.warm_up(self.run)
+            warmup_s = cluster.warm_up(self.run, inputs)
             campaign = Campaign(cluster, inputs, job.summary["runs"], job.summary["seed"],
                                 self.run, campaign_id=f"{rid}-{uuid.uuid4().hex[:8]}",
                                 start=False)  # fmt: skip
