@@ -41,7 +41,7 @@ log = logging.getLogger(__name__)
 MAX_RUNNING_PER_USER = 2  # campaigns one user may have queued or running at once
 PROGRESS_STORE_S = 1.0  # the stored ``done`` is brought up to date at most this often
 PARTIAL_RISK_S = 2.0  # a running campaign's partial risk table is recomputed at most so often
-JOIN_S = 10.0  # how long ``close`` waits for a campaign's thread
+JOIN_S = 3.0  # how long ``close`` waits for the campaigns' threads (they store their runs)
 
 
 def campaign_risk(inputs: RehearsalInputs, outcomes: Sequence[RunOutcome]) -> dict[str, Any]:
@@ -190,13 +190,14 @@ class RehearsalService:
         for job in jobs:
             if job.summary["state"] in stored.UNFINISHED:
                 self._cancel(job, stored.SERVER_STOPPED)
-        for job in jobs:
-            if job.thread is not None:
-                job.thread.join(JOIN_S)
-        with self._cluster_lock:
+        with self._cluster_lock:  # a warm-up waiting on a worker then ends too
             cluster, self._cluster = self._cluster, None
         if cluster is not None:
             cluster.close()
+        deadline = time.monotonic() + JOIN_S
+        for job in jobs:
+            if job.thread is not None:
+                job.thread.join(max(0.0, deadline - time.monotonic()))
         stored.stop_unfinished(self.store)  # a thread that did not end in time
 
     # ---- inside ----------------------------------------------------------------------
