@@ -101,21 +101,41 @@ class CubicGrid:
         padded = np.pad(np.asarray(values, dtype=np.float64), 2, mode="edge")
         return cls(float(north0_m), float(east0_m), float(cell_m), padded)
 
+    def _axis(
+        self, coord_m: FloatArray, origin_m: float, size: int
+    ) -> tuple[NDArray[np.int64], tuple[FloatArray, FloatArray, FloatArray, FloatArray]]:
+        """The first of the four samples about each coordinate, and their weights."""
+        g = np.clip((coord_m - origin_m) / self.cell_m + 2.0, 1.0, size - 3.0)
+        f = np.floor(g)
+        return f.astype(np.int64) - 1, _keys_weights(g - f)
+
     def at(self, x_m: FloatArray, y_m: FloatArray) -> FloatArray:
+        """The interpolant at points (broadcast): along x first, then along y."""
         ni, nj = self.values.shape
-        gi = (x_m - self.north0_m) / self.cell_m + 2.0
-        gj = (y_m - self.east0_m) / self.cell_m + 2.0
-        gi = np.clip(gi, 1.0, ni - 3.0)
-        gj = np.clip(gj, 1.0, nj - 3.0)
-        fi, fj = np.floor(gi), np.floor(gj)
-        wi, wj = _keys_weights(gi - fi), _keys_weights(gj - fj)
-        i0, j0 = fi.astype(np.int64) - 1, fj.astype(np.int64) - 1
-        out = np.zeros(np.shape(gi))
+        i0, wi = self._axis(x_m, self.north0_m, ni)
+        j0, wj = self._axis(y_m, self.east0_m, nj)
+        out = np.zeros(np.shape(i0))
+        for b in range(4):
+            col = np.zeros(np.shape(i0))
+            for a in range(4):
+                col = col + wi[a] * self.values[i0 + a, j0 + b]
+            out = out + wj[b] * col
+        return out
+
+    def on_axes(self, xs_m: FloatArray, ys_m: FloatArray) -> FloatArray:
+        """``at`` on the grid ``xs_m`` (n,) by ``ys_m`` (m,), (n, m), separably: the same
+        operations per point, so the same values bit for bit."""
+        ni, nj = self.values.shape
+        i0, wi = self._axis(xs_m, self.north0_m, ni)
+        j0, wj = self._axis(ys_m, self.east0_m, nj)
+        lo, hi = int(j0.min()), int(j0.max()) + 4
+        sub = self.values[:, lo:hi]
+        rows = np.zeros((xs_m.size, hi - lo))
         for a in range(4):
-            row = np.zeros(np.shape(gi))
-            for b in range(4):
-                row = row + wj[b] * self.values[i0 + a, j0 + b]
-            out = out + wi[a] * row
+            rows = rows + wi[a][:, None] * sub[i0 + a]
+        out = np.zeros((xs_m.size, ys_m.size))
+        for b in range(4):
+            out = out + wj[b][None, :] * rows[:, j0 - lo + b]
         return out
 
 
@@ -249,6 +269,23 @@ class UnresolvedRelief:
         out = plains._combine(x, y, *fields) + plains._datum_m - self._ripple_mean_m
         return out
 
+    def grid(self, i0: int, j0: int, n: int, spacing_m: float) -> FloatArray:
+        """``at`` on a tile's grid, by the generators' separable ``grid`` (``GroundField``)."""
+        if self._hills is not None:
+            out: FloatArray = self._hills.rough.grid(i0, j0, n, spacing_m)
+            return out
+        assert self._plains is not None
+        plains = self._plains
+        x, y = grid_axes(i0, j0, n, spacing_m)
+        fields = (
+            np.zeros((n, n)),
+            plains.bend.grid(i0, j0, n, spacing_m),
+            plains.strength.grid(i0, j0, n, spacing_m),
+            plains.rough.grid(i0, j0, n, spacing_m),
+        )
+        out = plains._combine(x, y, *fields) + plains._datum_m - self._ripple_mean_m
+        return out
+
 
 @dataclass(frozen=True)
 class StartSlope:
@@ -301,7 +338,14 @@ class SampledGround:
 
     def grid(self, i0: int, j0: int, n: int, spacing_m: float) -> FloatArray:
         x, y = grid_axes(i0, j0, n, spacing_m)
-        return self.at(*np.broadcast_arrays(x, y))
+        xs, ys = x[:, 0], y[0, :]
+        out = self.surface.mean.on_axes(xs, ys)
+        if self.error is not None:
+            out = out + self.error.on_axes(xs, ys)
+        if self.start_slope is not None:
+            out = out + self.start_slope.at(*np.broadcast_arrays(x, y))
+        total: FloatArray = out + self.relief.grid(i0, j0, n, spacing_m)
+        return total
 
 
 class UnimagedRocks:
