@@ -4,7 +4,7 @@
 once): it warms the workers not yet warmed (``RehearsalCluster.warm_up``; the campaign is
 ``queued`` meanwhile), scatters the ``RehearsalInputs`` to every worker once
 (``client.scatter(..., broadcast=True)``: each run gets the future, not a pickled copy) and
-submits one task per run, keyed by the campaign's id and the run's index. A run is
+submits one task per run, keyed by the campaign's id, a token and the run's index. A run is
 ``run(inputs, run_index, campaign_seed) -> RunOutcome`` (default the engine's ``run_once``,
 ``cluster.DEFAULT_RUN``: named by a string and resolved on the worker); it draws
 everything it samples from its index and the campaign's seed, so the outcomes do not depend
@@ -106,6 +106,9 @@ class Campaign:
         self.run = run
         self.warm = warm
         self.id = campaign_id or uuid.uuid4().hex[:12]
+        # task keys: the id and a token of this object's own (two servers on one scheduler
+        # may both have a campaign 7)
+        self._key = f"rehearsal-{self.id}-{uuid.uuid4().hex[:8]}"
         self._lock = threading.Lock()
         self._finished = threading.Event()
         self._state = "queued"
@@ -201,7 +204,7 @@ class Campaign:
             futures = [
                 client.submit(
                     _run_task, self.run, inputs_future, i, self.seed,
-                    key=f"rehearsal-{self.id}-{i}", pure=False, priority=-i,
+                    key=f"{self._key}-{i}", pure=False, priority=-i,
                 )
                 for i in range(self.total)
             ]  # fmt: skip

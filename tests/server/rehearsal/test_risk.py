@@ -18,9 +18,11 @@ from server.rehearsal.risk import (
     halt_reason,
     inside_ellipse,
     risk_table,
+    risk_table_of,
+    tilt_limit_deg_of,
     zones_in_mission,
 )
-from sim.rehearsal.inputs import ReportedStart
+from sim.rehearsal.inputs import GroundMapData, RehearsalInputs, ReportedStart
 from sim.rehearsal.outcome import RunOutcome, StepOutcome
 
 SEQUENCE = "SEQUENCE r\nDRIVE_STRAIGHT distance_m=3.0\n# a comment\nHGA_PASS duration_min=10\n"
@@ -256,3 +258,31 @@ def test_reported_zones_move_into_the_mission_frame() -> None:
     assert sorted(moved) == ["dune", "rock"]
     assert moved["rock"].centre_s == (13.0, 24.0) and moved["rock"].radius_m == 0.5
     assert moved["dune"].vertices_s == ((10.0, 20.0), (11.0, 20.0), (10.0, 21.0))
+
+
+def test_the_table_of_a_campaigns_inputs_uses_its_zones_and_tilt_limit() -> None:
+    start = ReportedStart(
+        site="gusev", mission="spirit", t_s=0.0, q_b_ll_est=(0.0, 0.0, 0.0, 1.0),
+        p_s_est=(0.0, 0.0, 0.0), p_mission_est=(10.0, 0.0, 0.0),
+        keepout_zones=(KeepOutZone.circle("rock", 0, -8.9, 0.06, 0.05),),
+        params={"mobility.tilt_limit_rad": math.radians(20.0)},
+    )  # fmt: skip
+    assert tilt_limit_deg_of(start) == pytest.approx(20.0)
+    assert tilt_limit_deg_of(ReportedStart(**{**start.__dict__, "params": {}})) == pytest.approx(
+        30.0
+    )
+    grid = np.zeros((2, 2))
+    inputs = RehearsalInputs(
+        start, GroundMapData(0.0, 0.0, 1.0, grid, grid + 1, grid, grid > 0), SEQUENCE
+    )
+    calm = [
+        {"p_mission_true_m": (0.01 * i, 0.02 * (i % 7)), "max_tilt_true_deg": 18.0}
+        for i in range(100)
+    ]
+    line = risk_table_of(inputs, _runs(calm))["lines"][0]
+    # the zone sits at (1.1, 0.06) in the mission frame, in the ellipse's reach; tilt near 20
+    assert line["keepouts"] == {"rock": 0.0}
+    assert line["why"] == [
+        "tilt p95 18.0 deg near limit 20.0 deg",
+        "95 % ellipse reaches keep-out rock",
+    ]
