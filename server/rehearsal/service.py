@@ -7,7 +7,7 @@ a campaign ``queued`` and answers at once; a thread of its own then gathers the 
 (``server.rehearsal.gather``: what the ground knows), starts or joins the cluster, warms
 its workers (the start and warm-up are timed apart: ``warmup_s``), runs the campaign
 (``server.rehearsal.campaign.Campaign``), and stores its end: the risk table
-(``server.rehearsal.risk.risk_table``) and the runs' outcomes
+(``server.rehearsal.risk.risk_table_of``) and the runs' outcomes
 (``server.storage.rehearsals``). A user runs at most ``MAX_RUNNING_PER_USER`` campaigns at
 once (queued or running): one more is refused (``CampaignLimitError``). ``cancel`` stops
 one, keeping the runs finished. ``close`` (the server's shutdown) cancels every campaign
@@ -19,7 +19,6 @@ when a service starts (its server was killed) is stored so too.
 from __future__ import annotations
 
 import logging
-import math
 import threading
 import time
 import uuid
@@ -30,7 +29,7 @@ from typing import Any
 from server.errors import ConflictError, DomainError, NotFoundError
 from server.rehearsal.campaign import Campaign
 from server.rehearsal.cluster import DEFAULT_RUN, RehearsalCluster, RunRef
-from server.rehearsal.risk import risk_table, zones_in_mission
+from server.rehearsal.risk import risk_table_of
 from server.storage import rehearsals as stored
 from server.storage.store import Store
 from sim.rehearsal.inputs import RehearsalInputs
@@ -45,14 +44,9 @@ JOIN_S = 3.0  # how long ``close`` waits for the campaigns' threads (they store 
 
 
 def campaign_risk(inputs: RehearsalInputs, outcomes: Sequence[RunOutcome]) -> dict[str, Any]:
-    """The risk table of a campaign's ``outcomes`` (``server.rehearsal.risk.risk_table``)
-    with the keep-out zones and the tilt limit the rover reported."""
-    limit_rad = inputs.start.params.get("mobility.tilt_limit_rad")
-    kwargs: dict[str, Any] = {}
-    if limit_rad is not None and math.isfinite(limit_rad) and limit_rad > 0.0:
-        kwargs["tilt_limit_deg"] = math.degrees(limit_rad)
-    return risk_table(inputs.sequence_text, outcomes,
-                      keepout_zones_mission=zones_in_mission(inputs.start), **kwargs)  # fmt: skip
+    """The risk table of a campaign's ``outcomes`` with the keep-out zones and the tilt limit
+    the rover reported (``server.rehearsal.risk.risk_table_of``)."""
+    return risk_table_of(inputs, outcomes)
 
 
 class CampaignLimitError(DomainError):
