@@ -161,3 +161,15 @@ def test_bad_arguments_are_refused_with_one_line(
     code, _, err = _run(capsys, "rehearse", str(seq), "--rover", "spirit", *db,
                         "--dask-scheduler", f"tcp://127.0.0.1:{port}")  # fmt: skip
     assert code == 2 and "cannot reach" in err, err
+
+
+def test_serve_takes_a_dask_scheduler(capsys: pytest.CaptureFixture[str]) -> None:
+    from cli.main import build_parser
+
+    parsed = build_parser().parse_args(["serve", "--dask-scheduler", "tcp://10.0.0.5:8786"])
+    assert parsed.dask_scheduler == "tcp://10.0.0.5:8786"
+    assert build_parser().parse_args(["serve"]).dask_scheduler in ("", os.environ.get(
+        "ROVEROPS_DASK_SCHEDULER", ""))  # fmt: skip
+    for bad in ("8786", "tcp://host", "tcp://host:0", "tcp://host:99999", "http://host:1"):
+        code, _, err = _run(capsys, "serve", "--dask-scheduler", bad)
+        assert code == 2 and "--dask-scheduler must be tcp://host:port" in err, (bad, err)
