@@ -274,14 +274,14 @@ class RehearsalService:
             self._set(job, done=done)
 
     def _partial_risk(self, job: _Job, campaign: Campaign) -> dict[str, Any] | None:
-        """The risk table of the runs finished so far (recomputed at most every
-        ``PARTIAL_RISK_S``, and only when more have finished)."""
+        """The risk table of the runs finished so far (recomputed only when more have
+        finished, and then at most every ``PARTIAL_RISK_S`` once there is one)."""
         done, at, risk = job.partial
         now = time.monotonic()
-        if now - at < PARTIAL_RISK_S:
+        if risk is not None and now - at < PARTIAL_RISK_S:
             return risk
         outcomes = campaign.outcomes()
         if len(outcomes) != done and job.inputs is not None:
             risk = campaign_risk(job.inputs, outcomes) if outcomes else None
-        job.partial = (len(outcomes), now, risk)
+            job.partial = (len(outcomes), now, risk)
         return risk

@@ -180,7 +180,10 @@ def test_campaigns_run_list_cancel_limit_report_and_survive_a_restart(
     r = client.post(URL, json={"sequence_text": LONG, "runs": 1000}, headers=bob)  # another user
     assert r.status_code == 202, r.text
     running = r.json()["id"]
-    wait_for(lambda: _detail(client, started[0])["state"] == "running")
+    wait_for(lambda: _detail(client, started[0])["done"] >= 1)  # running: a partial table
+    partial = _detail(client, started[0])
+    assert partial["state"] == "running" and partial["eta_s"] > 0.0
+    assert 1 <= partial["risk"]["runs"] <= partial["done"] < 1000
     assert client.post(f"{URL}/{started[0]}/cancel", headers=vic).status_code == 403
     r = client.post(f"{URL}/{started[0]}/cancel", headers=ada)
     assert r.status_code == 200 and r.json()["state"] == "cancelled", r.text
