@@ -24,16 +24,18 @@ import time
 import uuid
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from server.errors import ConflictError, DomainError, NotFoundError
-from server.rehearsal.campaign import Campaign
-from server.rehearsal.cluster import DEFAULT_RUN, RehearsalCluster, RunRef
 from server.rehearsal.risk import risk_table_of
 from server.storage import rehearsals as stored
 from server.storage.store import Store
 from sim.rehearsal.inputs import RehearsalInputs
 from sim.rehearsal.outcome import RunOutcome
+
+if TYPE_CHECKING:  # Dask is imported with the first campaign, not with the server
+    from server.rehearsal.campaign import Campaign
+    from server.rehearsal.cluster import RehearsalCluster, RunRef
 
 log = logging.getLogger(__name__)
 
@@ -70,11 +72,12 @@ class _Job:
 class RehearsalService:
     """The server's campaigns (module docstring). ``scheduler``: a Dask scheduler's
     ``tcp://host:port`` (None: an embedded cluster of ``n_workers`` processes, default one
-    per core); ``run`` the run function's reference (the engine's, by default)."""
+    per core); ``run`` the run function's reference (None: the engine's,
+    ``server.rehearsal.cluster.DEFAULT_RUN``)."""
 
     def __init__(
         self, store: Store, scheduler: str | None = None, n_workers: int | None = None,
-        run: RunRef = DEFAULT_RUN,
+        run: RunRef | None = None,
     ) -> None:  # fmt: skip
         self.store = store
         self.scheduler = scheduler or None
@@ -82,7 +85,7 @@ class RehearsalService:
         self.run = run
         self._jobs: dict[int, _Job] = {}
         self._lock = threading.Lock()
-        self._cluster: RehearsalCluster | None = None
+        self._cluster: RehearsalCluster | None = None  # Dask imported when first needed
         self._cluster_lock = threading.Lock()
         self._closed = False
         for found in stored.stop_unfinished(store):
@@ -198,6 +201,8 @@ class RehearsalService:
 
     def cluster(self) -> RehearsalCluster:
         """The server's cluster, started (or joined) on first use."""
+        from server.rehearsal.cluster import RehearsalCluster
+
         with self._cluster_lock:
             if self._closed:
                 raise ConflictError("the server is stopping")
@@ -237,10 +242,14 @@ class RehearsalService:
             inputs = job.inputs = gather()
             if job.cancelled is not None:
                 return
+            from server.rehearsal.campaign import Campaign
+            from server.rehearsal.cluster import DEFAULT_RUN
+
             cluster = self.cluster()
-            warmup_s = cluster.warm_up(self.run, inputs)
+            run = self.run or DEFAULT_RUN
+            warmup_s = cluster.warm_up(run, inputs)
             campaign = Campaign(cluster, inputs, job.summary["runs"], job.summary["seed"],
-                                self.run, campaign_id=f"{rid}-{uuid.uuid4().hex[:8]}",
+                                run, campaign_id=f"{rid}-{uuid.uuid4().hex[:8]}",
                                 start=False)  # fmt: skip
             campaign.on_progress(lambda progress: self._progressed(job, progress.done))
             with job.lock:
