@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from conftest import plane_map, report
+from rehearsal_data import plane_map, report
 
 from estimation.protection.keepout import KeepOutZone
 from sim.rehearsal.inputs import GroundMapData, Priors, RehearsalInputs
