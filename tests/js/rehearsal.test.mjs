@@ -3,9 +3,11 @@
 import assert from "node:assert/strict";
 import { test } from "node:test";
 
+import { SOL_S } from "../../web/lib/marstime.js";
+
 import {
   aqfText, byName, durationText, ellipseText, finished, ordinal, parseRequest, pct, placeText,
-  predictedBand, progress, rangeText, reportRows, requestBody,
+  predictedBand, progress, rangeText, reportRows, requestBody, timelineBands, whenText,
 } from "../../web/lib/rehearsal.js";
 
 test("runs and seed: defaults, bounds, and the seed kept exact up to 2^63 - 1", () => {
@@ -90,4 +92,35 @@ test("a line's predicted band: start p5 to end p95 outside, medians inside; none
   const band = predictedBand({ start_t_s: { p5: 10, p50: 12, p95: 15 }, end_t_s: { p5: 40, p50: 50, p95: 70 } });
   assert.deepEqual(band, { outer: [10, 70], inner: [12, 50] });
   assert.equal(predictedBand({ start_t_s: null, end_t_s: null }), null);
+});
+
+test("a time as sol and LMST, counted from a known moment, across midnight", () => {
+  const ref = { t_s: 1000, sol: 3, lmst_h: 23.5 };
+  assert.equal(whenText(1000, ref), "sol 3 23:30:00 LMST");
+  assert.equal(whenText(1000 + SOL_S / 24, ref), "sol 4 00:30:00 LMST"); // an hour of LMST later
+  assert.equal(whenText(1000 - SOL_S, ref), "sol 2 23:30:00 LMST");
+  assert.equal(whenText(null, ref), "—");
+  assert.equal(whenText(5, null), "—");
+});
+
+test("the timeline's bands: as predicted until the sequence runs, then moved onto its start", () => {
+  const line = (n, command, s, e) => ({ line: n, command, verdict: "ok",
+    start_t_s: { p5: s - 1, p50: s, p95: s + 1 }, end_t_s: { p5: e - 2, p50: e, p95: e + 3 } });
+  const risk = { lines: [line(2, "DRIVE_STRAIGHT  distance_m=2", 100, 160), line(3, "SUNCHECK_SUNGAZE", 160, 400),
+    { line: 4, command: "X", verdict: "risk", start_t_s: null, end_t_s: null }] };
+  const alone = timelineBands({ sequence_id: null }, risk, []);
+  assert.equal(alone.shift_s, 0);
+  assert.deepEqual(alone.bands.map((b) => b.outer), [[99, 163], [159, 403]]); // line 4 never ran
+  const commands = [
+    { sequence_id: 5, step_index: 0, command: "DRIVE_STRAIGHT distance_m=2", start: { t_s: 900 } },
+    { sequence_id: 6, step_index: 0, command: "DRIVE_STRAIGHT distance_m=2", start: { t_s: 1500 } },
+    { sequence_id: 6, step_index: 1, command: "SUNCHECK_SUNGAZE", start: { t_s: 1560 } },
+  ];
+  const byText = timelineBands({ sequence_id: null }, risk, commands); // the newest with that first line
+  assert.equal(byText.sequence_id, 6);
+  assert.equal(byText.shift_s, 1400);
+  assert.deepEqual(byText.bands[0].inner, [1500, 1560]);
+  const byId = timelineBands({ sequence_id: 5 }, risk, commands);
+  assert.equal(byId.shift_s, 800);
+  assert.deepEqual(timelineBands({ sequence_id: 9 }, risk, commands).shift_s, 0); // not run yet
 });

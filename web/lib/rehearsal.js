@@ -3,6 +3,7 @@
 // (server.rehearsal.risk: percentiles over the runs in which a step ran, ellipses as the
 // semi-axes of a Gaussian fit, chi2 with 2 degrees of freedom) and the predicted-vs-executed
 // report's rows (server.rehearsal.compare). Pure functions: tests/js/rehearsal.test.mjs.
+import { lmstAt, lmstText } from "./marstime.js";
 
 export const MAX_RUNS = 1000;
 export const DEFAULT_RUNS = 100;
@@ -170,4 +171,44 @@ export function predictedBand(line) {
   const s = line.start_t_s, e = line.end_t_s;
   if (!s || !e || !Number.isFinite(s.p5) || !Number.isFinite(e.p95)) return null;
   return { outer: [s.p5, e.p95], inner: [s.p50, Math.max(s.p50, e.p50)] };
+}
+
+/** A TT time as the console says it, "sol 3 13:02:11 LMST", counted from a moment of known
+ * sol and LMST (`ref`: {t_s, sol, lmst_h}, the rover's latest frame); "—" without either. */
+export function whenText(t_s, ref) {
+  if (!ref || t_s === null || t_s === undefined || !Number.isFinite(t_s)) return "—";
+  const h = lmstAt(t_s, ref);
+  return `sol ${ref.sol + Math.floor(h / 24)} ${lmstText(h)} LMST`;
+}
+
+const words = (s) => String(s || "").trim().split(/\s+/).join(" ");
+
+/**
+ * The predicted bands of a rehearsal's lines as the timeline draws them beside the executed
+ * steps: [{line, command, verdict, outer: [t0, t1], inner: [t0, t1]}], TT seconds. The
+ * rehearsal predicts from the last state reported before it: when its sequence has run
+ * (`commands`, the sol's executed steps {sequence_id, step_index, command, start: {t_s}}),
+ * the bands are moved by the time between the predicted median start of its first line and
+ * the executed start of that step. The executed sequence is the campaign's sequence id, or
+ * else the newest whose first step's command is the first line's.
+ */
+export function timelineBands(summary, risk, commands) {
+  const lines = (risk && risk.lines) || [];
+  const bands = lines.map((l) => ({ line: l.line, command: l.command, verdict: l.verdict, ...predictedBand(l) }))
+    .filter((b) => b.outer);
+  if (!bands.length) return { bands, shift_s: 0, sequence_id: null };
+  const firsts = (commands || []).filter((c) => c.step_index === 0 && c.sequence_id !== null && c.sequence_id !== undefined);
+  const known = summary && summary.sequence_id !== null && summary.sequence_id !== undefined;
+  const matching = firsts.filter((c) => (known ? c.sequence_id === summary.sequence_id
+    : words(c.command) === words(lines[0].command)));
+  const executed = matching.sort((a, b) => b.sequence_id - a.sequence_id || b.start.t_s - a.start.t_s)[0];
+  const first = lines[0].start_t_s;
+  if (!executed || !first || !Number.isFinite(first.p50)) return { bands, shift_s: 0, sequence_id: null };
+  const shift = executed.start.t_s - first.p50;
+  const moved = (pair) => pair.map((t) => t + shift);
+  return {
+    bands: bands.map((b) => ({ ...b, outer: moved(b.outer), inner: moved(b.inner) })),
+    shift_s: shift,
+    sequence_id: executed.sequence_id,
+  };
 }
