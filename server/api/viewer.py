@@ -22,6 +22,7 @@ from server.api.deps import (
 )
 from server.errors import NotFoundError
 from server.scene3d.proxy import fetch, relay
+from server.scene3d.rehearsal import view_of
 
 routes = router()
 
@@ -70,4 +71,9 @@ def scene_state(server: ServerDep, rover: RoverName, _: Viewer, truth: SeesTruth
     port = scene_port(server, rover, truth)
     scene = server.scene_for(rover, truth)
     assert scene is not None and scene.port == port
-    return {"url": f"/viser/{rover}/", "frames_drawn": scene.frames_drawn, "truth": scene.truth}
+    return {
+        "url": f"/viser/{rover}/",
+        "frames_drawn": scene.frames_drawn,
+        "truth": scene.truth,
+        "rehearsal": view_of(scene).state(),
+    }
