@@ -69,9 +69,11 @@ async function rehearse() {
   if (!r.ok) {
     const errors = errorsOf(r.body);
     showErrors(errors);
-    const detail = typeof (r.body && r.body.detail) === "string" ? r.body.detail
+    const detail = r.body && r.body.detail;
+    const said = typeof detail === "string" ? detail
+      : detail && typeof detail.message === "string" ? detail.message
       : errors.length ? `the sequence has ${errors.length} error(s)` : detailText(r);
-    say(`Not rehearsed (${r.status || "not sent"}): ${detail}`, true);
+    say(`Not rehearsed (${r.status || "not sent"}): ${said}`, true);
     return;
   }
   say(`Rehearsal #${r.body.id} started: ${r.body.runs} runs, seed ${r.body.seed}`);
@@ -197,7 +199,7 @@ function riskRow(line) {
   ];
   const row = el("tr", { className: `risk-${line.verdict}`, dataset: { testid: "risk-row", line: String(line.line), verdict: line.verdict } });
   row.append(...cells.map((text, i) => (i === 2 ? verdictCell(line)
-    : el("td", { textContent: text, className: i === 1 ? "risk-command" : "" }))));
+    : el("td", { textContent: text, className: i === 1 ? "risk-command" : i >= 5 && i <= 9 && i !== 7 ? "nowrap" : "" }))));
   const done = line.status ? `completed in ${pct(line.status.completed)} of runs` : "";
   row.title = `line ${line.line}: ${done}`;
   return row;

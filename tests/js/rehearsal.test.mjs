@@ -6,9 +6,18 @@ import { test } from "node:test";
 import { SOL_S } from "../../web/lib/marstime.js";
 
 import {
-  aqfText, byName, durationText, ellipseText, finished, ordinal, parseRequest, pct, placeText,
-  predictedBand, progress, rangeText, reportRows, requestBody, timelineBands, whenText,
+  aqfText as aqfTextNb, byName as byNameNb, durationText, ellipseText, finished, ordinal, parseRequest, placeText as placeTextNb,
+  predictedBand, progress, rangeText, reportRows as reportRowsNb, requestBody, timelineBands, whenText,
+  pct as pctNb,
 } from "../../web/lib/rehearsal.js";
+
+// figures and units are joined by no-break spaces; the tests read them as spaces
+const plain = (s) => s.replaceAll("\u00a0", " ");
+const pct = (p) => plain(pctNb(p));
+const byName = (p) => plain(byNameNb(p));
+const aqfText = (p) => plain(aqfTextNb(p));
+const reportRows = (lines) => reportRowsNb(lines).map((r) => ({ ...r, place: plain(r.place) }));
+const placeText = (f) => plain(placeTextNb(f));
 
 test("runs and seed: defaults, bounds, and the seed kept exact up to 2^63 - 1", () => {
   assert.deepEqual(parseRequest("", ""), { runs: 100, seed: "0" });

@@ -66,21 +66,23 @@ export function progress(summary) {
   return { fraction, words };
 }
 
+const NBSP = "\u00a0"; // a figure and its unit are not split across lines
+
 /** A probability as a percentage: "0 %", "<1 %" (above 0, under one half of a per cent),
- * "6 %", "99 %"; "—" when unknown. */
+ * "6 %", "99 %" (a no-break space before the sign); "—" when unknown. */
 export function pct(p) {
   if (p === null || p === undefined || !Number.isFinite(p)) return "—";
   const v = 100 * p;
-  if (v > 0 && v < 0.5) return "<1 %";
-  if (v < 100 && v > 99.5) return ">99 %";
-  return `${Math.round(v)} %`;
+  if (v > 0 && v < 0.5) return `<1${NBSP}%`;
+  if (v < 100 && v > 99.5) return `>99${NBSP}%`;
+  return `${Math.round(v)}${NBSP}%`;
 }
 
 /** Probabilities by name ({tilt: 0.03, slip: 0.02}), the likeliest first, zeros left out:
  * "tilt 3 %, slip 2 %", or "none" when all are zero (or there are none). */
 export function byName(probs) {
   const items = Object.entries(probs || {}).filter(([, p]) => p > 0).sort((a, b) => b[1] - a[1]);
-  return items.length ? items.map(([k, p]) => `${k} ${pct(p)}`).join(", ") : "none";
+  return items.length ? items.map(([k, p]) => `${k}${NBSP}${pct(p)}`).join(", ") : "none";
 }
 
 /** A 2-D ellipse's semi-axes and the major axis' bearing (from North towards East):
@@ -106,7 +108,7 @@ export function rangeText(d, format) {
 /** The likeliest AQF at a step's end with its share: "Fine 90 %" (others in order after). */
 export function aqfText(aqf) {
   const items = Object.entries(aqf || {}).filter(([, p]) => p > 0).sort((a, b) => b[1] - a[1]);
-  return items.length ? items.map(([k, p]) => `${k} ${pct(p)}`).join(", ") : "—";
+  return items.length ? items.map(([k, p]) => `${k}${NBSP}${pct(p)}`).join(", ") : "—";
 }
 
 /** Where a figure of the executed run falls: "37th percentile" (ordinal, rounded). */

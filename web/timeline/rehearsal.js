@@ -53,6 +53,7 @@ export const rehearsalLane = {
       view.span[1] = last;
       const lanes = $("timeline-lanes");
       lanes.style.setProperty("--w", String(view.span[1] - view.span[0]));
+      view.plotData.forEach((entry, i) => view.plots[i].setData(entry.data)); // their x range is the span
     }
   },
   reconcile(timeline) { this.draw(timeline); },
