@@ -11,6 +11,7 @@
 //   verdict coloured; "Predicted vs executed" (GET .../{id}/report), each executed figure's
 //   percentile, what fell outside 95 % flagged, the truth part only when the server gave it
 //   (the truth view). The rover's past campaigns below, newest first; a click opens one.
+// - An operator's console has the rover's 3D view draw the finished campaign it shows.
 // - The campaign shown goes to the bus ("rehearsal": {rover, summary, risk}) for the
 //   timeline's Rehearsal lane (timeline/rehearsal.js).
 import { api, detailText, heldToken } from "./lib/api.js";
@@ -25,7 +26,7 @@ import { mayAct } from "./lib/roles.js";
 const POLL_MS = 1000; // the summary read again this often while a campaign runs
 const LIST_SHOWN = 20;
 const view = {
-  rover: null, me: null, open: null, summary: null, poll: null, turn: 0, ref: null, list: [],
+  rover: null, me: null, open: null, summary: null, poll: null, turn: 0, ref: null, list: [], drawn: -1,
 };
 
 const base = () => `/api/rovers/${encodeURIComponent(view.rover)}/rehearsals`;
@@ -107,6 +108,7 @@ function openCampaign(summary) {
   $("rehearsal-close").hidden = false;
   $("rehearsal-report").hidden = true;
   $("rehearsal-report-status").textContent = "";
+  $("rehearsal-3d").textContent = "";
   $("risk-table").querySelector("tbody").replaceChildren();
   $("risk-table").hidden = true;
   showSummary(summary, null);
@@ -158,7 +160,22 @@ function showSummary(summary, risk) {
   $("rehearsal-cancel").hidden = finished(summary.state);
   markListed();
   if (risk) showRisk(risk);
-  if (summary.state === "done" && risk) bus.emit("rehearsal", { rover: view.rover, summary, risk });
+  if (summary.state === "done" && risk) {
+    bus.emit("rehearsal", { rover: view.rover, summary, risk });
+    if (view.drawn !== view.turn) { view.drawn = view.turn; drawIn3d(summary.id); }
+  }
+}
+
+// The 3D view is shared by every viewer of the rover: an operator's console has it draw the
+// campaign it shows (POST .../scene/rehearsal); otherwise it shows the newest finished one.
+async function drawIn3d(id) {
+  const note = $("rehearsal-3d");
+  if (!mayAct(view.me, Boolean(heldToken()), "operator")) { note.textContent = ""; return; }
+  const r = await post(`/api/rovers/${encodeURIComponent(view.rover)}/scene/rehearsal`, JSON.stringify({ id }));
+  if (id !== view.open) return;
+  note.textContent = r.ok && r.body.rehearsal
+    ? `3D view: the predicted traverses and the 50 % and 95 % end ellipses of ${r.body.rehearsal.note}`
+    : `Not drawn in the 3D view: ${detailText(r)}`;
 }
 
 async function cancel() {

@@ -5,24 +5,27 @@ from __future__ import annotations
 
 from typing import Any
 
-from fastapi import WebSocket
+from fastapi import Request, WebSocket
 from fastapi.responses import RedirectResponse, Response
+from pydantic import BaseModel, ConfigDict, Field
 from starlette.concurrency import run_in_threadpool
 
-from server.access.auth import Viewer
+from server.access.auth import Operator, Viewer
 from server.api.answers import Scene
 from server.api.deps import (
+    MAX_ID,
     NOT_FOUND,
     RoverName,
     SeesTruth,
     ServerDep,
     connection_sees_truth,
+    error_doc,
     router,
     websocket_allowed,
 )
 from server.errors import NotFoundError
 from server.scene3d.proxy import fetch, relay
-from server.scene3d.rehearsal import view_of
+from server.scene3d.rehearsal import show_stored, view_of
 
 routes = router()
 
@@ -77,3 +80,32 @@ def scene_state(server: ServerDep, rover: RoverName, _: Viewer, truth: SeesTruth
         "truth": scene.truth,
         "rehearsal": view_of(scene).state(),
     }
+
+
+class SceneRehearsal(BaseModel):
+    """The rehearsal campaign the rover's 3D view draws (``server.scene3d.rehearsal``)."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
+    id: int = Field(ge=1, le=MAX_ID, description="a rehearsal campaign's id")
+
+
+@routes.post(
+    "/api/rovers/{rover}/scene/rehearsal",
+    response_model=Scene,
+    responses={**NOT_FOUND, 409: error_doc("the campaign has no risk table yet")},
+)
+def show_scene_rehearsal(
+    server: ServerDep,
+    rover: RoverName,
+    body: SceneRehearsal,
+    request: Request,
+    _: Operator,
+    truth: SeesTruth,
+) -> dict[str, Any]:
+    """Draw a campaign's predicted traverses and end ellipses in the rover's 3D view (every
+    viewer's: the view is shared); the view as ``GET .../scene`` then says."""
+    scene_port(server, rover, truth)
+    request.state.audit_action = f"show rehearsal #{body.id} in the 3D view of {rover}"
+    scenes = [server.scenes.get(rover), server.truth_scenes.get(rover)]
+    show_stored(scenes, server.store, rover, body.id)
+    return scene_state(server, rover, _, truth)

@@ -20,8 +20,10 @@ from the ground's knowledge, never the live rover's truth, so both scenes of a r
 the truth or from the downlink alone) draw it.
 
 Each viewer is told in its controls which rehearsal it sees ("rehearsal #N: 200 runs"), as
-it is told what its terrain is (``terrain_note``). The rehearsal service calls ``show`` when
-a campaign finishes (and the console when it picks another); ``clear`` takes it away.
+it is told what its terrain is (``terrain_note``). ``show_latest`` draws a rover's newest
+finished campaign (for the rehearsal service to call when one finishes), ``show_stored`` the
+one the console picks (``POST /api/rovers/{rover}/scene/rehearsal``); ``clear`` takes it
+away.
 """
 
 from __future__ import annotations
@@ -36,6 +38,9 @@ import numpy as np
 import viser
 from numpy.typing import NDArray
 
+from server.errors import ConflictError, NotFoundError
+from server.storage.rehearsals import get_rehearsal, list_rehearsals
+from server.storage.store import Store
 from server.terrain.ground_map import GroundMap
 
 if TYPE_CHECKING:
@@ -262,3 +267,32 @@ def show(scenes: Iterable[RoverScene | None], number: int, risk: Mapping[str, An
     for scene in scenes:
         if scene is not None and scene.server is not None:
             view_of(scene).show(number, risk)
+
+
+def show_stored(
+    scenes: Iterable[RoverScene | None], store: Store, rover: str, rehearsal_id: int
+) -> int:
+    """Draw stored campaign ``rehearsal_id`` of ``rover`` in ``scenes``; the runs drawn.
+    ``NotFoundError`` for no such campaign of the rover, ``ConflictError`` for one with no
+    risk table yet (queued, running, or stopped before any run finished)."""
+    found = get_rehearsal(store, rehearsal_id)
+    if found is None or found["rover"] != rover:
+        raise NotFoundError(f"no rehearsal {rehearsal_id} of {rover}")
+    risk = found["risk"]
+    if risk is None:
+        raise ConflictError(
+            f"rehearsal {rehearsal_id} is {found['state']}: no risk table to draw yet"
+        )
+    show(scenes, rehearsal_id, risk)
+    return int(risk.get("runs") or 0)
+
+
+def show_latest(scenes: Iterable[RoverScene | None], store: Store, rover: str) -> int | None:
+    """Draw ``rover``'s newest finished campaign (``done``) in ``scenes``; its id, or None
+    when it has none. What the rehearsal service calls when a campaign finishes, and a
+    server's start to draw what was drawn before."""
+    done = [s for s in list_rehearsals(store, rover) if s["state"] == "done"]
+    if not done:
+        return None
+    show_stored(scenes, store, rover, int(done[0]["id"]))
+    return int(done[0]["id"])
