@@ -304,7 +304,6 @@ class Scene(Answer):
     url: str
     frames_drawn: int
     truth: bool
-    rehearsal: dict[str, Any] | None = None  # what it draws of a rehearsal (scene3d.rehearsal)
 
 
 class Identity(Answer):

@@ -30,6 +30,13 @@ from server.scene3d.rehearsal import show_stored, view_of
 routes = router()
 
 
+class SceneState(Scene):
+    """The 3D view, and what it draws of a rehearsal (``server.scene3d.rehearsal``: the
+    campaign's id, its runs, the traverses and ellipses drawn, the viewers' note), or null."""
+
+    rehearsal: dict[str, Any] | None = None
+
+
 def scene_port(server: ServerDep, rover: str, truth: bool) -> int:
     server.rover(rover)
     scene = server.scene_for(rover, truth)
@@ -67,7 +74,7 @@ async def viser_socket(server: ServerDep, websocket: WebSocket, rover: str) -> N
     await relay(websocket, scene.port)
 
 
-@routes.get("/api/rovers/{rover}/scene", response_model=Scene, responses=NOT_FOUND)
+@routes.get("/api/rovers/{rover}/scene", response_model=SceneState, responses=NOT_FOUND)
 def scene_state(server: ServerDep, rover: RoverName, _: Viewer, truth: SeesTruth) -> dict[str, Any]:
     """The 3D view: its URL on this origin, how many frames it has drawn, and whether it
     shows the truth (the truth view's scene)."""
@@ -91,7 +98,7 @@ class SceneRehearsal(BaseModel):
 
 @routes.post(
     "/api/rovers/{rover}/scene/rehearsal",
-    response_model=Scene,
+    response_model=SceneState,
     responses={**NOT_FOUND, 409: error_doc("the campaign has no risk table yet")},
 )
 def show_scene_rehearsal(

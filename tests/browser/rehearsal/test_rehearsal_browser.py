@@ -29,6 +29,7 @@ from tests.browser.test_console_browser import (
 from tests.browser.test_view3d_browser import SCENE_LOADED, TIMEOUT_MS, VIEWER, _view_frame
 from tests.server.test_server_restart import _wait, serving
 
+FIRST = "SEQUENCE first\nDRIVE_STRAIGHT distance_m=0.5\n"
 DRIVE = "SEQUENCE rehearse_me\nDRIVE_STRAIGHT distance_m=2\n"
 BROKEN = "SEQUENCE broken\nDRIVE_STRAIGHT distance_m=-2\n"
 RUNS = 8
@@ -41,6 +42,7 @@ AUTH = {"Authorization": f"Bearer {TOKEN}"}
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     with serving(
         tmp_path_factory.mktemp("rehearsal_browser"),
+        TOKEN,
         ready="/api/rovers/spirit/scene",
         three_d=True,
     ) as base:
@@ -71,7 +73,19 @@ def test_rehearse_then_run_then_read_predicted_against_executed(
         page.context.close()
 
 
+def _drive_first(server: str) -> None:
+    """A short drive, so that the ground has the rover's report to rehearse from."""
+    with httpx.Client(base_url=server, timeout=30.0, headers=AUTH) as c:
+        r = c.post("/api/rovers/spirit/sequences", json={"text": FIRST})
+        assert r.status_code == 201 and r.json()["status"] == "queued", r.text
+        assert c.post("/api/rovers/spirit/clock", json={"speed": "max"}).status_code == 200
+        _wait(lambda: c.get("/api/rovers/spirit/sequences").json()[0]["status"] == "completed",
+              timeout_s=TIMEOUT_MS / 1000)  # fmt: skip
+        _wait(lambda: not c.get("/api/rovers/spirit/state").json()["executing"])
+
+
 def _rehearse_run_and_report(page: Page, server: str) -> None:
+    _drive_first(server)
     controls = page.get_by_test_id("rehearse-controls")
     expect(controls).to_be_visible()  # an operator's
     status = page.get_by_test_id("rehearse-status")
@@ -156,7 +170,6 @@ def _rehearse_run_and_report(page: Page, server: str) -> None:
     # the sequence runs: the band moves onto it, and the report places what it did
     page.click("#upload-text")
     expect(page.get_by_test_id("sequence-status")).to_contain_text("queued")
-    page.select_option("#speed", "max")
     with httpx.Client(base_url=server, timeout=30.0, headers=AUTH) as c:
         _wait(lambda: c.get("/api/rovers/spirit/sequences").json()[0]["status"] == "completed",
               timeout_s=TIMEOUT_MS / 1000)  # fmt: skip
