@@ -166,6 +166,9 @@ class RoverSim:
         self.suspension_encoders = JointEncoders(JointEncoderParams(), rng_suspension)
         self._failed_wheel: str | None = None
         self.condition = FaultCondition()  # healthy until a fault is applied (sim.faults)
+        # told of every motion segment's truth as it is made (a rehearsal's record of its
+        # true traverse, sim.rehearsal.run); a halted drive's segment is made again, cut
+        self.on_segment: Callable[[Segment], None] | None = None
 
     @property
     def failed_wheel(self) -> str | None:
@@ -462,7 +465,10 @@ class RoverSim:
         totals.max_wheel_gap_m = max(totals.max_wheel_gap_m, self.drive_state.max_gap_m)
         totals.unsettled_poses += self.drive_state.unsettled_poses
         self.t_s = float(traj.t_s[-1])
-        return Segment(traj, samples, encoders)
+        seg = Segment(traj, samples, encoders)
+        if self.on_segment is not None:
+            self.on_segment(seg)
+        return seg
 
 
 def _plain(value: Any) -> Any:

@@ -9,7 +9,12 @@ where it is. One run draws its truth around the report:
 - the heading from a Gaussian about the reported one with the 1σ the priors give the reported
   Attitude Quality Flag (``Priors.heading_sigma_rad``; Ali et al. 2005, sec. 2.1);
 - the tilt from the terrain: the rover is settled on the sampled ground at that position and
-  heading, as every ``RoverSim`` settles its rover (``sim.rover.drive.initial_state``).
+  heading, as every ``RoverSim`` settles its rover (``sim.rover.drive.initial_state``). The
+  report's tilt is a measurement (the accelerometers at rest, 0.045° 1σ: Ali et al. 2005,
+  sec. 2.2.1), so the ground under the start is given the slope that makes the settled rover
+  stand at the reported tilt (``level_start``: a plane added about the start, fading out a few
+  metres away, ``sim.rehearsal.world.StartSlope``); else the flight software would start
+  from a tilt the world denies, and carry the difference into its heading as it drives.
 
 The flight software starts from the REPORT, not from the drawn truth (``load_reported``):
 NATE with the reported attitude and flag (``Nate.load_attitude``), its position, Sites, IMU
@@ -35,6 +40,8 @@ from estimation.sapp.aqf import AttitudeQuality
 from sim.loop.drives import set_vo_rig
 from sim.loop.session import RoverSession
 from sim.rehearsal.inputs import Priors, ReportedStart
+from sim.rehearsal.world import SampledWorld, StartSlope
+from sim.rover import drive
 
 FloatArray = NDArray[np.float64]
 
@@ -76,6 +83,30 @@ def sample_start(start: ReportedStart, priors: Priors, rng: np.random.Generator)
     yaw = heading_of(start.q_b_ll_est) + priors.heading_sigma_rad(start.aqf) * float(z[2])
     yaw = math.remainder(yaw, 2.0 * math.pi)
     return TrueStart((float(north), float(east)), float(yaw))
+
+
+def _gradient(z_down: FloatArray) -> FloatArray:
+    """The ground's slope (dh/dx, dh/dy) under a body whose z axis (Down) is ``z_down``."""
+    out: FloatArray = np.asarray(z_down[:2], dtype=np.float64) / float(z_down[2])
+    return out
+
+
+def level_start(
+    world: SampledWorld, true: TrueStart, start: ReportedStart, iterations: int = 2
+) -> SampledWorld:
+    """``world`` with the slope under the true start that settles the rover at the reported
+    tilt (module docstring)."""
+    z_axis = np.array([0.0, 0.0, 1.0])
+    wanted = _gradient(Rotation.from_quat(np.asarray(start.q_b_ll_est)).inv().apply(z_axis))
+    x, y = true.p_mission_m
+    added = np.zeros(2)
+    out = world
+    for _ in range(iterations):
+        state = drive.initial_state(out.terrain(), start.t_s, x, y, true.yaw_rad)
+        z_true = Rotation.from_quat(np.asarray(state.q_s_b).reshape(-1, 4)[0]).apply(z_axis)
+        added = added + wanted - _gradient(z_true)
+        out = world.with_start_slope(StartSlope((x, y), (float(added[0]), float(added[1]))))
+    return out
 
 
 def site_origins(start: ReportedStart) -> FloatArray:

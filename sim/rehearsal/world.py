@@ -71,6 +71,7 @@ WINDOW_HALF_M = 80.0  # the map error is drawn over this half-size around the re
 KEYS_A = -0.5  # Keys 1981: the cubic convolution kernel's parameter (third-order accurate)
 _CACHE_MAPS = 4  # maps kept per process (one campaign uses one)
 MIN_FRICTION_DEG, MAX_FRICTION_DEG = 15.0, 50.0  # a drawn soil stays a soil
+LEVEL_INNER_M, LEVEL_OUTER_M = 1.5, 6.0  # the start's slope: whole, then fading out (StartSlope)
 
 
 def _keys_weights(t: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
@@ -100,21 +101,41 @@ class CubicGrid:
         padded = np.pad(np.asarray(values, dtype=np.float64), 2, mode="edge")
         return cls(float(north0_m), float(east0_m), float(cell_m), padded)
 
+    def _axis(
+        self, coord_m: FloatArray, origin_m: float, size: int
+    ) -> tuple[NDArray[np.int64], tuple[FloatArray, FloatArray, FloatArray, FloatArray]]:
+        """The first of the four samples about each coordinate, and their weights."""
+        g = np.clip((coord_m - origin_m) / self.cell_m + 2.0, 1.0, size - 3.0)
+        f = np.floor(g)
+        return f.astype(np.int64) - 1, _keys_weights(g - f)
+
     def at(self, x_m: FloatArray, y_m: FloatArray) -> FloatArray:
+        """The interpolant at points (broadcast): along x first, then along y."""
         ni, nj = self.values.shape
-        gi = (x_m - self.north0_m) / self.cell_m + 2.0
-        gj = (y_m - self.east0_m) / self.cell_m + 2.0
-        gi = np.clip(gi, 1.0, ni - 3.0)
-        gj = np.clip(gj, 1.0, nj - 3.0)
-        fi, fj = np.floor(gi), np.floor(gj)
-        wi, wj = _keys_weights(gi - fi), _keys_weights(gj - fj)
-        i0, j0 = fi.astype(np.int64) - 1, fj.astype(np.int64) - 1
-        out = np.zeros(np.shape(gi))
+        i0, wi = self._axis(x_m, self.north0_m, ni)
+        j0, wj = self._axis(y_m, self.east0_m, nj)
+        out = np.zeros(np.shape(i0))
+        for b in range(4):
+            col = np.zeros(np.shape(i0))
+            for a in range(4):
+                col = col + wi[a] * self.values[i0 + a, j0 + b]
+            out = out + wj[b] * col
+        return out
+
+    def on_axes(self, xs_m: FloatArray, ys_m: FloatArray) -> FloatArray:
+        """``at`` on the grid ``xs_m`` (n,) by ``ys_m`` (m,), (n, m), separably: the same
+        operations per point, so the same values bit for bit."""
+        ni, nj = self.values.shape
+        i0, wi = self._axis(xs_m, self.north0_m, ni)
+        j0, wj = self._axis(ys_m, self.east0_m, nj)
+        lo, hi = int(j0.min()), int(j0.max()) + 4
+        sub = self.values[:, lo:hi]
+        rows = np.zeros((xs_m.size, hi - lo))
         for a in range(4):
-            row = np.zeros(np.shape(gi))
-            for b in range(4):
-                row = row + wj[b] * self.values[i0 + a, j0 + b]
-            out = out + wi[a] * row
+            rows = rows + wi[a][:, None] * sub[i0 + a]
+        out = np.zeros((xs_m.size, ys_m.size))
+        for b in range(4):
+            out = out + wj[b][None, :] * rows[:, j0 - lo + b]
         return out
 
 
@@ -248,21 +269,66 @@ class UnresolvedRelief:
         out = plains._combine(x, y, *fields) + plains._datum_m - self._ripple_mean_m
         return out
 
+    def grid(self, i0: int, j0: int, n: int, spacing_m: float) -> FloatArray:
+        """``at`` on a tile's grid, by the generators' separable ``grid`` (``GroundField``)."""
+        if self._hills is not None:
+            out: FloatArray = self._hills.rough.grid(i0, j0, n, spacing_m)
+            return out
+        assert self._plains is not None
+        plains = self._plains
+        x, y = grid_axes(i0, j0, n, spacing_m)
+        fields = (
+            np.zeros((n, n)),
+            plains.bend.grid(i0, j0, n, spacing_m),
+            plains.strength.grid(i0, j0, n, spacing_m),
+            plains.rough.grid(i0, j0, n, spacing_m),
+        )
+        out = plains._combine(x, y, *fields) + plains._datum_m - self._ripple_mean_m
+        return out
+
+
+@dataclass(frozen=True)
+class StartSlope:
+    """A slope ``gradient`` (dh/dx, dh/dy) added about ``centre_m``: whole within
+    ``LEVEL_INNER_M``, fading (smoothstep in the distance) to nothing at ``LEVEL_OUTER_M``."""
+
+    centre_m: tuple[float, float]
+    gradient: tuple[float, float]
+
+    def at(self, x: FloatArray, y: FloatArray) -> FloatArray:
+        dx, dy = x - self.centre_m[0], y - self.centre_m[1]
+        r = np.clip((np.hypot(dx, dy) - LEVEL_INNER_M) / (LEVEL_OUTER_M - LEVEL_INNER_M), 0.0, 1.0)
+        fade = 1.0 - r * r * (3.0 - 2.0 * r)
+        out: FloatArray = (self.gradient[0] * dx + self.gradient[1] * dy) * fade
+        return out
+
 
 class SampledGround:
-    """The run's ground field (``GroundField``): map + drawn error + unresolved relief."""
+    """The run's ground field (``GroundField``): map + drawn error + unresolved relief, and
+    the slope that sets the reported tilt under the start (``StartSlope``, optional)."""
 
     def __init__(
-        self, surface: MapSurface, error: CubicGrid | None, relief: UnresolvedRelief
+        self,
+        surface: MapSurface,
+        error: CubicGrid | None,
+        relief: UnresolvedRelief,
+        start_slope: StartSlope | None = None,
     ) -> None:
         self.surface, self.error, self.relief = surface, error, relief
+        self.start_slope = start_slope
+
+    def with_start_slope(self, slope: StartSlope) -> SampledGround:
+        """The same ground with ``slope`` added (replacing any)."""
+        return SampledGround(self.surface, self.error, self.relief, slope)
 
     def map_part(self, x_m: ArrayLike, y_m: ArrayLike) -> FloatArray:
-        """The map and its drawn error, without the unresolved relief."""
+        """The map and its drawn error (and the start's slope), without the unresolved relief."""
         x, y = np.broadcast_arrays(np.asarray(x_m, np.float64), np.asarray(y_m, np.float64))
         out = self.surface.mean.at(x, y)
         if self.error is not None:
             out = out + self.error.at(x, y)
+        if self.start_slope is not None:
+            out = out + self.start_slope.at(x, y)
         return out
 
     def at(self, x_m: ArrayLike, y_m: ArrayLike) -> FloatArray:
@@ -272,7 +338,14 @@ class SampledGround:
 
     def grid(self, i0: int, j0: int, n: int, spacing_m: float) -> FloatArray:
         x, y = grid_axes(i0, j0, n, spacing_m)
-        return self.at(*np.broadcast_arrays(x, y))
+        xs, ys = x[:, 0], y[0, :]
+        out = self.surface.mean.on_axes(xs, ys)
+        if self.error is not None:
+            out = out + self.error.on_axes(xs, ys)
+        if self.start_slope is not None:
+            out = out + self.start_slope.at(*np.broadcast_arrays(x, y))
+        total: FloatArray = out + self.relief.grid(i0, j0, n, spacing_m)
+        return total
 
 
 class UnimagedRocks:
@@ -315,16 +388,40 @@ def sampled_soil(site_name: str, priors: Priors, rng: np.random.Generator) -> So
     )
 
 
-def sampled_terrain(
+@dataclass(frozen=True)
+class SampledWorld:
+    """One run's drawn world: its ground, soil, rocks and texture (``terrain`` builds it)."""
+
+    site_name: str
+    ground: SampledGround
+    soil: Soil
+    rocks: UnimagedRocks
+    texture: AlbedoTexture
+
+    def terrain(self) -> HeightmapTerrain:
+        """The world as a ``HeightmapTerrain`` (tiles built on demand)."""
+        return HeightmapTerrain(
+            self.site_name, self.soil, self.ground, self.texture, stamp=self.rocks.stamp
+        )
+
+    def with_start_slope(self, slope: StartSlope) -> SampledWorld:
+        """The world with ``slope`` added under the start (the rocks sit on the new ground)."""
+        ground = self.ground.with_start_slope(slope)
+        old = self.rocks.rocks
+        rocks = RockField(old.seed, old.population, ground=ground, cell_m=old.cell_m)
+        return replace(self, ground=ground, rocks=UnimagedRocks(rocks, self.rocks.surface))
+
+
+def sampled_world(
     site_name: str,
     gmap: GroundMapData,
     priors: Priors,
     centre_m: tuple[float, float],
     seed: int,
     rng: np.random.Generator,
-) -> HeightmapTerrain:
-    """One run's terrain (module docstring): ``seed`` (an int in [0, 2**63)) seeds the
-    site's generators (relief, rocks, albedo), ``rng`` draws the map's error and the soil;
+) -> SampledWorld:
+    """One run's world (module docstring): ``seed`` (an int in [0, 2**63)) seeds the site's
+    generators (relief, rocks, albedo), ``rng`` draws the map's error and the soil;
     ``centre_m`` the reported start (North, East, mission frame)."""
     surface = map_surface(gmap)
     error = map_error(surface, centre_m, rng)
@@ -337,4 +434,4 @@ def sampled_terrain(
         population = RockPopulation(MERIDIANI_ROCK_ABUNDANCE, d_max_m=0.5)
         albedo = MERIDIANI_ALBEDO
     rocks = UnimagedRocks(RockField(seed, population, ground=ground), surface)
-    return HeightmapTerrain(site_name, soil, ground, AlbedoTexture(seed, albedo), stamp=rocks.stamp)
+    return SampledWorld(site_name, ground, soil, rocks, AlbedoTexture(seed, albedo))
