@@ -19,7 +19,7 @@ import { bus } from "./lib/bus.js";
 import { $, el } from "./lib/dom.js";
 import {
   aqfText, byName, ellipseText, finished, p95Text, parseRequest, pct, progress, rangeText,
-  reportRows, requestBody, whenText,
+  reportRows, requestBody, utcText, whenText,
 } from "./lib/rehearsal.js";
 import { mayAct } from "./lib/roles.js";
 
@@ -156,7 +156,7 @@ function showSummary(summary, risk) {
     ? `sequence #${summary.sequence_id}` : "the editor's text";
   const warm = Number.isFinite(summary.warmup_s) ? ` · workers warmed up in ${summary.warmup_s.toFixed(1)} s` : "";
   $("rehearsal-about").textContent = `Rehearsal #${summary.id} of ${what} by ${summary.user}, `
-    + `${summary.runs} runs, seed ${summary.seed}, started ${summary.created_t_utc}${warm}`;
+    + `${summary.runs} runs, seed ${summary.seed}, started ${utcText(summary.created_t_utc)}${warm}`;
   $("rehearsal-cancel").hidden = finished(summary.state);
   markListed();
   if (risk) showRisk(risk);
@@ -294,7 +294,7 @@ async function loadList() {
   $("rehearsal-empty").textContent = r.body.length ? "" : "No rehearsals yet for this rover.";
   body.replaceChildren(...r.body.slice(0, LIST_SHOWN).map((s) => {
     const row = el("tr", { dataset: { testid: "rehearsal-listed", id: String(s.id), state: s.state }, tabIndex: 0 },
-      ...[`#${s.id}`, s.created_t_utc, s.user,
+      ...[`#${s.id}`, utcText(s.created_t_utc), s.user,
         s.sequence_id !== null && s.sequence_id !== undefined ? `sequence #${s.sequence_id}` : "editor text",
         `${s.done} / ${s.runs}`, s.state, String(s.seed)].map((t) => el("td", { textContent: t })));
     row.addEventListener("click", () => openCampaign(s));

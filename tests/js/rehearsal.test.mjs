@@ -7,7 +7,7 @@ import { SOL_S } from "../../web/lib/marstime.js";
 
 import {
   aqfText as aqfTextNb, byName as byNameNb, durationText, ellipseText, finished, ordinal, parseRequest, placeText as placeTextNb,
-  predictedBand, progress, rangeText, reportRows as reportRowsNb, requestBody, timelineBands, whenText,
+  predictedBand, progress, rangeText, reportRows as reportRowsNb, requestBody, timelineBands, utcText, whenText,
   pct as pctNb,
 } from "../../web/lib/rehearsal.js";
 
@@ -132,4 +132,11 @@ test("the timeline's bands: as predicted until the sequence runs, then moved ont
   const byId = timelineBands({ sequence_id: 5 }, risk, commands);
   assert.equal(byId.shift_s, 800);
   assert.deepEqual(timelineBands({ sequence_id: 9 }, risk, commands).shift_s, 0); // not run yet
+});
+
+test("a stored UTC time, to the second", () => {
+  assert.equal(utcText("2026-12-05T04:58:37.174705+00:00"), "2026-12-05 04:58:37 UTC");
+  assert.equal(utcText("2026-12-05T04:58:37Z"), "2026-12-05 04:58:37 UTC");
+  assert.equal(utcText(null), "—");
+  assert.equal(utcText("yesterday"), "yesterday");
 });

@@ -214,3 +214,11 @@ export function timelineBands(summary, risk, commands) {
     sequence_id: executed.sequence_id,
   };
 }
+
+/** A stored UTC time ("2026-12-05T04:58:37.174705+00:00") as "2026-12-05 04:58:37 UTC";
+ * "—" for none; a text not in that form as it is. */
+export function utcText(iso) {
+  if (!iso) return "—";
+  const m = /^(\d{4}-\d\d-\d\d)[T ](\d\d:\d\d:\d\d)/.exec(String(iso));
+  return m ? `${m[1]} ${m[2]} UTC` : String(iso);
+}
