@@ -22,6 +22,7 @@ from tests.browser.test_console_browser import (
     ARTIFACTS,
     CHROMIUM,
     LAUNCH_ARGS,
+    ROOT,
     TOKEN,
     new_token,
     open_console,
@@ -45,6 +46,9 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
         TOKEN,
         ready="/api/rovers/spirit/scene",
         three_d=True,
+        # the Dask workers (processes of their own) import the engine from this checkout,
+        # whatever checkout the environment's package was installed from
+        env_extra={"PYTHONPATH": str(ROOT)},
     ) as base:
         yield base
 
