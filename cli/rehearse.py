@@ -190,7 +190,7 @@ def run_campaign(inputs: Any, runs: int, seed: int, scheduler: str) -> dict[str,
         raise InputError("--dask-scheduler", f"cannot reach {scheduler}: {error}") from None
     progress = Progress(runs)
     try:
-        warmup_s = cluster.warm_up()
+        warmup_s = cluster.warm_up(inputs=inputs)
         campaign = Campaign(cluster, inputs, runs, seed)
         try:
             while not campaign.wait(0.25):
@@ -210,6 +210,7 @@ def run_campaign(inputs: Any, runs: int, seed: int, scheduler: str) -> dict[str,
         "done": now.done, "seed": seed, "warmup_s": warmup_s,
         "wall_s": time.monotonic() - started, "risk": risk,
         "cluster": scheduler or "embedded",
+        "workers": sorted({o.worker for o in outcomes}),
     }  # fmt: skip
 
 

@@ -61,6 +61,10 @@ SIMULATOR_HOSTS = frozenset({
 # The conductor's faults as data (what can fail, with which parameters): read only by the
 # modules that serve the conductor's fault routes, never by the ground's.
 FAULT_RECORDS = "sim.faults.records"
+FAULT_CONDUCTORS = frozenset({
+    "server.faults.service",  # hands a fault to a rover's session, lists and reveals them
+    "server.faults.api",  # the conductor's routes
+})  # fmt: skip
 # A rehearsal runs a simulator on its OWN sampled worlds, built only from what the ground
 # knows (the rover's last report, the ground's map, priors); it never touches the live session.
 # So the rehearsal package reads its plain-data inputs and outcomes freely, and names the
@@ -69,10 +73,6 @@ REHEARSAL_DATA = frozenset({"sim.rehearsal.inputs", "sim.rehearsal.outcome"})
 REHEARSAL_PACKAGE = "server.rehearsal"
 REHEARSAL_ENGINE = "sim.rehearsal.run"
 REHEARSAL_SUBMITTERS = frozenset({"server.rehearsal.cluster"})
-FAULT_CONDUCTORS = frozenset({
-    "server.faults.service",  # hands a fault to a rover's session, lists and reveals them
-    "server.faults.api",  # the conductor's routes
-})  # fmt: skip
 
 
 def truth_violations(graph: Mapping[str, set[str]]) -> list[str]:
@@ -111,6 +111,16 @@ def engine_namers(root: Path) -> list[str]:
 def test_only_the_submitting_module_names_the_rehearsal_engine() -> None:
     wrong = sorted(set(engine_namers(ROOT)) - REHEARSAL_SUBMITTERS)
     assert not wrong, f"server modules naming {REHEARSAL_ENGINE}: {wrong}"
+
+
+def test_the_check_sees_the_engine_named_outside_the_submitting_module(tmp_path: Path) -> None:
+    for name, text in (
+        ("cluster", '"sim.rehearsal.run:run_once"'),
+        ("service", "# sim.rehearsal.run"),
+    ):
+        (tmp_path / "server" / "rehearsal").mkdir(parents=True, exist_ok=True)
+        (tmp_path / "server" / "rehearsal" / f"{name}.py").write_text(text + "\n")
+    assert engine_namers(tmp_path) == ["server.rehearsal.cluster", "server.rehearsal.service"]
 
 
 def test_the_named_modules_exist() -> None:

@@ -72,7 +72,9 @@ def crop_map(ground_map: GroundMap, north_m: float, east_m: float, half_m: float
         raise ValueError(f"half_m: must be positive, got {half_m!r}")
     ny, nx = ground_map.shape
     reach = half_m / ground_map.cell_m
-    i, j = ground_map.cell_of(np.float64(north_m), np.float64(east_m))
+    i, j = ground_map.cell_of(
+        np.array(north_m, dtype=np.float64), np.array(east_m, dtype=np.float64)
+    )
 
     def span(centre: float, n: int) -> tuple[int, int]:
         lo = int(np.clip(math.floor(centre - reach), 0, n - 2))

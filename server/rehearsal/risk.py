@@ -38,7 +38,7 @@ from estimation.protection.halt import HALT_CHECKS
 from estimation.protection.keepout import KeepOutZone
 from estimation.protection.limits import MobilityLimits
 from sequences.language import parse_text
-from sim.rehearsal.inputs import AQF_NAMES, ReportedStart
+from sim.rehearsal.inputs import AQF_NAMES, RehearsalInputs, ReportedStart
 from sim.rehearsal.outcome import STATUSES, RunOutcome, StepOutcome
 
 RISK_P = 0.05
@@ -184,6 +184,15 @@ def zones_in_mission(start: ReportedStart) -> tuple[KeepOutZone, ...]:
             cx, cy = z.centre_s
             moved.append(KeepOutZone.circle(z.name, -1, cx + dn, cy + de, z.radius_m))
     return tuple(moved)
+
+
+def tilt_limit_deg_of(start: ReportedStart) -> float:
+    """The tilt limit the rover reported (``mobility.tilt_limit_rad``, set by ``SET_PARAM``),
+    deg; the flight software's default when it reported none."""
+    value = start.params.get("mobility.tilt_limit_rad")
+    if value is None or not math.isfinite(value) or value <= 0.0:
+        return TILT_LIMIT_DEG
+    return math.degrees(value)
 
 
 def _pose(points: list[tuple[float, float]]) -> dict[str, Any] | None:
@@ -373,3 +382,14 @@ def risk_table(
         path = [p for s in r.steps for p in s.path_true_m]
         paths.append(_thinned(path))
     return {"runs": len(runs), "lines": lines, "end_t_s": percentiles(ends), "paths": paths}
+
+
+def risk_table_of(inputs: RehearsalInputs, outcomes: Sequence[RunOutcome]) -> dict[str, Any]:
+    """``risk_table`` of a campaign's ``outcomes`` with what its ``inputs`` say: the
+    sequence, the reported keep-out zones (in the mission frame) and the tilt limit."""
+    return risk_table(
+        inputs.sequence_text,
+        outcomes,
+        keepout_zones_mission=zones_in_mission(inputs.start),
+        tilt_limit_deg=tilt_limit_deg_of(inputs.start),
+    )

@@ -7,7 +7,7 @@ a campaign ``queued`` and answers at once; a thread of its own then gathers the 
 (``server.rehearsal.gather``: what the ground knows), starts or joins the cluster, warms
 its workers (the start and warm-up are timed apart: ``warmup_s``), runs the campaign
 (``server.rehearsal.campaign.Campaign``), and stores its end: the risk table
-(``server.rehearsal.risk.risk_table``) and the runs' outcomes
+(``server.rehearsal.risk.risk_table_of``) and the runs' outcomes
 (``server.storage.rehearsals``). A user runs at most ``MAX_RUNNING_PER_USER`` campaigns at
 once (queued or running): one more is refused (``CampaignLimitError``). ``cancel`` stops
 one, keeping the runs finished. ``close`` (the server's shutdown) cancels every campaign
@@ -19,7 +19,6 @@ when a service starts (its server was killed) is stored so too.
 from __future__ import annotations
 
 import logging
-import math
 import threading
 import time
 import uuid
@@ -30,7 +29,7 @@ from typing import Any
 from server.errors import ConflictError, DomainError, NotFoundError
 from server.rehearsal.campaign import Campaign
 from server.rehearsal.cluster import DEFAULT_RUN, RehearsalCluster, RunRef
-from server.rehearsal.risk import risk_table, zones_in_mission
+from server.rehearsal.risk import risk_table_of
 from server.storage import rehearsals as stored
 from server.storage.store import Store
 from sim.rehearsal.inputs import RehearsalInputs
@@ -41,18 +40,13 @@ log = logging.getLogger(__name__)
 MAX_RUNNING_PER_USER = 2  # campaigns one user may have queued or running at once
 PROGRESS_STORE_S = 1.0  # the stored ``done`` is brought up to date at most this often
 PARTIAL_RISK_S = 2.0  # a running campaign's partial risk table is recomputed at most so often
-JOIN_S = 10.0  # how long ``close`` waits for a campaign's thread
+JOIN_S = 3.0  # how long ``close`` waits for the campaigns' threads (they store their runs)
 
 
 def campaign_risk(inputs: RehearsalInputs, outcomes: Sequence[RunOutcome]) -> dict[str, Any]:
-    """The risk table of a campaign's ``outcomes`` (``server.rehearsal.risk.risk_table``)
-    with the keep-out zones and the tilt limit the rover reported."""
-    limit_rad = inputs.start.params.get("mobility.tilt_limit_rad")
-    kwargs: dict[str, Any] = {}
-    if limit_rad is not None and math.isfinite(limit_rad) and limit_rad > 0.0:
-        kwargs["tilt_limit_deg"] = math.degrees(limit_rad)
-    return risk_table(inputs.sequence_text, outcomes,
-                      keepout_zones_mission=zones_in_mission(inputs.start), **kwargs)  # fmt: skip
+    """The risk table of a campaign's ``outcomes`` with the keep-out zones and the tilt limit
+    the rover reported (``server.rehearsal.risk.risk_table_of``)."""
+    return risk_table_of(inputs, outcomes)
 
 
 class CampaignLimitError(DomainError):
@@ -190,13 +184,14 @@ class RehearsalService:
         for job in jobs:
             if job.summary["state"] in stored.UNFINISHED:
                 self._cancel(job, stored.SERVER_STOPPED)
-        for job in jobs:
-            if job.thread is not None:
-                job.thread.join(JOIN_S)
-        with self._cluster_lock:
+        with self._cluster_lock:  # a warm-up waiting on a worker then ends too
             cluster, self._cluster = self._cluster, None
         if cluster is not None:
             cluster.close()
+        deadline = time.monotonic() + JOIN_S
+        for job in jobs:
+            if job.thread is not None:
+                job.thread.join(max(0.0, deadline - time.monotonic()))
         stored.stop_unfinished(self.store)  # a thread that did not end in time
 
     # ---- inside ----------------------------------------------------------------------
@@ -243,7 +238,7 @@ class RehearsalService:
             if job.cancelled is not None:
                 return
             cluster = self.cluster()
-            warmup_s = cluster.warm_up(self.run)
+            warmup_s = cluster.warm_up(self.run, inputs)
             campaign = Campaign(cluster, inputs, job.summary["runs"], job.summary["seed"],
                                 self.run, campaign_id=f"{rid}-{uuid.uuid4().hex[:8]}",
                                 start=False)  # fmt: skip
@@ -279,14 +274,14 @@ class RehearsalService:
             self._set(job, done=done)
 
     def _partial_risk(self, job: _Job, campaign: Campaign) -> dict[str, Any] | None:
-        """The risk table of the runs finished so far (recomputed at most every
-        ``PARTIAL_RISK_S``, and only when more have finished)."""
+        """The risk table of the runs finished so far (recomputed only when more have
+        finished, and then at most every ``PARTIAL_RISK_S`` once there is one)."""
         done, at, risk = job.partial
         now = time.monotonic()
-        if now - at < PARTIAL_RISK_S:
+        if risk is not None and now - at < PARTIAL_RISK_S:
             return risk
         outcomes = campaign.outcomes()
         if len(outcomes) != done and job.inputs is not None:
             risk = campaign_risk(job.inputs, outcomes) if outcomes else None
-        job.partial = (len(outcomes), now, risk)
+            job.partial = (len(outcomes), now, risk)
         return risk

@@ -24,7 +24,13 @@ position. Its ground field is the sum of
    (``RipplePlainsGround`` less its swell, less the ripples' mean);
 4. **rocks** from the site's abundance (``sim.world.rocks``, Golombek and Rapp 1997, the
    run's seed), only where the map has not imaged the ground: where it has, the stereo
-   resolved the rocks, and what it saw is in the map's heights.
+   resolved the rocks, and what it saw is in the map's heights;
+5. under the start, the slope that settles the rover at the tilt it reported
+   (``StartSlope``, set by ``sim.rehearsal.start.level_start``).
+
+Heights are the map's (the mission frame's, up): an offset common to the whole world moves
+nothing the rover senses. A tile's samples are the ground at its nodes computed separably
+(``SampledGround.grid``), bit for bit the values ``at`` gives there.
 
 The albedo is the site's texture with the run's seed (VO tracks it); the soil the site's
 nominal soil with its friction angle and cohesion drawn from the priors.
