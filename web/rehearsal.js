@@ -236,7 +236,7 @@ function showRisk(risk) {
 // ---- predicted against executed ---------------------------------------------------------
 
 function reportTable(lines, testid) {
-  const rows = reportRows(lines);
+  const rows = reportRows(lines, view.ref);
   return el("table", { className: "report-table", dataset: { testid } },
     el("thead", {}, el("tr", {}, ...["line", "figure", "executed", "where in the prediction", ""].map((t) => el("th", { textContent: t })))),
     el("tbody", {}, ...rows.map((r) => el("tr", {

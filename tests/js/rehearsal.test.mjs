@@ -91,6 +91,13 @@ test("the report's rows: one per figure, flagged outside 95 %, each place in wor
   assert.deepEqual(rows.map((r) => r.words), ["end time", "end pose (estimate)", "status"]);
   assert.equal(rows[0].place, "99th percentile");
   assert.equal(rows[1].executed, "(1.99, 0.01) m");
+  assert.equal(rows[0].executed, "1234.50 s"); // no moment to count sol and LMST from
+  const ref = { t_s: 1234.5, sol: 7, lmst_h: 13.25 };
+  assert.equal(reportRowsNb([{ line: 2, figures: [{ name: "end_t_s", executed: 1234.5 }] }], ref)[0].executed, "sol 7 13:15:00 LMST");
+  assert.deepEqual(reportRowsNb([{ line: 2, figures: [
+    { name: "imu_integration_s", executed: 66.75 }, { name: "heading_est_deg", executed: 359.84 },
+    { name: "position_sigma_m", executed: 2 }, { name: "aqf", executed: "Fine", probability: 1 }] }]).map((r) => [r.words, r.executed]),
+  [["IMU time", "66.75 s"], ["heading (estimate)", "359.84°"], ["position σ", "2 m"], ["AQF", "Fine"]]);
   assert.equal(rows[1].place, "45th percentile, d² 1.20");
   assert.equal(rows[2].place, "predicted 97 %");
   assert.equal(placeText({ name: "x", executed: null }), "—");

@@ -128,15 +128,24 @@ const FIGURE_WORDS = {
   end_true: "end pose (truth)",
   status: "status",
   max_tilt_true_deg: "max tilt (truth)",
+  heading_est_deg: "heading (estimate)",
+  aqf: "AQF",
   hga_margin_deg: "HGA margin (truth)",
 };
 
-/** What the executed figure was, in words. */
-export function executedText(figure) {
+const FIGURE_UNITS = { _s: " s", _m: " m", _deg: "°" }; // by the name's ending (SI and degrees)
+
+/** What the executed figure was, in words: a time (``..._t_s``) as sol and LMST when `ref`
+ * is known, a pose as its mission position, a number with the unit its name ends with. */
+export function executedText(figure, ref = null) {
   const x = figure.executed;
   if (x === null || x === undefined) return "—";
   if (Array.isArray(x)) return `(${x.map((v) => v.toFixed(2)).join(", ")}) m`;
-  if (typeof x === "number") return Number.isInteger(x) ? String(x) : x.toFixed(2);
+  if (typeof x === "number" && figure.name.endsWith("_t_s") && ref) return whenText(x, ref);
+  if (typeof x === "number") {
+    const unit = Object.entries(FIGURE_UNITS).find(([end]) => figure.name.endsWith(end));
+    return `${Number.isInteger(x) ? String(x) : x.toFixed(2)}${unit ? unit[1] : ""}`;
+  }
   return String(x);
 }
 
@@ -153,14 +162,14 @@ export function placeText(figure) {
 }
 
 /** The report's rows, one per figure of each line: {line, command, name, words, executed,
- * place, outside}. */
-export function reportRows(lines) {
+ * place, outside}; times as sol and LMST from `ref` ({t_s, sol, lmst_h}) when given. */
+export function reportRows(lines, ref = null) {
   return (lines || []).flatMap((l) => (l.figures || []).map((f) => ({
     line: l.line,
     command: l.command || "",
     name: f.name,
     words: FIGURE_WORDS[f.name] || f.name.replaceAll("_", " "),
-    executed: executedText(f),
+    executed: executedText(f, ref),
     place: placeText(f),
     outside: Boolean(f.outside_95),
   })));
