@@ -17,6 +17,7 @@ import "./eventlog.js";
 import "./queue.js";
 import "./comm.js";
 import "./images.js";
+import "./rehearsal.js";
 
 // The browser tests' hook (tests/browser): the bus, and the console's state (its WebSocket).
 window.roverops = { on: bus.on, emit: bus.emit, state };

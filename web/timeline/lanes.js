@@ -6,6 +6,7 @@ import { LMST_HOUR_S, lmstAt, lmstText } from "../lib/marstime.js";
 import { tickMinutes, view } from "./view.js";
 import { commLane } from "./comm.js";
 import { imageLane } from "./images.js";
+import { rehearsalLane } from "./rehearsal.js";
 
 // ---- lanes (absolutely positioned divs over the sol's span) -----------------------
 // Each element carries its LMST start and end as CSS variables (--s, --e) and the lanes
@@ -264,6 +265,7 @@ const faultLane = {
 // word after live updates (reconcile). A new lane is one more entry.
 export const LANES = {
   commands: commandLane,
+  rehearsal: rehearsalLane,
   nate: bandLane("lane-nate", "nate", "timeline-nate", "nate_modes", "nate_mode"),
   aqf: bandLane("lane-aqf", "aqf", "timeline-aqf", "aqf", "aqf"),
   events: eventLane,

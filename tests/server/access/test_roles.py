@@ -44,6 +44,8 @@ ROUTES: list[tuple[str, str, str, dict[str, Any]]] = [
     ("GET", "/api/rovers/spirit/channels", "viewer", {}),
     ("GET", "/api/rovers/spirit/channels/tilt_accel_deg", "viewer", {}),
     ("GET", "/api/rovers/spirit/scene", "viewer", {}),
+    # which rehearsal the shared 3D view draws (none here, or the view is off: 404 once allowed)
+    ("POST", "/api/rovers/spirit/scene/rehearsal", "operator", {"json": {"id": 1}}),
     ("GET", "/api/rovers/spirit/images", "viewer", {}),
     ("GET", "/api/rovers/spirit/images/1", "viewer", {}),  # none taken: 404 once allowed
     ("GET", "/api/rovers/spirit/images/1/left.png", "viewer", {}),
