@@ -46,6 +46,12 @@ ROUTES: list[tuple[str, str, str, dict[str, Any]]] = [
     ("GET", "/api/rovers/spirit/scene", "viewer", {}),
     # which rehearsal the shared 3D view draws (none here, or the view is off: 404 once allowed)
     ("POST", "/api/rovers/spirit/scene/rehearsal", "operator", {"json": {"id": 1}}),
+    # a rehearsal refused for its runs once allowed (no campaign, no cluster started here)
+    ("POST", "/api/rovers/spirit/rehearsals", "operator", {"json": {"sequence_text": "", "runs": 0}}),
+    ("GET", "/api/rovers/spirit/rehearsals", "viewer", {}),
+    ("GET", "/api/rovers/spirit/rehearsals/1", "viewer", {}),  # none: 404 once allowed
+    ("POST", "/api/rovers/spirit/rehearsals/1/cancel", "operator", {}),
+    ("GET", "/api/rovers/spirit/rehearsals/1/report", "viewer", {}),
     ("GET", "/api/rovers/spirit/images", "viewer", {}),
     ("GET", "/api/rovers/spirit/images/1", "viewer", {}),  # none taken: 404 once allowed
     ("GET", "/api/rovers/spirit/images/1/left.png", "viewer", {}),
@@ -135,7 +141,7 @@ def test_every_route_has_a_role_here(setup: tuple[TestClient, dict[str, str], bo
     listed = {(m, p) for m, p, _, _ in ROUTES} | OPEN
     templates = {"{rover}": "spirit", "{sequence_id:int}": "1", "{sol}": "0", "{name}": "victim",
                  "{path:path}": "index.html", "{channel}": "tilt_accel_deg",
-                 "{alarm_id}": "1", "{image_id}": "1"}  # fmt: skip
+                 "{alarm_id}": "1", "{image_id}": "1", "{rehearsal_id}": "1"}  # fmt: skip
     missing = []
     # iter_route_contexts opens the included routers (server.api: one per resource)
     for context in iter_route_contexts(client.app.routes):  # type: ignore[attr-defined]
