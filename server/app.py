@@ -24,6 +24,7 @@ from __future__ import annotations
 
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
+from functools import partial
 from pathlib import Path
 
 from fastapi import FastAPI
@@ -50,6 +51,7 @@ from server.faults import api as faults
 from server.images import api as images
 from server.rehearsal import api as rehearsal_api
 from server.rehearsal.service import RehearsalService
+from server.scene3d.rehearsal import show_stored
 from server.state import Server, ServerConfig
 from server.storage import data_dir_url
 from server.terrain import advice_api
@@ -84,6 +86,8 @@ def create_app(config: ServerConfig) -> FastAPI:
     app.state.server = server  # what server.api.deps.ServerDep hands the routes
     # server.rehearsal.api; the cluster starts on the first campaign
     app.state.rehearsals = RehearsalService(server.store, config.dask_scheduler)
+    if server.scenes:  # a finished campaign is drawn in its rover's 3D views at once
+        app.state.rehearsals.on_done = partial(_draw_rehearsal, server)
     app.add_middleware(AuditMiddleware, server=server)
     if config.public_read:
         document_public_reads(app)
@@ -99,3 +103,9 @@ def create_app(config: ServerConfig) -> FastAPI:
                 audit, faults, comm, images, advice_api, rehearsal_api):  # fmt: skip
         app.include_router(api.routes)
     return app
+
+
+def _draw_rehearsal(server: Server, rover: str, rehearsal_id: int) -> None:
+    """Draw a finished campaign in ``rover``'s 3D views (both, with a truth view apart)."""
+    scenes = [server.scenes.get(rover), server.truth_scenes.get(rover)]
+    show_stored(scenes, server.store, rover, rehearsal_id)

@@ -27,6 +27,7 @@ import re
 import threading
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 from distributed import Client, LocalCluster, WorkerPlugin
@@ -43,6 +44,15 @@ _ADDRESS = re.compile(r"^tcp://(?P<host>[A-Za-z0-9.\-]+|\[[0-9A-Fa-f:]+\]):(?P<p
 _REF = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_]\w*$")
 
 RunRef = str | Callable[..., Any]
+
+
+def local_worker_env() -> dict[str, str]:
+    """The embedded workers' environment: ``WORKER_ENV``, and this checkout first on their
+    import path, so that they run the engine of the code that started them (not whichever
+    copy the environment's package points at)."""
+    root = str(Path(__file__).resolve().parents[2])
+    inherited = os.environ.get("PYTHONPATH", "")
+    return {**WORKER_ENV, "PYTHONPATH": os.pathsep.join(p for p in (root, inherited) if p)}
 
 
 def validate_address(address: object) -> str:
@@ -167,7 +177,7 @@ class RehearsalCluster:
             scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
             host="127.0.0.1",
             silence_logs=logging.WARNING,
-            env=dict(WORKER_ENV),
+            env=local_worker_env(),
         )
         try:
             client: Any = _Client(cluster, set_as_default=False)

@@ -88,6 +88,8 @@ class RehearsalService:
         self._cluster: RehearsalCluster | None = None  # Dask imported when first needed
         self._cluster_lock = threading.Lock()
         self._closed = False
+        # told (rover, id) when a campaign is done: the server draws it in the 3D views
+        self.on_done: Callable[[str, int], None] | None = None
         for found in stored.stop_unfinished(store):
             log.warning("rehearsal %d: left unfinished by a stopped server: cancelled", found)
 
@@ -264,8 +266,9 @@ class RehearsalService:
             outcomes = campaign.outcomes()
             dicts = [o.as_dict() for o in outcomes]
             if progress.state == "done":
-                self._set(job, state="done", done=len(outcomes), outcomes=dicts,
-                          risk=campaign_risk(inputs, outcomes))  # fmt: skip
+                if self._set(job, state="done", done=len(outcomes), outcomes=dicts,
+                             risk=campaign_risk(inputs, outcomes)):  # fmt: skip
+                    self._tell_done(job.summary["rover"], rid)
             elif progress.state == "cancelled":  # the runs finished are kept
                 risk = campaign_risk(inputs, outcomes) if outcomes else None
                 stored.update_rehearsal(self.store, rid, done=len(outcomes), outcomes=dicts,
@@ -275,6 +278,15 @@ class RehearsalService:
         except Exception as error:  # the cluster, the inputs, the storage: said, not raised
             log.warning("rehearsal %d failed: %s", rid, error, exc_info=True)
             self._set(job, state="failed", error=f"{type(error).__name__}: {error}")
+
+    def _tell_done(self, rover: str, rid: int) -> None:
+        """``on_done``, whose failure (a 3D view that cannot draw) leaves the campaign done."""
+        if self.on_done is None:
+            return
+        try:
+            self.on_done(rover, rid)
+        except Exception as error:
+            log.warning("rehearsal %d done, not drawn: %s", rid, error, exc_info=True)
 
     def _progressed(self, job: _Job, done: int) -> None:
         now = time.monotonic()

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 import os
 import threading
+from pathlib import Path
 
 import numpy as np
 
@@ -120,3 +121,10 @@ def gated_run(inputs: RehearsalInputs, run_index: int, campaign_seed: int) -> Ru
 
         Event(GATE_EVENT).wait()
     return kinematic_run(inputs, run_index, campaign_seed)
+
+
+def sim_package_dir() -> str:
+    """Where a worker imports the ``sim`` package from."""
+    import sim
+
+    return str(Path(sim.__file__).resolve().parent)

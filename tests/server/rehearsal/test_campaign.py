@@ -184,3 +184,15 @@ def test_warm_up_without_a_warm_up_function_makes_one_throwaway_run() -> None:
     before = tasks.warmed()
     _warm_up(f"{TASKS}:kinematic_run", _inputs())  # the module's own warm_up(), no run
     assert tasks.warmed() == before + 1
+
+
+def test_embedded_workers_import_the_engine_of_this_checkout(cluster: RehearsalCluster) -> None:
+    # the environment's package may point at another copy of the repository (an editable
+    # install made elsewhere): the workers must run the code that started them
+    from pathlib import Path
+
+    import sim
+
+    here = Path(sim.__file__).resolve().parent
+    where = cluster.client.run(tasks.sim_package_dir).values()
+    assert {Path(w) for w in where} == {here}
