@@ -18,6 +18,7 @@ from collections.abc import Sequence as Seq
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+from sequences import timing
 from sequences.language import Sequence, TimeTag, parse, to_text
 from server.errors import ConflictError
 from sim.world.marsclock import sol_number_t_s, t_s_for_sol_lmst
@@ -253,19 +254,15 @@ def merged(
 
 def start_time(tag: TimeTag, mission: str, now_t_s: float, last_done_t_s: float) -> float:
     """When a step with time tag ``tag`` starts (TT s), the rover of ``mission`` at
-    ``now_t_s``, its previous command done at ``last_done_t_s``: a relative tag that long
-    after it, a sol-and-LMST tag at that moment, an LMST tag the next time the rover's LMST
-    reads it (now included), no tag now."""
-    if tag.kind == "relative":
-        return last_done_t_s + float(tag.after_s or 0.0)
-    lmst_h = float(tag.lmst_h or 0.0)
-    if tag.kind == "sol_lmst":
-        return t_s_for_sol_lmst(mission, int(tag.sol or 0), lmst_h)
-    if tag.kind == "lmst":
-        sol = int(sol_number_t_s(mission, now_t_s))
-        t = t_s_for_sol_lmst(mission, sol, lmst_h)
-        return t if t >= now_t_s - 1e-6 else t_s_for_sol_lmst(mission, sol + 1, lmst_h)
-    return now_t_s
+    ``now_t_s``, its previous command done at ``last_done_t_s`` (``sequences.timing``, on
+    the mission's clock)."""
+    return timing.start_time(
+        tag,
+        now_t_s,
+        last_done_t_s,
+        lambda t: int(sol_number_t_s(mission, t)),
+        lambda sol, lmst_h: t_s_for_sol_lmst(mission, sol, lmst_h),
+    )
 
 
 def tag_text(tag: TimeTag) -> str:

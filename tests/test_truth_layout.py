@@ -14,8 +14,9 @@ itself (a session, the world, the sensors, the scorer) only by the runtime that 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from pathlib import Path
 
-from tests.test_layout import ROOT, import_graph
+from tests.test_layout import ROOT, import_graph, modules_of
 
 GROUND_KNOWLEDGE = frozenset({
     "sim.errors",  # the simulator's input errors, raised on bad arguments
@@ -60,6 +61,14 @@ SIMULATOR_HOSTS = frozenset({
 # The conductor's faults as data (what can fail, with which parameters): read only by the
 # modules that serve the conductor's fault routes, never by the ground's.
 FAULT_RECORDS = "sim.faults.records"
+# A rehearsal runs a simulator on its OWN sampled worlds, built only from what the ground
+# knows (the rover's last report, the ground's map, priors); it never touches the live session.
+# So the rehearsal package reads its plain-data inputs and outcomes freely, and names the
+# engine (``sim.rehearsal.run``) only as a string its Dask workers import, in one module.
+REHEARSAL_DATA = frozenset({"sim.rehearsal.inputs", "sim.rehearsal.outcome"})
+REHEARSAL_PACKAGE = "server.rehearsal"
+REHEARSAL_ENGINE = "sim.rehearsal.run"
+REHEARSAL_SUBMITTERS = frozenset({"server.rehearsal.cluster"})
 FAULT_CONDUCTORS = frozenset({
     "server.faults.service",  # hands a fault to a rover's session, lists and reveals them
     "server.faults.api",  # the conductor's routes
@@ -77,6 +86,7 @@ def truth_violations(graph: Mapping[str, set[str]]) -> list[str]:
                 target in GROUND_KNOWLEDGE
                 or (target == TRUTH and importer in TRUTH_CARRIERS)
                 or (target == FAULT_RECORDS and importer in FAULT_CONDUCTORS)
+                or (target in REHEARSAL_DATA and importer.startswith(REHEARSAL_PACKAGE + "."))
                 or importer in SIMULATOR_HOSTS
             )
             if not allowed:
@@ -89,9 +99,24 @@ def test_the_ground_imports_only_ground_knowledge_of_the_simulator() -> None:
     assert not wrong, f"server modules reading the simulator: {wrong}"
 
 
+def engine_namers(root: Path) -> list[str]:
+    """The server modules whose text names the rehearsal engine's module."""
+    return sorted(
+        name
+        for name, path in modules_of(root, ("server",)).items()
+        if REHEARSAL_ENGINE in path.read_text(encoding="utf-8")
+    )
+
+
+def test_only_the_submitting_module_names_the_rehearsal_engine() -> None:
+    wrong = sorted(set(engine_namers(ROOT)) - REHEARSAL_SUBMITTERS)
+    assert not wrong, f"server modules naming {REHEARSAL_ENGINE}: {wrong}"
+
+
 def test_the_named_modules_exist() -> None:
     graph = import_graph(ROOT, ("server", "sim"))
     named = GROUND_KNOWLEDGE | TRUTH_CARRIERS | SIMULATOR_HOSTS | FAULT_CONDUCTORS
+    named |= REHEARSAL_DATA | REHEARSAL_SUBMITTERS
     missing = sorted((named | {TRUTH, FAULT_RECORDS}) - set(graph))
     assert not missing, f"the lists name modules that are gone: {missing}"
 
@@ -104,10 +129,15 @@ def test_the_check_sees_the_simulator_imported_into_validation() -> None:
         "server.runtime": {"sim.loop.session"},
         "server.faults.api": {"sim.faults.records"},
         "server.alarms": {"sim.faults.records"},
+        "server.rehearsal.risk": {"sim.rehearsal.outcome", "sim.rehearsal.inputs"},
+        "server.rehearsal.campaign": {"sim.rehearsal.run"},
+        "server.validation.rehearse": {"sim.rehearsal.outcome"},
         "sim.loop.session": {"sim.scoring.truth"},
     }
     assert truth_violations(graph) == [
         "server.alarms -> sim.faults.records",
+        "server.rehearsal.campaign -> sim.rehearsal.run",
         "server.timeline -> sim.scoring.truth",
         "server.validation.context -> sim.loop.session",
+        "server.validation.rehearse -> sim.rehearsal.outcome",
     ]

@@ -53,7 +53,7 @@ from sim.world.marsclock import utc_to_t_s
 from sim.world.places import place_patches
 from sim.world.sites import Site, make_terrain, site
 from sim.world.soil_patches import SoilMap, SoilPatch
-from sim.world.terrain import Soil
+from sim.world.terrain import Soil, Terrain
 
 if TYPE_CHECKING:  # sim.sensors.navcam.camera (numba) is imported when a pair is first rendered
     from sim.sensors.navcam.camera import NavcamPair
@@ -96,12 +96,17 @@ class Placement(TypedDict, total=False):
     x_m: float
     y_m: float
     mast_bias_sigma_deg: float
+    terrain: Terrain | None
+    start_t_s: float | None
 
 
 class RoverSim:
     """A rover at a named site, from a UTC start, reproducible from ``seed``.
 
-    ``slip=False`` makes the wheels roll ideally (no slip, creep or sinkage).
+    ``slip=False`` makes the wheels roll ideally (no slip, creep or sinkage). ``terrain``
+    replaces the site's own (``make_terrain(site_name, seed)``), its soil with it: a
+    rehearsal's sampled world (``sim.rehearsal.world``); ``start_t_s`` (TT s) replaces
+    ``start_utc`` as the start, exactly (a rehearsal starts at a report's time).
     """
 
     def __init__(
@@ -115,15 +120,19 @@ class RoverSim:
         x_m: float = 0.0,
         y_m: float = 0.0,
         mast_bias_sigma_deg: float = 0.05,
+        terrain: Terrain | None = None,
+        start_t_s: float | None = None,
     ) -> None:
         self.site: Site = site(site_name)
         self.start_xy_m = (x_m, y_m)  # where the rover was placed (the radio EKF starts there)
-        self.terrain = make_terrain(site_name, seed)
+        self.terrain = make_terrain(site_name, seed) if terrain is None else terrain
         self.lat_rad = math.radians(self.site.lat_deg)
         self.lon_east_rad = math.radians(self.site.lon_east_deg)
         self.omega_mars_ll = mars_rotation_ll(self.lat_rad)
         rng_imu, rng_encoders, rng_slip, rng_cam = np.random.default_rng(seed).spawn(4)
-        self.t_s = utc_to_t_s(start_utc)
+        if start_t_s is not None and not math.isfinite(start_t_s):
+            raise InputError("start_t_s", f"must be finite, got {start_t_s!r}")
+        self.t_s = utc_to_t_s(start_utc) if start_t_s is None else float(start_t_s)
         self.imu = Ln200Imu(imu_params or Ln200Params(), rng_imu, t_on_s=self.t_s)
         self.encoders = MobilityEncoders(EncoderParams(), rng_encoders)
         # The soil under the rover: the terrain's, with the place's patches and those a
@@ -157,6 +166,9 @@ class RoverSim:
         self.suspension_encoders = JointEncoders(JointEncoderParams(), rng_suspension)
         self._failed_wheel: str | None = None
         self.condition = FaultCondition()  # healthy until a fault is applied (sim.faults)
+        # told of every motion segment's truth as it is made (a rehearsal's record of its
+        # true traverse, sim.rehearsal.run); a halted drive's segment is made again, cut
+        self.on_segment: Callable[[Segment], None] | None = None
 
     @property
     def failed_wheel(self) -> str | None:
@@ -453,7 +465,10 @@ class RoverSim:
         totals.max_wheel_gap_m = max(totals.max_wheel_gap_m, self.drive_state.max_gap_m)
         totals.unsettled_poses += self.drive_state.unsettled_poses
         self.t_s = float(traj.t_s[-1])
-        return Segment(traj, samples, encoders)
+        seg = Segment(traj, samples, encoders)
+        if self.on_segment is not None:
+            self.on_segment(seg)
+        return seg
 
 
 def _plain(value: Any) -> Any:

@@ -49,7 +49,8 @@ class ReportedStart:
     estimate; ``aqf``, ``imu_integration_s`` and ``position_sigma_m`` (1σ, m; 0 unknown)
     as reported; ``keepout_zones``, ``params`` (NATE parameters, SI, as
     ``server.validation.reported`` rebuilds them) and ``mobility_fault`` from its events;
-    ``vo_rig`` the width of its VO Navcam pairs (256 or 1024)."""
+    ``vo_rig`` the width of its VO Navcam pairs (256 or 1024); ``gyro_counter_s`` NATE's
+    gyro counter as reported (the downlink's; 0 if unknown)."""
 
     site: str
     mission: str
@@ -65,9 +66,11 @@ class ReportedStart:
     params: dict[str, float] = field(default_factory=dict)
     mobility_fault: str | None = None
     vo_rig: int = 256
+    gyro_counter_s: float = 0.0
 
     def __post_init__(self) -> None:
         _finite("t_s", self.t_s)
+        _finite("gyro_counter_s", self.gyro_counter_s)
         q = np.asarray(self.q_b_ll_est, dtype=np.float64)
         if q.shape != (4,) or not np.all(np.isfinite(q)) or abs(np.linalg.norm(q) - 1.0) > 1e-6:
             raise ValueError(f"q_b_ll_est: must be a unit quaternion, got {self.q_b_ll_est!r}")
@@ -114,6 +117,7 @@ class ReportedStart:
             params=dict(params or {}),
             mobility_fault=mobility_fault or frame.get("mobility_fault") or None,
             vo_rig=vo_rig,
+            gyro_counter_s=float(frame.get("gyro_counter_s", 0.0) or 0.0),
         )
 
     @property
