@@ -249,6 +249,25 @@ class UnresolvedRelief:
         out = plains._combine(x, y, *fields) + plains._datum_m - self._ripple_mean_m
         return out
 
+    def grid(self, i0: int, j0: int, n: int, spacing_m: float) -> FloatArray:
+        """``at`` on a tile's nodes (``sim.world.noise.grid_axes``), bit for bit, by the
+        fields' separable ``grid`` (a tile's build: far fewer lattice look-ups)."""
+        x, y = grid_axes(i0, j0, n, spacing_m)
+        if self._hills is not None:
+            out: FloatArray = self._hills.rough.grid(i0, j0, n, spacing_m)
+            return out
+        assert self._plains is not None
+        plains = self._plains
+        fields = (
+            np.zeros((n, n)),
+            plains.bend.grid(i0, j0, n, spacing_m),
+            plains.strength.grid(i0, j0, n, spacing_m),
+            plains.rough.grid(i0, j0, n, spacing_m),
+        )
+        x, y = np.broadcast_arrays(x, y)
+        out = plains._combine(x, y, *fields) + plains._datum_m - self._ripple_mean_m
+        return out
+
 
 @dataclass(frozen=True)
 class StartSlope:
@@ -300,8 +319,9 @@ class SampledGround:
         return out
 
     def grid(self, i0: int, j0: int, n: int, spacing_m: float) -> FloatArray:
-        x, y = grid_axes(i0, j0, n, spacing_m)
-        return self.at(*np.broadcast_arrays(x, y))
+        x, y = np.broadcast_arrays(*grid_axes(i0, j0, n, spacing_m))
+        out: FloatArray = self.map_part(x, y) + self.relief.grid(i0, j0, n, spacing_m)
+        return out
 
 
 class UnimagedRocks:
