@@ -4,7 +4,7 @@ knows, then the execution it predicts, on the site's true world.
 An execution is a real ``RoverSession`` (the server's rover model, on the site's true world
 for the pair's terrain seed) placed at a random point and heading near the landing, in
 daylight (the Sun 30-65 deg up, as VO was commanded). It acquires a Fine attitude with
-``SUNCHECK_SUNGAZE`` (Ali et al. 2005, sec. 4: the heading error it leaves is the
+``GET_FINE_ATTITUDE`` (Ali et al. 2005, sec. 2.2.4: the heading error it leaves is the
 flight software's own), then drives a little (``DRIVE_STRAIGHT`` of 1-3 m without VO and
 a turn in place), so that its estimate carries an error and its position 1σ has grown
 (``estimation.protection``). Then the ground's view of it is taken, and nothing else:
@@ -190,7 +190,7 @@ def prepare(spec: PairSpec) -> Execution:
         spec.site_name, spec.seed, sun_time(rng, spec.site_name), x_m=x_m, y_m=y_m,
         yaw_rad=float(rng.uniform(-math.pi, math.pi)), frame_every_s=FRAME_EVERY_S,
     )  # fmt: skip
-    session.execute(cmd.SuncheckSungaze())
+    session.execute(cmd.GetFineAttitude())
     session.execute(cmd.DriveStraight(distance_m=float(rng.uniform(*PRE_DRIVE_M))))
     session.execute(cmd.TurnInPlace(angle_deg=float(rng.uniform(-PRE_TURN_DEG, PRE_TURN_DEG))))
     frame = session.take_frames()[-1][0]  # the last frame that came down
