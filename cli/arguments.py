@@ -96,6 +96,19 @@ def comm_mode(text: str) -> str:
     return value
 
 
+def dask_scheduler(text: str) -> str:
+    """An argparse type: a Dask scheduler's address ``tcp://host:port`` (empty: none)."""
+    import re
+
+    value = text.strip()
+    found = re.fullmatch(r"tcp://([A-Za-z0-9.\-]+|\[[0-9A-Fa-f:]+\]):(\d{1,5})", value)
+    if value and (found is None or not 1 <= int(found[2]) <= 65535):
+        raise argparse.ArgumentTypeError(
+            f"--dask-scheduler must be tcp://host:port (port 1-65535), got {text!r}"
+        )
+    return value
+
+
 def on_off(name: str) -> Callable[[str], bool]:
     """An argparse type: on/off (true/false, 1/0, yes/no)."""
 

@@ -1,7 +1,7 @@
-"""The ``roverops`` command line: ``serve``, ``ephem``, ``run``, ``validate``, ``users``,
-``faults``, ``bench`` and ``web-types``, one module each where they are more than a call
-(``cli.serve``, ``cli.validate``, ``cli.faults``, ``cli.bench``, ``cli.web_types``), their
-shared argument types in ``cli.arguments``.
+"""The ``roverops`` command line: ``serve``, ``ephem``, ``run``, ``validate``, ``rehearse``,
+``users``, ``faults``, ``bench`` and ``web-types``, one module each where they are more than a
+call (``cli.serve``, ``cli.validate``, ``cli.rehearse``, ``cli.faults``, ``cli.bench``,
+``cli.web_types``), their shared argument types in ``cli.arguments``.
 
 Every argument from outside is validated; a bad one ends the command with a one-line
 message naming the parameter and exit status 2, never a traceback.
@@ -19,6 +19,7 @@ from cli.arguments import estimator_names, finite_float, non_negative_int
 from cli.bench import add_bench
 from cli.faults import add_faults
 from cli.output import print_result
+from cli.rehearse import add_rehearse
 from cli.run_report import print_run
 from cli.serve import add_serve, add_users
 from cli.validate import add_validate
@@ -109,6 +110,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.set_defaults(handler=_cmd_run, printer=print_run)
 
     add_validate(sub)
+    add_rehearse(sub)
     add_serve(sub)
     add_users(sub)
     add_faults(sub)

@@ -10,6 +10,7 @@ from typing import Any
 
 from cli.arguments import (
     comm_mode,
+    dask_scheduler,
     database_arguments,
     database_url,
     env,
@@ -74,6 +75,13 @@ def add_serve(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         help="estimators on a new rover, comma-separated: sapp (always), kinematic_ekf, radio_ekf",
     )
     serve.add_argument(
+        "--dask-scheduler",
+        type=dask_scheduler,
+        default=env("DASK_SCHEDULER", ""),  # a string default goes through type= too
+        help="rehearsal campaigns on this running Dask scheduler (tcp://host:port; default: "
+        "an embedded cluster, one worker process per core, started on the first campaign)",
+    )
+    serve.add_argument(
         "--no-3d",
         action="store_true",
         default=env("NO_3D", "") not in ("", "0"),
@@ -123,6 +131,7 @@ def cmd_serve(args: argparse.Namespace) -> dict[str, Any]:
         viewer_3d=not args.no_3d,
         estimators=args.estimators,
         comm=args.comm,
+        dask_scheduler=args.dask_scheduler or None,
     )
     app = create_app(config)
     # A new data directory gets a local admin, its token printed this once (stored hashed:
@@ -152,6 +161,8 @@ def cmd_serve(args: argparse.Namespace) -> dict[str, Any]:
     print(f"the simulator's truth shown to: {args.truth_view}", flush=True)
     print(f"a new rover's link: {args.comm}", flush=True)
     print(f"database: {url}", flush=True)
+    cluster = args.dask_scheduler or "embedded (started on the first campaign)"
+    print(f"rehearsal campaigns on Dask: {cluster}", flush=True)
     # uvicorn shuts down gracefully on SIGINT/SIGTERM, then raises the signal again under
     # the handler it found: with Python's it would die of it (make prints "Terminated") or
     # raise KeyboardInterrupt. This handler turns it into a clean stop, exit status 0.

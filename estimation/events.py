@@ -85,7 +85,7 @@ def parameter_text(name: str, value: float | bool) -> str:
     return f"parameter {name} = {value}"
 
 
-_PARAMETER = re.compile(r"parameter (\w+) = (\S+)")
+_PARAMETER = re.compile(r"parameter ([\w.]+) = (\S+)")  # dotted: vo.rig, mobility.*
 
 
 def reported_parameter(text: str) -> tuple[str, float] | None:
@@ -94,6 +94,8 @@ def reported_parameter(text: str) -> tuple[str, float] | None:
 
     >>> reported_parameter(parameter_text("min_sun_elevation_rad", 0.1))
     ('min_sun_elevation_rad', 0.1)
+    >>> reported_parameter(parameter_text("vo.rig", 1024))
+    ('vo.rig', 1024.0)
     >>> reported_parameter("Site 1 planted") is None
     True
     """

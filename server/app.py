@@ -3,8 +3,9 @@
 This module only wires: ``create_app(config)`` makes the ``Server`` (``server.state``: the
 runtimes and where their frames go, runtime -> sinks: storage, alarms, the WebSocket hub,
 the 3D view), the middleware, and one router per resource (``server.api``: rovers,
-sequences, queue, telemetry, events, channels, alarms, viewer, users, audit; and the
-conductor's faults, ``server.faults.api``).
+sequences, queue, telemetry, events, channels, alarms, viewer, users, audit; the
+conductor's faults, ``server.faults.api``; rehearsal campaigns, ``server.rehearsal.api``,
+over the ``server.rehearsal.service`` closed at shutdown).
 
 ``roverops serve`` runs it with uvicorn. Each route needs a role
 (``server.access.accounts``: viewer, operator, conductor, admin; ``server.access.auth``):
@@ -47,6 +48,8 @@ from server.api.routing import AuthFirstRoute, allow_every_method, document_publ
 from server.comm import api as comm
 from server.faults import api as faults
 from server.images import api as images
+from server.rehearsal import api as rehearsal_api
+from server.rehearsal.service import RehearsalService
 from server.state import Server, ServerConfig
 from server.storage import data_dir_url
 from server.terrain import advice_api
@@ -61,11 +64,12 @@ def create_app(config: ServerConfig) -> FastAPI:
     server = Server.open(config)
 
     @asynccontextmanager
-    async def lifespan(_: FastAPI) -> AsyncIterator[None]:
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         server.start()
         try:
             yield
         finally:
+            app.state.rehearsals.close()  # its campaigns stored as stopped, its workers ended
             server.stop()
 
     app = FastAPI(
@@ -78,6 +82,8 @@ def create_app(config: ServerConfig) -> FastAPI:
     allow_every_method(app)
     install_error_handlers(app)  # domain errors to HTTP (server.api.deps)
     app.state.server = server  # what server.api.deps.ServerDep hands the routes
+    # server.rehearsal.api; the cluster starts on the first campaign
+    app.state.rehearsals = RehearsalService(server.store, config.dask_scheduler)
     app.add_middleware(AuditMiddleware, server=server)
     if config.public_read:
         document_public_reads(app)
@@ -90,6 +96,6 @@ def create_app(config: ServerConfig) -> FastAPI:
 
     app.mount("/static", StaticFiles(directory=WEB_DIR), name="static")
     for api in (rovers, sequences, queue, telemetry, events, channels, alarms, viewer, users,
-                audit, faults, comm, images, advice_api):  # fmt: skip
+                audit, faults, comm, images, advice_api, rehearsal_api):  # fmt: skip
         app.include_router(api.routes)
     return app

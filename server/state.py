@@ -73,6 +73,9 @@ class ServerConfig:
     # the link of a new rover (server.comm): instant, or mission (across light time); a
     # rover restored from a checkpoint keeps its own
     comm: str = "instant"
+    # rehearsal campaigns (server.rehearsal.service): a running Dask scheduler's
+    # tcp://host:port; None: an embedded cluster started on the first campaign
+    dask_scheduler: str | None = None
 
     def __post_init__(self) -> None:
         self.truth_view = check_truth_view(self.truth_view)

@@ -5,8 +5,9 @@ and each role may do all that the ones before it may:
 
 - ``viewer``: read everything (telemetry, sequences, timelines, the 3D view);
 - ``operator``: also upload and cancel sequences, send immediate commands, run the clock,
-  change a rover's comm plan, ask the VO pointing advisor;
-- ``conductor``: also the test conductor's actions (fault injection, rehearsal campaigns);
+  change a rover's comm plan, ask the VO pointing advisor, rehearse sequences (start,
+  cancel);
+- ``conductor``: also the test conductor's actions (fault injection);
 - ``admin``: also manage users and tokens, read the audit log, change a rover's comm mode.
 
 A token is 256 random bits (``secrets.token_urlsafe(32)``), shown once when issued and

@@ -1,12 +1,13 @@
 """The server's tables and how an existing database is brought up to them.
 
 ``metadata`` declares every table (sequences, commands, events, frames, images,
-checkpoints, users, tokens, the audit log, alarms and their limits); ``upgrade_schema`` adds,
-when a database is opened, the columns and indexes this version declares and an older database
-lacks, so it keeps working (a column added this way must be nullable or have a
-``server_default``), and ``server.storage.migrate`` then moves the data of an older layout.
-Events stored before events had a kind and severity read back as ``LEGACY_KIND`` /
-``LEGACY_SEVERITY`` (``event_dict``).
+checkpoints, users, tokens, the audit log, alarms and their limits, rehearsal campaigns);
+``upgrade_schema`` adds, when a database is opened, the columns and indexes this version
+declares and an older database lacks (``create_all`` the tables it lacks), so it keeps
+working (a column added this way must be nullable or have a ``server_default``), and
+``server.storage.migrate`` then moves the data of an older layout. Events stored before
+events had a kind and severity read back as ``LEGACY_KIND`` / ``LEGACY_SEVERITY``
+(``event_dict``).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from typing import Any
 
 from sqlalchemy import (
     JSON,
+    BigInteger,
     Boolean,
     Column,
     DateTime,
@@ -101,6 +103,28 @@ events = Table(
     # on the ground then, across light time (server.comm); null: as it was made
     Column("received_t_s", Double, nullable=True),
     Index("ix_events_rover_t", "rover", "t_s"),
+)
+
+# Rehearsal campaigns (server.rehearsal.service; queries in server.storage.rehearsals): one
+# row per campaign, its risk table as JSON and its run outcomes as zlib-compressed JSON.
+rehearsals_table = Table(
+    "rehearsals",
+    metadata,
+    Column("id", Integer, primary_key=True, autoincrement=True),
+    Column("rover", String(64), nullable=False, index=True),
+    Column("user", String(64), nullable=False),
+    Column("state", String(16), nullable=False),  # queued, running, done, cancelled, failed
+    Column("runs", Integer, nullable=False),
+    Column("done", Integer, nullable=False, default=0),
+    Column("seed", BigInteger, nullable=False),  # 0 .. 2**63 - 1
+    Column("sequence_id", Integer, nullable=True),
+    Column("sequence_text", Text, nullable=False),
+    Column("created_at", DateTime(timezone=True), nullable=False, default=now_utc),
+    Column("finished_at", DateTime(timezone=True), nullable=True),
+    Column("warmup_s", Double, nullable=True),
+    Column("error", Text, nullable=True),
+    Column("risk", JSON, nullable=True),
+    Column("outcomes_z", LargeBinary, nullable=True),
 )
 
 # The rover's downlink records (sim.loop.downlink), one row each: ``t_s`` and ``sol`` (what the
