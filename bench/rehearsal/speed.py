@@ -68,17 +68,20 @@ def timed_campaign(
 
 
 def speed_metrics(
+    cluster: RehearsalCluster,
     runs: int = SPEED_RUNS,
     speedup_runs: int = SPEEDUP_RUNS,
     drive_m: float = SPEED_DRIVE_M,
     nice: int = 0,
 ) -> dict[str, Any]:
-    """The speed figures (module docstring)."""
+    """The speed figures (module docstring) on ``cluster``, a new embedded cluster of two
+    workers (its start is the warm-up's), and one of one worker niced by ``nice``."""
+    if cluster.slots() != 2:
+        raise ValueError(f"cluster: must have 2 worker slots, has {cluster.slots()}")
     inputs = speed_inputs(drive_m)
-    with RehearsalCluster.local(2, nice=nice) as cluster:
-        warmup_s = cluster.warm_up()
-        wall_s, run_walls = timed_campaign(cluster, inputs, runs, seed=1)
-        wall_2_s, _ = timed_campaign(cluster, inputs, speedup_runs, seed=2)
+    warmup_s = cluster.warm_up()
+    wall_s, run_walls = timed_campaign(cluster, inputs, runs, seed=1)
+    wall_2_s, _ = timed_campaign(cluster, inputs, speedup_runs, seed=2)
     with RehearsalCluster.local(1, nice=nice) as single:
         single.warm_up()
         wall_1_s, _ = timed_campaign(single, inputs, speedup_runs, seed=2)
