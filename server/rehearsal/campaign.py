@@ -1,20 +1,22 @@
 """A rehearsal campaign: N runs of a sequence on a Dask cluster, their progress, cancel.
 
-``Campaign(cluster, inputs, runs, seed)`` scatters the ``RehearsalInputs`` to every worker
-once (``client.scatter(..., broadcast=True)``: each run gets the future, not a pickled copy)
-and submits one task per run, keyed by the campaign's id and the run's index. A run is
+``Campaign(cluster, inputs, runs, seed)`` starts a thread of its own (``start`` returns at
+once): it warms the workers not yet warmed (``RehearsalCluster.warm_up``; the campaign is
+``queued`` meanwhile), scatters the ``RehearsalInputs`` to every worker once
+(``client.scatter(..., broadcast=True)``: each run gets the future, not a pickled copy) and
+submits one task per run, keyed by the campaign's id and the run's index. A run is
 ``run(inputs, run_index, campaign_seed) -> RunOutcome`` (default the engine's ``run_once``,
 ``cluster.DEFAULT_RUN``: named by a string and resolved on the worker); it draws
 everything it samples from its index and the campaign's seed, so the outcomes do not depend
 on the number of workers or on the order runs finish in.
 
-A watcher thread gathers the runs as they finish. ``progress()`` gives the runs done, the
-total, an ETA and the state (``queued`` before ``start``, ``running``, ``done``,
-``cancelled``, ``failed``). A run that raises fails the campaign with its error (the other
+The same thread then gathers the runs as they finish. ``progress()`` gives the runs done,
+the total, an ETA and the state (``queued`` until the runs are submitted, ``running``,
+``done``, ``cancelled``, ``failed``). A run that raises fails the campaign with its error (the other
 runs are cancelled); ``cancel()`` cancels what has not finished and keeps what has;
 ``outcomes()`` are the finished runs sorted by index. Every method may be called from any
-thread; ``on_progress`` callbacks run on the watcher thread, after each finished run and at
-the end.
+thread; ``on_progress`` callbacks run on the campaign's thread, when the runs are
+submitted, after each finished run and at the end.
 """
 
 from __future__ import annotations
@@ -80,7 +82,7 @@ def _check_int(name: str, value: object, lo: int, hi: int) -> int:
 class Campaign:
     """One campaign (module docstring). ``runs`` 1-``MAX_RUNS``, ``seed`` 0-2**63-1; ``run``
     a function or a ``"module:function"`` the workers can import; ``start=False`` leaves it
-    ``queued`` until ``start()``."""
+    ``queued`` until ``start()``; ``warm=False`` skips the workers' warm-up."""
 
     def __init__(
         self,
@@ -92,6 +94,7 @@ class Campaign:
         *,
         campaign_id: str | None = None,
         start: bool = True,
+        warm: bool = True,
     ) -> None:
         if not isinstance(inputs, RehearsalInputs):
             raise ValueError(f"inputs: must be RehearsalInputs, got {type(inputs).__name__}")
@@ -101,6 +104,7 @@ class Campaign:
         self.cluster = cluster
         self.inputs = inputs
         self.run = run
+        self.warm = warm
         self.id = campaign_id or uuid.uuid4().hex[:12]
         self._lock = threading.Lock()
         self._finished = threading.Event()
@@ -118,35 +122,14 @@ class Campaign:
 
     # --- control -------------------------------------------------------------------
     def start(self) -> None:
-        """Scatter the inputs and submit the runs (once; later calls do nothing)."""
+        """Launch the campaign on its own thread (once; later calls do nothing): warm the
+        workers not yet warmed (``RehearsalCluster.warm_up``, while ``queued``), scatter
+        the inputs, submit the runs (``running``), then gather them as they finish."""
         with self._lock:
-            if self._state != "queued":
+            if self._state != "queued" or self.started_at_s is not None:
                 return
-            self._state = "running"
             self.started_at_s = time.monotonic()
-        client: Any = self.cluster.client
-        try:
-            self._slots = self.cluster.slots()
-            inputs_future = client.scatter(self.inputs, broadcast=True, hash=False)
-            futures = [
-                client.submit(
-                    _run_task, self.run, inputs_future, i, self.seed,
-                    key=f"rehearsal-{self.id}-{i}", pure=False, priority=-i,
-                )
-                for i in range(self.total)
-            ]  # fmt: skip
-        except Exception as exc:  # the cluster is gone or refuses the work
-            self._finish("failed", f"submitting the runs: {type(exc).__name__}: {exc}")
-            return
-        with self._lock:
-            self._inputs_future = inputs_future
-            self._futures = futures
-            cancelled = self._state != "running"
-        if cancelled:  # cancel() came while submitting
-            client.cancel(futures)
-            self._release()
-            return
-        threading.Thread(target=self._watch, name=f"rehearsal-{self.id}", daemon=True).start()
+        threading.Thread(target=self._launch, name=f"rehearsal-{self.id}", daemon=True).start()
 
     def cancel(self) -> Progress:
         """Cancel the runs not finished; those finished are kept. No effect once over."""
@@ -154,14 +137,15 @@ class Campaign:
             if self._state in FINAL_STATES:
                 return self._progress_locked()
             futures = list(self._futures)
+        self._finish("cancelled", None)  # first: the watcher then takes no cancelled run as lost
         if futures:
             self.cluster.client.cancel(futures)
-        self._finish("cancelled", None)
         return self.progress()
 
     def on_progress(self, callback: Callable[[Progress], None]) -> None:
-        """Call ``callback(progress)`` after each finished run and once at the end (on the
-        watcher thread: keep it short; its exceptions are logged, not raised)."""
+        """Call ``callback(progress)`` when the runs are submitted, after each finished run and
+        once at the end (on the campaign's thread: keep it short; its exceptions are logged,
+        not raised)."""
         with self._lock:
             self._callbacks.append(callback)
 
@@ -205,10 +189,40 @@ class Campaign:
             eta_s = -(-left // max(1, min(self._slots, left))) * mean_wall_s
         return Progress(done, self.total, eta_s, self._state, self._error)
 
-    def _watch(self) -> None:
-        futures = self._futures
+    def _launch(self) -> None:
+        client: Any = self.cluster.client
         try:
-            for future in _as_completed(futures):
+            if self.warm:
+                self.cluster.warm_up(self.run, self.inputs)
+            if self.state in FINAL_STATES:  # cancelled while warming
+                return
+            self._slots = self.cluster.slots()
+            inputs_future = client.scatter(self.inputs, broadcast=True, hash=False)
+            futures = [
+                client.submit(
+                    _run_task, self.run, inputs_future, i, self.seed,
+                    key=f"rehearsal-{self.id}-{i}", pure=False, priority=-i,
+                )
+                for i in range(self.total)
+            ]  # fmt: skip
+        except Exception as exc:  # the cluster is gone, refuses the work, or warm-up failed
+            self._finish("failed", f"starting the runs: {type(exc).__name__}: {exc}")
+            return
+        with self._lock:
+            cancelled = self._state in FINAL_STATES
+            if not cancelled:
+                self._state = "running"
+                self._inputs_future = inputs_future
+                self._futures = futures
+        if cancelled:  # cancel() came while submitting
+            client.cancel(futures)
+            return
+        self._notify()
+        self._watch(futures)
+
+    def _watch(self, futures: list[Future[RunOutcome]]) -> None:
+        try:
+            for future in _as_completed(futures, loop=self.cluster.client.loop):
                 if self.state in FINAL_STATES:
                     break
                 status = future.status

@@ -13,8 +13,9 @@ A run function is named by a reference string, ``"module:function"``
 (``DEFAULT_RUN`` is the engine's ``sim.rehearsal.run:run_once``), resolved on the worker:
 the server names the engine only by that string and never imports it. Warm-up
 (``warm_up``) submits one task per worker that imports the run's module and calls its
-``warm_up()`` when it has one (compiling the Numba kernels once), and is timed apart from
-the runs: ``start_s`` (the cluster's start), ``warmup_s`` (start and warm-up together).
+``warm_up()`` when it has one, else makes one throwaway run of the campaign's inputs (so
+that the Numba kernels are compiled or loaded once per worker, before the runs), and is timed
+apart from the runs: ``start_s`` (the cluster's start), ``warmup_s`` (start and warm-up).
 """
 
 from __future__ import annotations
@@ -116,15 +117,17 @@ class NicePlugin(WorkerPlugin):
         renice_process(self.increment)
 
 
-def _warm_up(run: RunRef) -> float:
-    """On a worker: import the run's module and call its ``warm_up()`` if it has one;
-    returns the seconds it took."""
+def _warm_up(run: RunRef, inputs: Any = None) -> float:
+    """On a worker: import the run's module and call its ``warm_up()`` if it has one, else,
+    given the campaign's ``inputs``, make one throwaway run of them (index 0, seed 0: it
+    compiles whatever the runs use); returns the seconds it took."""
     t0 = time.perf_counter()
     fn = resolve_run(run)
-    module = importlib.import_module(fn.__module__)
-    warm = getattr(module, "warm_up", None)
+    warm = getattr(importlib.import_module(fn.__module__), "warm_up", None)
     if callable(warm):
         warm()
+    elif inputs is not None:
+        fn(inputs, 0, 0)
     return time.perf_counter() - t0
 
 
@@ -160,6 +163,9 @@ class RehearsalCluster:
             threads_per_worker=1,
             processes=True,
             dashboard_address=None,
+            # its health routes on a free local port, not on 8787 (no dashboard either way)
+            scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+            host="127.0.0.1",
             silence_logs=logging.WARNING,
             env=dict(WORKER_ENV),
         )
@@ -199,10 +205,13 @@ class RehearsalCluster:
         """How many runs can go at once: the workers' threads (at least 1)."""
         return max(1, int(sum(self.client.nthreads().values())))
 
-    def warm_up(self, run: RunRef = DEFAULT_RUN, *, timeout_s: float | None = None) -> float:
-        """Warm every worker not yet warmed (module docstring) and return ``warmup_s``:
-        the cluster's start plus the warm-up's wall time, measured once (later calls warm
-        only workers that joined since and return the first figure)."""
+    def warm_up(
+        self, run: RunRef = DEFAULT_RUN, inputs: Any = None, *, timeout_s: float | None = None
+    ) -> float:
+        """Warm every worker not yet warmed (``_warm_up``: ``inputs`` for a throwaway run when
+        the run's module has no ``warm_up()``) and return ``warmup_s``: the cluster's start
+        plus the warm-up's wall time, measured once (later calls warm only workers that
+        joined since and return the first figure)."""
         with self._lock:
             todo = [w for w in self.workers() if w not in self._warmed]
             if not todo:
@@ -210,7 +219,7 @@ class RehearsalCluster:
             t0 = time.perf_counter()
             futures = [
                 self.client.submit(
-                    _warm_up, run, workers=[w], allow_other_workers=False, pure=False,
+                    _warm_up, run, inputs, workers=[w], allow_other_workers=False, pure=False,
                     key=f"rehearsal-warmup-{w}-{time.time_ns()}",
                 )
                 for w in todo

@@ -47,7 +47,7 @@ def percentile_of(x: float, values: Iterable[float]) -> float | None:
 
 
 def _outside(percentile: float | None) -> bool:
-    return percentile is not None and not OUTSIDE_LOW_PCT <= percentile <= OUTSIDE_HIGH_PCT
+    return bool(percentile is not None and not OUTSIDE_LOW_PCT <= percentile <= OUTSIDE_HIGH_PCT)
 
 
 def _ordinal(pct: float) -> str:
@@ -56,11 +56,11 @@ def _ordinal(pct: float) -> str:
     return f"{n}{suffix}"
 
 
-def _finite_or_none(x: Any) -> float | None:
+def _finite_or_none(x: Any, name: str) -> float | None:
     if x is None:
         return None
     if isinstance(x, bool) or not isinstance(x, int | float):
-        raise ValueError(f"must be a number or null, got {x!r}")
+        raise ValueError(f"{name}: must be a number or null, got {x!r}")
     return float(x) if math.isfinite(x) else None
 
 
@@ -75,14 +75,14 @@ def _point(x: Any, name: str) -> tuple[float, float] | None:
 
 
 def _scalar(name: str, executed: Any, runs: Iterable[float]) -> dict[str, Any]:
-    value = _finite_or_none(executed)
+    value = _finite_or_none(executed, name)
     pct = percentile_of(value, runs) if value is not None else None
     return {"name": name, "executed": value, "percentile": pct, "outside_95": _outside(pct)}
 
 
 def _heading(executed: Any, runs_rad: list[float]) -> dict[str, Any]:
     """The heading, deg, placed after unwrapping everything around the runs' circular mean."""
-    value = _finite_or_none(executed)
+    value = _finite_or_none(executed, "heading_est_rad")
     h = np.asarray([x for x in runs_rad if math.isfinite(x)], dtype=np.float64)
     if value is None or h.size == 0:
         shown = math.degrees(value) % 360.0 if value is not None else None
@@ -109,7 +109,7 @@ def _heading(executed: Any, runs_rad: list[float]) -> dict[str, Any]:
 def _pose(
     name: str, executed: Any, fit: Mapping[str, Any] | None, runs: list[tuple[float, float]]
 ) -> dict[str, Any]:
-    point = _point(executed, name)
+    point = _point(executed, {"end_est": "p_mission_est_m", "end_true": "p_mission_true_m"}[name])
     out: dict[str, Any] = {
         "name": name,
         "executed": list(point) if point else None,
@@ -126,7 +126,7 @@ def _pose(
     own = [min(x, 1e300) for x in own]
     out["mahalanobis2"] = m2 if math.isfinite(m2) else None
     out["percentile"] = percentile_of(min(m2, 1e300), own)
-    out["outside_95"] = m2 > chi2_2dof_k2(0.95)
+    out["outside_95"] = bool(m2 > chi2_2dof_k2(0.95))
     return out
 
 
@@ -134,7 +134,12 @@ def _category(name: str, executed: Any, shares: Mapping[str, float]) -> dict[str
     if executed is None:
         return {"name": name, "executed": None, "probability": None, "outside_95": False}
     p = float(shares.get(str(executed), 0.0))
-    return {"name": name, "executed": str(executed), "probability": p, "outside_95": p < OUTSIDE_P}
+    return {
+        "name": name,
+        "executed": str(executed),
+        "probability": p,
+        "outside_95": bool(p < OUTSIDE_P),
+    }
 
 
 def _flag(line: int, fig: Mapping[str, Any]) -> str | None:
