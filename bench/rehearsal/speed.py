@@ -11,7 +11,10 @@ Dask cluster, its warm-up apart, and what a second worker gains.
   ``WARMUP_DRIVE_M`` VO drive unless the engine has a ``warm_up()`` of its own).
 - ``dask_speedup_2_workers``: the wall time of a ``speedup_runs``-run campaign of the same
   drive on one worker over that of the same campaign (same seed: the same runs) on two.
-  ``rehearsal_run_median_s``: the median of the runs' own wall times on two workers.
+  ``rehearsal_run_median_s``: the median of the runs' own wall times on two workers;
+  ``rehearsal_run_in_process_s`` and ``rehearsal_run_in_process_cpu_s`` the wall and CPU
+  time of one run in the bench's own process, before the cluster works (the CPU time is
+  what a run costs when other work shares the cores).
 
 The rover's report is a Gusev rover's after the calibration's pre-drive (``bench.rehearsal.
 pairs.prepare``: Fine attitude, a short drive and a turn), its map the ground's.
@@ -29,10 +32,13 @@ import statistics
 import time
 from typing import Any
 
+import numba
+
 from bench.rehearsal.pairs import pair_specs, prepare
 from server.rehearsal.campaign import Campaign
 from server.rehearsal.cluster import DEFAULT_RUN, RehearsalCluster
 from sim.rehearsal.inputs import RehearsalInputs
+from sim.rehearsal.run import run_once
 
 SPEED_DRIVE_M = 20.0
 SPEED_RUNS = 100
@@ -82,6 +88,15 @@ def speed_metrics(
         raise ValueError(f"cluster: must have 2 worker slots, has {cluster.slots()}")
     inputs = speed_inputs(drive_m)
     warm_inputs = speed_inputs(WARMUP_DRIVE_M)
+    threads = numba.get_num_threads()
+    numba.set_num_threads(1)  # as a worker runs it
+    try:
+        run_once(warm_inputs, 0, 0)  # this process's kernels loaded
+        wall, cpu = time.perf_counter(), time.process_time()
+        run_once(inputs, 0, 0)
+        wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    finally:
+        numba.set_num_threads(threads)
     warmup_s = cluster.warm_up(DEFAULT_RUN, warm_inputs)
     wall_s, run_walls = timed_campaign(cluster, inputs, runs, seed=1)
     wall_2_s, _ = timed_campaign(cluster, inputs, speedup_runs, seed=2)
@@ -100,4 +115,6 @@ def speed_metrics(
         "dask_1_worker_wall_s": wall_1_s,
         "dask_2_workers_wall_s": wall_2_s,
         "rehearsal_workers_nice": nice,
+        "rehearsal_run_in_process_s": wall,
+        "rehearsal_run_in_process_cpu_s": cpu,
     }
