@@ -111,7 +111,7 @@ def pair_specs(n: int, lengths_m: tuple[float, float] = SEQUENCE_M) -> list[Pair
                 seed=1000 + k,
                 kind=("straight", "arc")[(k // 4) % 2],
                 length_m=float(rng.uniform(*lengths_m)),
-                vo=(k // 2) % 2 == 0,
+                vo=k % 4 in (0, 3),  # each site with VO and without, every 4 pairs
             )
         )
     return specs

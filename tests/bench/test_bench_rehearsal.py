@@ -56,6 +56,7 @@ def test_the_figures_make_sense(quick: dict[str, Any]) -> None:
     assert m["ws_p99_during_campaign_ms"] >= m["ws_p50_during_campaign_ms"] > 0.0
     pairs = quick["details"]["pairs"]
     assert [p["site"] for p in pairs] == ["gusev", "meridiani"]
+    assert [p["vo"] for p in pairs] == [True, False]
     for p in pairs:
         assert p["runs"] == 3 and p["executed"]
         assert p["in_95"] == (p["mahalanobis2"] <= -2.0 * math.log(0.05))
