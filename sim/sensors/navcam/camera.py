@@ -102,7 +102,6 @@ MAX_RANGE_LIMIT_M = 100.0  # beyond this the sampled grid gets too big (memory, 
 ANALYTIC_GRID_SPACING_M = 0.05  # grid for terrains without a lattice (the heightmap's own)
 COARSE_FLOOR_STEP_M = 0.5  # spacing of the first look at the terrain's lowest point
 FLOOR_MARGIN_M = 1.0  # the terrain may dip this far below the coarse samples' minimum
-FLOOR_PASSES = 6  # passes lowering the floor to the region the view reaches (_sample_grid)
 SHADOW_RISE_M = 3.0  # occluders up to this much above a visible point cast their shadow
 SHADOW_REACH_MAX_M = 20.0  # ... but the grid reaches at most this far towards the Sun
 MAX_GRID_SAMPLES = 8_000_000  # 3 float64 arrays of this size: ~200 MB; far above normal use
@@ -395,22 +394,17 @@ def _sample_grid(
         spacing = ANALYTIC_GRID_SPACING_M
     dirs = _frustum_directions_s(rig, R_s_cam)
     eyes = np.array(eyes_s)
-    # The floor and the reach depend on each other. Start from the ground under the eyes and
-    # lower the floor until the coarse samples over the region the edge rays reach lie at
-    # least FLOOR_MARGIN_M above it: the guarantee of a floor taken over the whole range,
-    # over the region the view can show, without sampling (and building) the terrain out to
-    # max_range_m where the view meets the ground nearer.
-    floor_m = _coarse_floor_m(terrain, eyes)
-    for _ in range(FLOOR_PASSES):
-        pts = _edge_reach_s(eyes, dirs, floor_m, max_range_m)
-        lower = _coarse_floor_m(terrain, pts)
-        if lower >= floor_m:
-            break
-        floor_m = lower
-    else:  # still lowering: the floor over the whole range, which always holds
-        far = (eyes[:, None, :] + max_range_m * dirs[None, :, :]).reshape(-1, 3)
-        floor_m = min(floor_m, _coarse_floor_m(terrain, np.vstack([eyes, far])))
-        pts = _edge_reach_s(eyes, dirs, floor_m, max_range_m)
+    far = (eyes[:, None, :] + max_range_m * dirs[None, :, :]).reshape(-1, 3)
+    floor_m = _coarse_floor_m(terrain, np.vstack([eyes, far]))
+    descent = dirs[:, 2]  # the Site's z is Down: positive for a ray going down
+    going_down = descent > 0.0
+    points = [eyes]
+    for eye in eyes:
+        to_floor = np.full(len(dirs), np.inf)
+        to_floor[going_down] = (-eye[2] - floor_m) / descent[going_down]
+        reach = np.minimum(max_range_m, to_floor)
+        points.append(eye + reach[:, None] * dirs)
+    pts = np.vstack(points)
     lo = pts[:, :2].min(axis=0)
     hi = pts[:, :2].max(axis=0)
     sun_xy = sun_s[:2]
@@ -433,22 +427,6 @@ def _sample_grid(
         y = ((j0 + np.arange(nj, dtype=np.int64)) * spacing).astype(np.float64)
         heights = np.asarray(terrain.height_m(x[:, None], y[None, :]), dtype=np.float64)
     return HeightGrid.from_heights(heights, float(i0 * spacing), float(j0 * spacing), spacing)
-
-
-def _edge_reach_s(
-    eyes: FloatArray, dirs: FloatArray, floor_m: float, max_range_m: float
-) -> FloatArray:
-    """The eyes and where each edge ray from them reaches ``max_range_m`` or, going down,
-    the level ``floor_m`` (m, up), whichever is nearer (Site points)."""
-    descent = dirs[:, 2]  # the Site's z is Down: positive for a ray going down
-    going_down = descent > 0.0
-    points = [eyes]
-    for eye in eyes:
-        to_floor = np.full(len(dirs), np.inf)
-        to_floor[going_down] = (-eye[2] - floor_m) / descent[going_down]
-        reach = np.minimum(max_range_m, to_floor)
-        points.append(eye + reach[:, None] * dirs)
-    return np.vstack(points)
 
 
 def _heightmap_samples(terrain: HeightmapTerrain, i0: int, j0: int, ni: int, nj: int) -> FloatArray:
