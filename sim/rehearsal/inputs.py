@@ -173,11 +173,15 @@ class Priors:
     from the slip model's own randomness. ``heading_sigma_deg_by_aqf``: 1σ of the start
     heading around the reported one, per Attitude Quality Flag (the downlink's spelling;
     approximate: Fine is good enough to point the HGA, Coarse complete but crude, TiltOnly and
-    Unknown know nothing of heading: Ali et al. 2005, sec. 2.1)."""
+    Unknown know nothing of heading: Ali et al. 2005, sec. 2.1). ``position_sigma_scale``:
+    the start position's 1σ per axis as a multiple of the reported one (the onboard
+    uncertainty is a budget along its worst direction, ``estimation.protection.position_sigma``,
+    not a measured spread)."""
 
     friction_sigma_deg: float = 2.0
     cohesion_sigma_kpa: float = 0.3
     mast_bias_sigma_deg: float = 0.05
+    position_sigma_scale: float = 1.0
     heading_sigma_deg_by_aqf: tuple[tuple[str, float], ...] = (
         ("Fine", 0.35),
         ("Coarse", 1.0),
@@ -186,7 +190,12 @@ class Priors:
     )
 
     def __post_init__(self) -> None:
-        for name in ("friction_sigma_deg", "cohesion_sigma_kpa", "mast_bias_sigma_deg"):
+        for name in (
+            "friction_sigma_deg",
+            "cohesion_sigma_kpa",
+            "mast_bias_sigma_deg",
+            "position_sigma_scale",
+        ):
             value = getattr(self, name)
             _finite(name, value)
             if value < 0.0:

@@ -5,7 +5,8 @@ where it is. One run draws its truth around the report:
 
 - the position (mission frame, North and East) from an isotropic 2-D Gaussian about the
   reported estimate with the reported 1σ (``position_sigma_m``, the onboard uncertainty of
-  ``estimation.protection.position_sigma``; 0: exactly the estimate);
+  ``estimation.protection.position_sigma``; 0: exactly the estimate), times
+  ``Priors.position_sigma_scale``;
 - the heading from a Gaussian about the reported one with the 1σ the priors give the reported
   Attitude Quality Flag (``Priors.heading_sigma_rad``; Ali et al. 2005, sec. 2.1);
 - the tilt from the terrain: the rover is settled on the sampled ground at that position and
@@ -77,7 +78,7 @@ def heading_of(q_b_ll: NDArray[np.float64] | tuple[float, ...]) -> float:
 def sample_start(start: ReportedStart, priors: Priors, rng: np.random.Generator) -> TrueStart:
     """The true start drawn around ``start`` (module docstring). Draws three normals."""
     z = rng.standard_normal(3)
-    sigma = start.position_sigma_m
+    sigma = start.position_sigma_m * priors.position_sigma_scale
     north = start.p_mission_est[0] + sigma * float(z[0])
     east = start.p_mission_est[1] + sigma * float(z[1])
     yaw = heading_of(start.q_b_ll_est) + priors.heading_sigma_rad(start.aqf) * float(z[2])

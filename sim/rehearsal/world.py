@@ -24,7 +24,13 @@ position. Its ground field is the sum of
    (``RipplePlainsGround`` less its swell, less the ripples' mean);
 4. **rocks** from the site's abundance (``sim.world.rocks``, Golombek and Rapp 1997, the
    run's seed), only where the map has not imaged the ground: where it has, the stereo
-   resolved the rocks, and what it saw is in the map's heights.
+   resolved the rocks, and what it saw is in the map's heights;
+5. under the start, the slope that settles the rover at the tilt it reported
+   (``StartSlope``, set by ``sim.rehearsal.start.level_start``).
+
+Heights are the map's (the mission frame's, up): an offset common to the whole world moves
+nothing the rover senses. A tile's samples are the ground at its nodes computed separably
+(``SampledGround.grid``), bit for bit the values ``at`` gives there.
 
 The albedo is the site's texture with the run's seed (VO tracks it); the soil the site's
 nominal soil with its friction angle and cohesion drawn from the priors.
@@ -101,41 +107,41 @@ class CubicGrid:
         padded = np.pad(np.asarray(values, dtype=np.float64), 2, mode="edge")
         return cls(float(north0_m), float(east0_m), float(cell_m), padded)
 
+    def _axis(
+        self, coord_m: FloatArray, origin_m: float, size: int
+    ) -> tuple[NDArray[np.int64], tuple[FloatArray, FloatArray, FloatArray, FloatArray]]:
+        """The first of the four samples about each coordinate, and their weights."""
+        g = np.clip((coord_m - origin_m) / self.cell_m + 2.0, 1.0, size - 3.0)
+        f = np.floor(g)
+        return f.astype(np.int64) - 1, _keys_weights(g - f)
+
     def at(self, x_m: FloatArray, y_m: FloatArray) -> FloatArray:
+        """The interpolant at points (broadcast): along x first, then along y."""
         ni, nj = self.values.shape
-        gi = (x_m - self.north0_m) / self.cell_m + 2.0
-        gj = (y_m - self.east0_m) / self.cell_m + 2.0
-        gi = np.clip(gi, 1.0, ni - 3.0)
-        gj = np.clip(gj, 1.0, nj - 3.0)
-        fi, fj = np.floor(gi), np.floor(gj)
-        wi, wj = _keys_weights(gi - fi), _keys_weights(gj - fj)
-        i0, j0 = fi.astype(np.int64) - 1, fj.astype(np.int64) - 1
-        out = np.zeros(np.shape(gi))
-        for a in range(4):
-            row = np.zeros(np.shape(gi))
-            for b in range(4):
-                row = row + wj[b] * self.values[i0 + a, j0 + b]
-            out = out + wi[a] * row
+        i0, wi = self._axis(x_m, self.north0_m, ni)
+        j0, wj = self._axis(y_m, self.east0_m, nj)
+        out = np.zeros(np.shape(i0))
+        for b in range(4):
+            col = np.zeros(np.shape(i0))
+            for a in range(4):
+                col = col + wi[a] * self.values[i0 + a, j0 + b]
+            out = out + wj[b] * col
         return out
 
-    def grid_at(self, x_m: FloatArray, y_m: FloatArray) -> FloatArray:
-        """``at`` on the grid ``x_m`` (n,) by ``y_m`` (m,), shape (n, m), bit for bit: the
-        inner sum over ``b`` of ``at`` is made once per lattice row the grid needs (a tile
-        at 5 cm crosses a few dozen rows of a 25 cm map), then the outer sum over ``a``
-        takes those rows in ``at``'s order."""
+    def on_axes(self, xs_m: FloatArray, ys_m: FloatArray) -> FloatArray:
+        """``at`` on the grid ``xs_m`` (n,) by ``ys_m`` (m,), (n, m), separably: the same
+        operations per point, so the same values bit for bit."""
         ni, nj = self.values.shape
-        gi = np.clip((x_m - self.north0_m) / self.cell_m + 2.0, 1.0, ni - 3.0)
-        gj = np.clip((y_m - self.east0_m) / self.cell_m + 2.0, 1.0, nj - 3.0)
-        fi, fj = np.floor(gi), np.floor(gj)
-        wi, wj = _keys_weights(gi - fi), _keys_weights(gj - fj)
-        i0, j0 = fi.astype(np.int64) - 1, fj.astype(np.int64) - 1
-        lo, hi = int(i0.min()), int(i0.max()) + 3
-        rows = np.zeros((hi - lo + 1, len(y_m)))
-        for b in range(4):
-            rows = rows + wj[b][None, :] * self.values[lo : hi + 1][:, j0 + b]
-        out = np.zeros((len(x_m), len(y_m)))
+        i0, wi = self._axis(xs_m, self.north0_m, ni)
+        j0, wj = self._axis(ys_m, self.east0_m, nj)
+        lo, hi = int(j0.min()), int(j0.max()) + 4
+        sub = self.values[:, lo:hi]
+        rows = np.zeros((xs_m.size, hi - lo))
         for a in range(4):
-            out = out + wi[a][:, None] * rows[i0 - lo + a]
+            rows = rows + wi[a][:, None] * sub[i0 + a]
+        out = np.zeros((xs_m.size, ys_m.size))
+        for b in range(4):
+            out = out + wj[b][None, :] * rows[:, j0 - lo + b]
         return out
 
 
@@ -270,21 +276,19 @@ class UnresolvedRelief:
         return out
 
     def grid(self, i0: int, j0: int, n: int, spacing_m: float) -> FloatArray:
-        """``at`` on a tile's nodes (``sim.world.noise.grid_axes``), bit for bit, by the
-        fields' separable ``grid`` (a tile's build: far fewer lattice look-ups)."""
-        x, y = grid_axes(i0, j0, n, spacing_m)
+        """``at`` on a tile's grid, by the generators' separable ``grid`` (``GroundField``)."""
         if self._hills is not None:
             out: FloatArray = self._hills.rough.grid(i0, j0, n, spacing_m)
             return out
         assert self._plains is not None
         plains = self._plains
+        x, y = grid_axes(i0, j0, n, spacing_m)
         fields = (
             np.zeros((n, n)),
             plains.bend.grid(i0, j0, n, spacing_m),
             plains.strength.grid(i0, j0, n, spacing_m),
             plains.rough.grid(i0, j0, n, spacing_m),
         )
-        x, y = np.broadcast_arrays(x, y)
         out = plains._combine(x, y, *fields) + plains._datum_m - self._ripple_mean_m
         return out
 
@@ -339,16 +343,15 @@ class SampledGround:
         return out
 
     def grid(self, i0: int, j0: int, n: int, spacing_m: float) -> FloatArray:
-        """``at`` on a tile's nodes, bit for bit, by the map's and the relief's grids."""
-        xc, yr = grid_axes(i0, j0, n, spacing_m)
-        out = self.surface.mean.grid_at(xc[:, 0], yr[0, :])  # map_part's sums, in its order
+        x, y = grid_axes(i0, j0, n, spacing_m)
+        xs, ys = x[:, 0], y[0, :]
+        out = self.surface.mean.on_axes(xs, ys)
         if self.error is not None:
-            out = out + self.error.grid_at(xc[:, 0], yr[0, :])
-        x, y = np.broadcast_arrays(xc, yr)
+            out = out + self.error.on_axes(xs, ys)
         if self.start_slope is not None:
-            out = out + self.start_slope.at(x, y)
-        grid: FloatArray = out + self.relief.grid(i0, j0, n, spacing_m)
-        return grid
+            out = out + self.start_slope.at(*np.broadcast_arrays(x, y))
+        total: FloatArray = out + self.relief.grid(i0, j0, n, spacing_m)
+        return total
 
 
 class UnimagedRocks:

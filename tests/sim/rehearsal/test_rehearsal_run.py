@@ -118,3 +118,16 @@ def test_thinned_path_keeps_its_ends_and_spacing() -> None:
     thin = thinned_path(p)
     assert np.array_equal(thin[0], p[0]) and np.array_equal(thin[-1], p[-1])
     assert np.allclose(np.diff(thin[:-1, 0]), 0.25, atol=0.006)
+
+
+def test_an_hga_pass_at_an_lmst_tag_gives_its_margins() -> None:
+    from sim.world.marsclock import MISSIONS, lmst_h_from_t_s
+
+    text = "SEQUENCE t\n@ 13:00 LMST HGA_PASS duration_min=5\n"
+    (step,) = run_once(RehearsalInputs(report(), plane_map(), text), 0, 1).steps
+    assert step.status == "completed"
+    lmst = float(lmst_h_from_t_s(step.start_t_s, MISSIONS["spirit"].lon_west_deg))
+    assert abs(lmst - 13.0) < 1e-6 and step.start_t_s > report().t_s
+    assert abs(step.end_t_s - step.start_t_s - 300.0) < 1e-6
+    assert 0.0 < step.hga_margin_deg <= 2.0  # a Fine attitude keeps the HGA in its 2 deg beam
+    assert 0.0 < step.hga_margin_predicted_deg < step.hga_margin_deg

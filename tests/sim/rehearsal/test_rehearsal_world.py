@@ -86,3 +86,17 @@ def test_soil_drawn_around_the_site_nominal(ground_map: GroundMapData) -> None:
     ]
     assert abs(np.mean(frictions) - 35.0) < 1.0  # GUSEV_SOIL, 2 deg 1σ: mean within 3σ/√40
     assert 1.0 < np.std(frictions) < 3.0
+
+
+def test_ground_grid_equals_at_on_its_nodes(ground_map: GroundMapData) -> None:
+    """The ``GroundField`` contract, bit for bit (tiles agree on their shared edges), with the
+    start's slope, on and off the map's edge, on both sites' relief."""
+    from sim.rehearsal.world import StartSlope
+    from sim.world.noise import grid_axes
+
+    for site in ("gusev", "meridiani"):
+        world = sampled_world(site, ground_map, Priors(), (0.0, 0.0), 3, np.random.default_rng(0))
+        ground = world.ground.with_start_slope(StartSlope((1.0, 2.0), (0.05, -0.02)))
+        for i0, j0 in ((0, 0), (-400, 160), (300, -500)):
+            x, y = np.broadcast_arrays(*grid_axes(i0, j0, 41, 0.05))
+            assert np.array_equal(ground.grid(i0, j0, 41, 0.05), ground.at(x, y))
