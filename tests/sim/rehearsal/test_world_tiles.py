@@ -26,7 +26,7 @@ def test_the_map_grid_is_the_map_at_its_nodes() -> None:
     for i0, j0, n in ((0, 0, 161), (-97, 130, 41), (400, -400, 20)):  # inside, edges, outside
         x, y = grid_axes(i0, j0, n, 0.05)
         bx, by = np.broadcast_arrays(x, y)
-        assert np.array_equal(grid.grid_at(x[:, 0], y[0, :]), grid.at(bx, by))
+        assert np.array_equal(grid.on_axes(x[:, 0], y[0, :]), grid.at(bx, by))
 
 
 def test_a_sampled_tile_is_the_ground_at_its_nodes() -> None:
