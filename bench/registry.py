@@ -66,6 +66,10 @@ BENCHES: dict[str, Bench] = {
         "bench.comm.report:bench_comm",
         "across light time: light time, passes and data volume, gaps, kills mid-pass",
     ),
+    "rehearsal": Bench(
+        "bench.rehearsal:bench_rehearsal",
+        "rehearsals: calibration against executions, campaign speed on Dask, live rovers beside",
+    ),
     "fuzz": Bench(
         "bench.fuzz:bench_fuzz",
         "the API fuzzed from its OpenAPI (schemathesis) and the sequence-language fuzzer",
