@@ -47,7 +47,7 @@ ROUTES: list[tuple[str, str, str, dict[str, Any]]] = [
     # which rehearsal the shared 3D view draws (none here, or the view is off: 404 once allowed)
     ("POST", "/api/rovers/spirit/scene/rehearsal", "operator", {"json": {"id": 1}}),
     # a rehearsal refused for its runs once allowed (no campaign, no cluster started here)
-    ("POST", "/api/rovers/spirit/rehearsals", "operator", {"json": {"sequence_text": "", "runs": 0}}),
+    ("POST", "/api/rovers/spirit/rehearsals", "operator", {"json": {"runs": 0}}),
     ("GET", "/api/rovers/spirit/rehearsals", "viewer", {}),
     ("GET", "/api/rovers/spirit/rehearsals/1", "viewer", {}),  # none: 404 once allowed
     ("POST", "/api/rovers/spirit/rehearsals/1/cancel", "operator", {}),
