@@ -21,8 +21,8 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from fastapi import HTTPException, Request
 from fastapi import Path as PathParam
+from fastapi import Request
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, ConfigDict, Field
 from starlette.concurrency import run_in_threadpool
@@ -188,7 +188,7 @@ async def start_rehearsal(
             lambda: runtime_inputs(runtime, server.store, text),
         )  # fmt: skip
     except CampaignLimitError as error:
-        raise HTTPException(429, str(error)) from None
+        return JSONResponse({"detail": str(error)}, status_code=429)
     request.state.audit_action = f"rehearse a sequence on {rover} (#{summary['id']})"
     return JSONResponse(RehearsalSummary(**summary).model_dump(), status_code=202)
 
