@@ -13,7 +13,9 @@ where it is. One run draws its truth around the report:
   ``min(1, σ_ψ / f)`` of it across (``D ≈ σ / f``): a fifth for a Fine heading, the whole for
   a heading not known (isotropic). Measured on 24 executions of a 3 m drive on both sites, the
   true start error lay along track (Meridiani's sand: 0.09-0.15 m behind the estimate for a
-  reported 0.093 m), which an isotropic draw spreads over both axes;
+  reported 0.093 m), which an isotropic draw spreads over both axes. Where the priors hold
+  the site's measured odometry error (``Priors.odometry_error_by_site``: the rover behind its
+  estimate by a share of σ, with a spread along and across), the draw is that instead;
 - the heading from a Gaussian about the reported one with the 1σ the priors give the reported
   Attitude Quality Flag (``Priors.heading_sigma_rad``; Ali et al. 2005, sec. 2.1);
 - the tilt from the terrain: the rover is settled on the sampled ground at that position and
@@ -92,8 +94,14 @@ def sample_start(start: ReportedStart, priors: Priors, rng: np.random.Generator)
     fraction = float(
         start.params.get("mobility.odometry_sigma_fraction", LIMITS.odometry_sigma_fraction)
     )
-    across = sigma * min(1.0, heading_sigma / fraction) if fraction > 0.0 else sigma
-    along_m, across_m = sigma * float(z[0]), across * float(z[1])
+    measured = priors.odometry_error(start.site)
+    if measured is not None:  # the site's measured odometry error (Priors)
+        mean, along, across = measured
+        along_m = sigma * (mean + along * float(z[0]))
+        across_m = sigma * across * float(z[1])
+    else:  # the onboard budget
+        across = sigma * min(1.0, heading_sigma / fraction) if fraction > 0.0 else sigma
+        along_m, across_m = sigma * float(z[0]), across * float(z[1])
     north = start.p_mission_est[0] + along_m * math.cos(heading) - across_m * math.sin(heading)
     east = start.p_mission_est[1] + along_m * math.sin(heading) + across_m * math.cos(heading)
     yaw = heading + heading_sigma * float(z[2])

@@ -41,11 +41,28 @@ def test_a_zero_sigma_start_is_the_estimate() -> None:
     true = sample_start(start, Priors(), np.random.default_rng(2))
     assert true.p_mission_m == (0.5, 0.2)
     assert abs(true.yaw_rad - heading_of(start.q_b_ll_est)) < math.radians(0.35 * 5)
+    budget = Priors(odometry_error_by_site=())  # the onboard budget: 1σ along the heading
     spread = [
-        sample_start(report(position_sigma_m=0.5), Priors(), np.random.default_rng(s)).p_mission_m
+        sample_start(report(position_sigma_m=0.5), budget, np.random.default_rng(s)).p_mission_m
         for s in range(200)
     ]
     assert 0.4 < float(np.std(np.array(spread)[:, 0])) < 0.6
+    assert abs(float(np.mean(np.array(spread)[:, 0])) - 0.5) < 0.1
+
+
+def test_a_site_s_measured_odometry_error_puts_the_start_behind_the_estimate() -> None:
+    # heading North: along track is North (x), across is East (y)
+    priors = Priors(odometry_error_by_site=(("gusev", -1.5, 0.5, 0.25),))
+    starts = np.array([
+        sample_start(report(position_sigma_m=0.2), priors, np.random.default_rng(s)).p_mission_m
+        for s in range(400)
+    ])  # fmt: skip
+    along, across = starts[:, 0] - 0.5, starts[:, 1] - 0.2
+    assert abs(float(np.mean(along)) - (-1.5 * 0.2)) < 0.015  # 5 standard errors
+    assert 0.085 < float(np.std(along)) < 0.115 and 0.04 < float(np.std(across)) < 0.06
+    # a scenario place is judged by the site it lies in; a site not listed keeps the budget
+    assert priors.odometry_error("gusev") == priors.odometry_error("gusev:anywhere")
+    assert priors.odometry_error("meridiani") is None
 
 
 def test_nate_starts_at_the_report(ground_map: GroundMapData) -> None:
