@@ -41,6 +41,7 @@ from numpy.typing import NDArray
 
 from sequences import commands as cmd
 from sequences.language import parse
+from server.rehearsal.gather import crop_map
 from server.rehearsal.risk import gaussian_fit, inside_ellipse, mahalanobis2
 from server.terrain.feed import GROUND_HALF_M
 from server.terrain.service import GroundMapService
@@ -131,26 +132,9 @@ def sun_time(rng: np.random.Generator, site_name: str) -> datetime:
 
 def map_data(service: GroundMapService, north_m: float, east_m: float) -> GroundMapData:
     """The ground's map cut to ``MAP_HALF_M`` around (``north_m``, ``east_m``), mission
-    frame, as the plain data a rehearsal takes."""
-    gmap = service.ground_map()
-    ny, nx = gmap.height_m.shape
-    reach = MAP_HALF_M / gmap.cell_m
-    ci = (north_m - gmap.north0_m) / gmap.cell_m
-    cj = (east_m - gmap.east0_m) / gmap.cell_m
-    i0 = int(np.clip(math.floor(ci - reach), 0, ny - 2))
-    i1 = int(np.clip(math.ceil(ci + reach) + 1, i0 + 2, ny))
-    j0 = int(np.clip(math.floor(cj - reach), 0, nx - 2))
-    j1 = int(np.clip(math.ceil(cj + reach) + 1, j0 + 2, nx))
-    cut = (slice(i0, i1), slice(j0, j1))
-    return GroundMapData(
-        north0_m=float(gmap.north0_m + i0 * gmap.cell_m),
-        east0_m=float(gmap.east0_m + j0 * gmap.cell_m),
-        cell_m=float(gmap.cell_m),
-        height_m=np.array(gmap.height_m[cut], dtype=np.float64),
-        sigma_m=np.array(gmap.sigma_m[cut], dtype=np.float64),
-        albedo=np.array(gmap.albedo[cut], dtype=np.float64),
-        imaged=np.array(gmap.imaged[cut], dtype=np.bool_),
-    )
+    frame, as the plain data a rehearsal takes (the server's own cut,
+    ``server.rehearsal.gather.crop_map``)."""
+    return crop_map(service.ground_map(), north_m, east_m, MAP_HALF_M)
 
 
 def true_mission_ne(session: RoverSession) -> tuple[float, float]:
